@@ -1,0 +1,1 @@
+//! belief (scaffold, being written).

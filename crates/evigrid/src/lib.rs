@@ -1,0 +1,1 @@
+//! evigrid (scaffold, being written).

@@ -1,0 +1,1 @@
+//! sim (scaffold, being written).
