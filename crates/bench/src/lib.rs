@@ -1,0 +1,388 @@
+//! The `evigrid bench` harness: how fast one fusion step is, against named baselines.
+//!
+//! A perception grid is only useful if it keeps up with the sensor. This crate measures, in one
+//! process and on one machine state, the library's step against two baselines:
+//! - [`copy`]: the memory floor, a STREAM-like pass over exactly the bytes one step reads and
+//!   writes;
+//! - [`naive`]: SPEC §5 written plainly (array of structs, dense loops over all pairs of focal
+//!   sets), checked against the library before it is timed.
+//!
+//! The key design decision: every case runs once per *round*, and rounds repeat after a warm-up,
+//! so each ratio is a median of per-round ratios taken moments apart: a noisy neighbour slows
+//! both sides of a ratio alike.
+//!
+//! ```
+//! use evigrid_bench::{BenchOptions, run};
+//!
+//! let options = BenchOptions { sizes: vec![32], rounds: 2, ..BenchOptions::default() };
+//! let report = run(&options, |_| {}).expect("a bench without real data needs none");
+//! assert!(report.windows[0].ratio("copy/step").is_some());
+//! ```
+
+pub mod copy;
+pub mod naive;
+pub mod real;
+pub mod workload;
+
+use evigrid::{Params, PerceptionGrid};
+use serde::Serialize;
+use std::time::Instant;
+
+/// What to measure.
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    /// Window sizes, in cells per side. By default 200 and 1000 (issue 5).
+    pub sizes: Vec<usize>,
+    /// Timed rounds after one warm-up round. By default 7.
+    pub rounds: usize,
+    /// Rounds in which the naive step runs (it is ~100× slower). By default 3.
+    pub naive_rounds: usize,
+    /// The real inputs for `sensor`, `prior` and `frame`; `None` skips those cases.
+    pub real: Option<real::RealInputs>,
+    /// Cell size for the real-data cases, metres. By default 0.2.
+    pub cell_size_m: f64,
+}
+
+impl Default for BenchOptions {
+    fn default() -> Self {
+        BenchOptions {
+            sizes: vec![200, 1000],
+            rounds: 7,
+            naive_rounds: 3,
+            real: None,
+            cell_size_m: 0.2,
+        }
+    }
+}
+
+/// Errors of a bench run.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BenchError {
+    /// A size or round count of zero.
+    #[error("invalid bench option: {0}")]
+    InvalidOption(String),
+    /// The library's step and the naive step disagree: the timing would compare different work.
+    #[error("the naive step differs from the library's by {difference} (tolerance 1e-5)")]
+    NaiveDisagrees {
+        /// Largest absolute difference found.
+        difference: f32,
+    },
+    /// Real inputs could not be prepared.
+    #[error(transparent)]
+    Real(#[from] real::RealError),
+    /// The thread pool could not be built.
+    #[error("cannot build a thread pool: {0}")]
+    ThreadPool(String),
+}
+
+/// One timed case on one window size.
+#[derive(Clone, Debug, Serialize)]
+pub struct CaseTiming {
+    /// Case name: `copy`, `naive`, `step`, `sensor`, `prior`, `frame`, with `@1` (one thread) or
+    /// `@N` (all N threads).
+    pub case: String,
+    /// Median milliseconds per run.
+    pub median_ms: f64,
+    /// Cells per second at the median.
+    pub cells_per_second: f64,
+}
+
+/// All cases on one window size.
+#[derive(Clone, Debug, Serialize)]
+pub struct WindowReport {
+    /// Cells per side.
+    pub size: usize,
+    /// Cells in the window.
+    pub cells: usize,
+    /// Threads of the "all threads" cases.
+    pub threads: usize,
+    /// Bytes one step reads plus writes (the copy floor's traffic).
+    pub bytes_moved_per_step: usize,
+    /// Bytes of state per window cell: PerceptionGrid + SensorGrid + GisGrid (independent of the
+    /// drive's length).
+    pub state_bytes_per_cell: f64,
+    /// The timings.
+    pub timings: Vec<CaseTiming>,
+    /// Paired ratios: median over rounds of `time(a) / time(b)`.
+    pub ratios: Vec<(String, f64)>,
+}
+
+impl WindowReport {
+    /// The ratio with this name (`"copy/step"`, `"naive/step"`, …).
+    pub fn ratio(&self, name: &str) -> Option<f64> {
+        self.ratios.iter().find(|(n, _)| n == name).map(|(_, r)| *r)
+    }
+
+    /// The timing of one case.
+    pub fn timing(&self, case: &str) -> Option<&CaseTiming> {
+        self.timings.iter().find(|t| t.case == case)
+    }
+}
+
+/// A bench run.
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchReport {
+    /// One report per window size.
+    pub windows: Vec<WindowReport>,
+    /// Largest difference between the naive step and the library's on random cells.
+    pub naive_max_difference: f32,
+}
+
+/// Runs the bench. `progress` receives a short description of each round as it starts.
+///
+/// # Errors
+/// Invalid options, a naive step that disagrees with the library, or real inputs that cannot be
+/// read.
+pub fn run(options: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport, BenchError> {
+    if options.sizes.contains(&0) || options.rounds == 0 {
+        return Err(BenchError::InvalidOption(
+            "sizes and rounds must be positive".into(),
+        ));
+    }
+    let params = Params::default();
+    let naive_max_difference = workload::max_difference_after_steps(&params, 256, 20, 11);
+    if naive_max_difference.is_nan() || naive_max_difference >= 1e-5 {
+        return Err(BenchError::NaiveDisagrees {
+            difference: naive_max_difference,
+        });
+    }
+    let one_thread = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| BenchError::ThreadPool(e.to_string()))?;
+    let threads = rayon::current_num_threads();
+    let mut windows = Vec::new();
+    for &size in &options.sizes {
+        let mut cases = Cases::new(size, &params, options, threads)?;
+        let mut rounds: Vec<Vec<(String, f64)>> = Vec::new();
+        for round in 0..=options.rounds {
+            progress(&format!("{size}×{size}: round {round}/{}", options.rounds));
+            let with_naive = round >= 1 && round <= options.naive_rounds;
+            let times = cases.round(&one_thread, with_naive)?;
+            if round > 0 {
+                rounds.push(times);
+            }
+        }
+        windows.push(cases.report(&rounds));
+    }
+    Ok(BenchReport {
+        windows,
+        naive_max_difference,
+    })
+}
+
+/// The state every case of one window size works on.
+struct Cases<'a> {
+    size: usize,
+    threads: usize,
+    params: &'a Params,
+    pg: PerceptionGrid,
+    sg: evigrid::SensorGrid,
+    gg: evigrid::GisGrid,
+    naive: naive::NaiveGrid,
+    floor: copy::CopyFloor,
+    real: Option<real::RealCases>,
+}
+
+impl<'a> Cases<'a> {
+    fn new(
+        size: usize,
+        params: &'a Params,
+        options: &BenchOptions,
+        threads: usize,
+    ) -> Result<Self, BenchError> {
+        let mut rng = workload::SplitMix64::new(size as u64);
+        let sg = workload::random_sensor_grid(size, size, &mut rng);
+        let gg = workload::random_gis_grid(size, size, &mut rng);
+        let pg = PerceptionGrid::new(size, size);
+        let naive = naive::NaiveGrid::from_perception(&pg);
+        let real = match &options.real {
+            Some(inputs) => Some(real::RealCases::new(inputs, size, options.cell_size_m)?),
+            None => None,
+        };
+        Ok(Cases {
+            size,
+            threads,
+            params,
+            pg,
+            sg,
+            gg,
+            naive,
+            floor: copy::CopyFloor::new(size * size),
+            real,
+        })
+    }
+
+    /// Runs every case once; returns (case, seconds).
+    fn round(
+        &mut self,
+        one_thread: &rayon::ThreadPool,
+        with_naive: bool,
+    ) -> Result<Vec<(String, f64)>, BenchError> {
+        let n = self.threads;
+        let mut times = Vec::new();
+        let size = self.size;
+        let (pg, sg, gg, params) = (&mut self.pg, &self.sg, &self.gg, self.params);
+        let floor = &mut self.floor;
+        times.push(("copy@1".into(), one_thread.install(|| time(|| floor.run(size)))));
+        times.push((format!("copy@{n}"), time(|| floor.run(size))));
+        times.push((
+            "step@1".into(),
+            one_thread.install(|| time(|| evigrid::step(pg, sg, gg, params, 0.1))),
+        ));
+        times.push((format!("step@{n}"), time(|| evigrid::step(pg, sg, gg, params, 0.1))));
+        if with_naive {
+            let naive = &mut self.naive;
+            times.push(("naive@1".into(), time(|| naive.step(sg, gg, params, 0.1))));
+        }
+        if let Some(real) = &mut self.real {
+            times.extend(real.round(one_thread, n)?);
+        }
+        Ok(times)
+    }
+
+    fn report(&self, rounds: &[Vec<(String, f64)>]) -> WindowReport {
+        let cells = self.size * self.size;
+        let mut names: Vec<String> = Vec::new();
+        for (name, _) in rounds.iter().flatten() {
+            if !names.contains(name) {
+                names.push(name.clone());
+            }
+        }
+        let timings = names
+            .iter()
+            .map(|name| {
+                let seconds = median(rounds.iter().filter_map(|r| lookup(r, name)).collect());
+                CaseTiming {
+                    case: name.clone(),
+                    median_ms: seconds * 1e3,
+                    cells_per_second: cells as f64 / seconds,
+                }
+            })
+            .collect();
+        let n = self.threads;
+        let pairs = [
+            ("copy/step@1", "copy@1".to_string(), "step@1".to_string()),
+            (
+                "copy/step@N",
+                format!("copy@{n}"),
+                format!("step@{n}"),
+            ),
+            ("naive/step@1", "naive@1".into(), "step@1".into()),
+            ("step@1/step@N", "step@1".into(), format!("step@{n}")),
+            (
+                "(sensor+prior)/step@1",
+                "sensor+prior@1".into(),
+                "step@1".into(),
+            ),
+            ("frame@N/copy@N", format!("frame@{n}"), format!("copy@{n}")),
+        ];
+        let ratios = pairs
+            .iter()
+            .filter_map(|(label, a, b)| {
+                let per_round: Vec<f64> = rounds
+                    .iter()
+                    .filter_map(|r| Some(lookup(r, a)? / lookup(r, b)?))
+                    .collect();
+                (!per_round.is_empty()).then(|| (label.to_string(), median(per_round)))
+            })
+            .collect();
+        let floor = &self.floor;
+        WindowReport {
+            size: self.size,
+            cells,
+            threads: n,
+            bytes_moved_per_step: floor.bytes_moved(),
+            state_bytes_per_cell: state_bytes(&self.pg, &self.sg, &self.gg) as f64 / cells as f64,
+            timings,
+            ratios,
+        }
+    }
+}
+
+/// Bytes the three grids of the pipeline hold.
+fn state_bytes(pg: &PerceptionGrid, sg: &evigrid::SensorGrid, gg: &evigrid::GisGrid) -> usize {
+    let pg_planes: usize = (0..evigrid::grids::N_SETS)
+        .map(|set| std::mem::size_of_val(pg.plane(set)))
+        .sum();
+    pg_planes
+        + std::mem::size_of_val(pg.zeta())
+        + std::mem::size_of_val(pg.conflict_fo())
+        + std::mem::size_of_val(pg.conflict_of())
+        + std::mem::size_of_val(pg.seen())
+        + std::mem::size_of_val(sg.m_free.as_slice())
+        + std::mem::size_of_val(sg.m_occupied.as_slice())
+        + std::mem::size_of_val(gg.context.as_slice())
+}
+
+fn lookup(round: &[(String, f64)], name: &str) -> Option<f64> {
+    round.iter().find(|(n, _)| n == name).map(|(_, t)| *t)
+}
+
+/// Seconds one call of `f` takes.
+pub fn time<R>(f: impl FnOnce() -> R) -> f64 {
+    let start = Instant::now();
+    std::hint::black_box(f());
+    start.elapsed().as_secs_f64()
+}
+
+/// Median of a non-empty list (mean of the middle two for an even count); NaN for an empty one.
+pub fn median(mut values: Vec<f64>) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    values.sort_by(f64::total_cmp);
+    let mid = values.len() / 2;
+    if values.len() % 2 == 0 {
+        (values[mid - 1] + values[mid]) / 2.0
+    } else {
+        values[mid]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_of_odd_and_even_counts() {
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(vec![4.0, 1.0, 2.0, 3.0]), 2.5);
+        assert!(median(vec![]).is_nan());
+    }
+
+    #[test]
+    fn a_small_run_reports_every_synthetic_case_and_ratio() -> Result<(), BenchError> {
+        let options = BenchOptions {
+            sizes: vec![48],
+            rounds: 2,
+            naive_rounds: 1,
+            ..BenchOptions::default()
+        };
+        let report = run(&options, |_| {})?;
+        let window = &report.windows[0];
+        for case in ["copy@1", "step@1", "naive@1"] {
+            assert!(window.timing(case).is_some(), "missing {case}");
+        }
+        for ratio in ["copy/step@1", "naive/step@1", "step@1/step@N"] {
+            let value = window.ratio(ratio);
+            assert!(value.is_some_and(|r| r > 0.0), "{ratio}: {value:?}");
+        }
+        // 32 mass planes, ζ, ∅_FO, ∅_OF (4 B each), seen (1 B); SensorGrid 8 B; GisGrid 1 B.
+        assert_eq!(window.state_bytes_per_cell, 150.0);
+        Ok(())
+    }
+
+    #[test]
+    fn zero_sizes_are_rejected() {
+        let options = BenchOptions {
+            sizes: vec![0],
+            ..BenchOptions::default()
+        };
+        assert!(matches!(
+            run(&options, |_| {}),
+            Err(BenchError::InvalidOption(_))
+        ));
+    }
+}

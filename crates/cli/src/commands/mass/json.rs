@@ -1,0 +1,280 @@
+//! Reading and writing mass functions as JSON, and the `--table` form for people.
+//!
+//! Input: `{"frame": ["a", "b"], "mass": [{"set": ["a"], "m": 0.2}, {"set": ["a", "b"], "m": 0.8}]}`,
+//! `[]` being the empty set. Output uses the same shape, focal sets in increasing bitmask order,
+//! every f64 printed to full (round-trip) precision, zeros omitted.
+
+use std::io::Read;
+use std::path::Path;
+
+use anyhow::Context;
+use belief::{BeliefError, Frame, Mass, Set, SetFunction};
+use serde::ser::{Serialize, SerializeMap, Serializer};
+use serde::Deserialize;
+
+use crate::exit::BadInput;
+
+/// One input file as written by the user.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MassFile {
+    frame: Vec<String>,
+    mass: Vec<FocalEntry>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FocalEntry {
+    set: Vec<String>,
+    m: f64,
+}
+
+/// A mass function read from a file, with the name to use in messages.
+#[derive(Debug)]
+pub struct Input {
+    /// The path as given, or `<stdin>` for `-`.
+    pub label: String,
+    /// The mass function.
+    pub mass: Mass<f64>,
+}
+
+/// Reads and checks one input; `-` is standard input. Every problem is a [`BadInput`] naming the
+/// file.
+pub fn read_input(path: &Path) -> anyhow::Result<Input> {
+    let (label, text) = if path == Path::new("-") {
+        let mut text = String::new();
+        std::io::stdin()
+            .read_to_string(&mut text)
+            .map_err(|e| BadInput::new(format!("<stdin>: cannot read: {e}")))?;
+        ("<stdin>".to_owned(), text)
+    } else {
+        let label = path.display().to_string();
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| BadInput::new(format!("{label}: cannot read: {e}")))?;
+        (label, text)
+    };
+    let mass = parse_mass(&text).map_err(|problem| BadInput::new(format!("{label}: {problem}")))?;
+    Ok(Input { label, mass })
+}
+
+/// Parses and checks the text of one input; the error is the problem, without the file name.
+fn parse_mass(text: &str) -> Result<Mass<f64>, String> {
+    let file: MassFile =
+        serde_json::from_str(text).map_err(|e| format!("malformed JSON: {e}"))?;
+    let frame = Frame::new(file.frame).map_err(|e| format!("bad frame: {e}"))?;
+    let mut listed: Vec<Set> = Vec::with_capacity(file.mass.len());
+    for entry in &file.mass {
+        let set = frame.set(&entry.set).map_err(|e| describe(&e, &frame))?;
+        if listed.contains(&set) {
+            return Err(format!("set {} is listed twice", set_label(&frame, set)));
+        }
+        listed.push(set);
+    }
+    let focal = listed.into_iter().zip(file.mass.iter().map(|e| e.m));
+    Mass::from_focal(&frame, focal).map_err(|e| describe(&e, &frame))
+}
+
+/// A belief-crate error as one line that names sets by their elements.
+pub fn describe(error: &BeliefError, frame: &Frame) -> String {
+    match error {
+        BeliefError::NegativeMass { set, value } => {
+            format!("negative mass {value} on set {}", set_label(frame, *set))
+        }
+        BeliefError::NotFinite { set, value } => {
+            format!("mass {value} on set {} is not finite", set_label(frame, *set))
+        }
+        BeliefError::InvalidSum { sum } => format!(
+            "masses sum to {sum}, not 1 (tolerance {})",
+            <f64 as belief::Real>::TOLERANCE
+        ),
+        BeliefError::RepeatedSet { set } => {
+            format!("set {} is listed twice", set_label(frame, *set))
+        }
+        BeliefError::SetOutsideFrame { set, .. } => {
+            format!("set {set} is not a subset of the frame {frame}")
+        }
+        other => other.to_string(),
+    }
+}
+
+/// `[a, b]` for a set, `[]` for ∅: the notation of the input files.
+pub fn set_label(frame: &Frame, set: Set) -> String {
+    format!("[{}]", frame.names_of(set).join(", "))
+}
+
+/// Serialises `(key, value)` pairs as a JSON object in the given order (serde_json's own map
+/// sorts keys, and the output should follow the frame).
+struct Ordered<'a, V: Serialize>(Vec<(&'a str, V)>);
+
+impl<V: Serialize> Serialize for Ordered<'_, V> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let mut map = serializer.serialize_map(Some(self.0.len()))?;
+        for (key, value) in &self.0 {
+            map.serialize_entry(key, value)?;
+        }
+        map.end()
+    }
+}
+
+#[derive(serde::Serialize)]
+struct SetValue<'a> {
+    set: Vec<&'a str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    v: Option<f64>,
+}
+
+/// A mass function as JSON: `{"frame": [...], "mass": [{"set": [...], "m": ...}, ...]}`.
+pub fn mass_json(mass: &Mass<f64>) -> anyhow::Result<String> {
+    let frame = mass.frame();
+    let focal: Vec<SetValue> = mass
+        .focal_sets()
+        .map(|(set, m)| SetValue {
+            set: frame.names_of(set),
+            m: Some(m),
+            v: None,
+        })
+        .collect();
+    let out = Ordered(vec![
+        ("frame", serde_json::to_value(frame.names())?),
+        ("mass", serde_json::to_value(focal)?),
+    ]);
+    Ok(serde_json::to_string_pretty(&out)?)
+}
+
+/// A mass function as an aligned table, one focal set per line.
+pub fn mass_table(mass: &Mass<f64>) -> String {
+    let rows = mass
+        .focal_sets()
+        .map(|(set, m)| (set_label(mass.frame(), set), m))
+        .collect();
+    table(("set", "m"), rows)
+}
+
+/// Pignistic probabilities as JSON: `{"frame": [...], "betp": {"a": ..., ...}}`, frame order.
+pub fn pignistic_json(frame: &Frame, betp: &[f64]) -> anyhow::Result<String> {
+    let betp = Ordered(
+        frame
+            .names()
+            .iter()
+            .map(String::as_str)
+            .zip(betp.iter().copied())
+            .collect(),
+    );
+    let out = Ordered(vec![
+        ("frame", serde_json::to_value(frame.names())?),
+        ("betp", serde_json::to_value(betp)?),
+    ]);
+    Ok(serde_json::to_string_pretty(&out)?)
+}
+
+/// Pignistic probabilities as a table, one element per line.
+pub fn pignistic_table(frame: &Frame, betp: &[f64]) -> String {
+    let rows = frame.names().iter().cloned().zip(betp.iter().copied()).collect();
+    table(("element", "betP"), rows)
+}
+
+/// A set function as JSON, every subset listed: `{"frame": [...], "<name>": [{"set": [...], "v": ...}]}`.
+pub fn set_function_json(name: &str, function: &SetFunction<f64>) -> anyhow::Result<String> {
+    let frame = function.frame();
+    let values: Vec<SetValue> = frame
+        .subsets()
+        .map(|set| SetValue {
+            set: frame.names_of(set),
+            m: None,
+            v: Some(function.get(set)),
+        })
+        .collect();
+    let out = Ordered(vec![
+        ("frame", serde_json::to_value(frame.names())?),
+        (name, serde_json::to_value(values)?),
+    ]);
+    Ok(serde_json::to_string_pretty(&out)?)
+}
+
+/// A set function as a table, every subset listed.
+pub fn set_function_table(name: &str, function: &SetFunction<f64>) -> String {
+    let frame = function.frame();
+    let rows = frame
+        .subsets()
+        .map(|set| (set_label(frame, set), function.get(set)))
+        .collect();
+    table(("set", name), rows)
+}
+
+/// Two left-aligned columns, the second in full f64 precision.
+fn table(header: (&str, &str), rows: Vec<(String, f64)>) -> String {
+    let width = rows
+        .iter()
+        .map(|(label, _)| label.chars().count())
+        .chain([header.0.len()])
+        .max()
+        .unwrap_or(0);
+    let mut out = format!("{:<width$}  {}\n", header.0, header.1);
+    for (label, value) in rows {
+        out.push_str(&format!("{label:<width$}  {value}\n"));
+    }
+    out
+}
+
+/// Writes a result to standard output, with one final newline.
+pub fn print(text: &str) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
+    stdout
+        .write_all(text.trim_end().as_bytes())
+        .and_then(|()| stdout.write_all(b"\n"))
+        .context("cannot write to standard output")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_and_prints_in_bitmask_order() -> anyhow::Result<()> {
+        let m = parse_mass(
+            r#"{"frame": ["a", "b"], "mass": [{"set": ["b", "a"], "m": 0.8}, {"set": ["a"], "m": 0.2}]}"#,
+        )
+        .map_err(anyhow::Error::msg)?;
+        let json: serde_json::Value = serde_json::from_str(&mass_json(&m)?)?;
+        assert_eq!(
+            json,
+            serde_json::json!({"frame": ["a", "b"], "mass": [
+                {"set": ["a"], "m": 0.2}, {"set": ["a", "b"], "m": 0.8}
+            ]})
+        );
+        assert_eq!(mass_table(&m), "set     m\n[a]     0.2\n[a, b]  0.8\n");
+        Ok(())
+    }
+
+    #[test]
+    fn problems_name_the_sets() {
+        let parse = |text: &str| parse_mass(text).err().unwrap_or_default();
+        assert_eq!(
+            parse(r#"{"frame": ["a"], "mass": [{"set": ["a"], "m": 1.2}, {"set": [], "m": -0.2}]}"#),
+            "negative mass -0.2 on set []"
+        );
+        assert_eq!(
+            parse(r#"{"frame": ["a", "b"], "mass": [{"set": ["a", "b"], "m": 0.5}, {"set": ["b", "a"], "m": 0.5}]}"#),
+            "set [a, b] is listed twice"
+        );
+        assert_eq!(
+            parse(r#"{"frame": ["a"], "mass": [{"set": ["c"], "m": 1}]}"#),
+            "element \"c\" is not in the frame {a}"
+        );
+        assert!(parse(r#"{"frame": ["a"], "mass": [{"set": ["a"], "m": 0.9}]}"#)
+            .starts_with("masses sum to 0.9, not 1"));
+        assert!(parse(r#"{"frame": ["a"], "masses": []}"#).starts_with("malformed JSON"));
+    }
+
+    #[test]
+    fn pignistic_keys_follow_the_frame() -> anyhow::Result<()> {
+        let frame = Frame::new(["z", "a"])?;
+        let text = pignistic_json(&frame, &[0.25, 0.75])?;
+        assert!(text.find("\"z\"") < text.find("\"a\""), "{text}");
+        assert!(text.find("\"frame\"") < text.find("\"betp\""), "{text}");
+        Ok(())
+    }
+}

@@ -1,0 +1,195 @@
+//! Decision and pignistic probability per cell (SPEC §6, eq 15).
+//!
+//! ```
+//! use evigrid::decision::{Decision, betp, decide};
+//! use evigrid::grids::class::{F, M, S};
+//!
+//! let mut m = [0.0_f32; 32];
+//! m[F] = 0.1;
+//! m[S | M] = 0.6; // split evenly between S and M
+//! m[M] = 0.1;
+//! m[31] = 0.2; // Ω, a fifth to each class
+//! let p = betp(&m);
+//! assert!((p[4] - (0.1 + 0.3 + 0.04)).abs() < 1e-6); // M
+//! assert_eq!(decide(&m, true, 0.5), Decision::M);
+//! assert_eq!(decide(&m, false, 0.5), Decision::Unknown); // never observed
+//! ```
+
+use crate::grids::{N_SETS, OMEGA, PerceptionGrid};
+use rayon::prelude::*;
+
+/// The decided state of a cell.
+#[repr(u8)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Decision {
+    /// Never observed, too little evidence (m(Ω) above the threshold) or total conflict.
+    Unknown = 0,
+    /// Free space.
+    F = 1,
+    /// Mapped infrastructure (buildings).
+    I = 2,
+    /// Unmapped infrastructure.
+    U = 3,
+    /// Stopped object.
+    S = 4,
+    /// Moving object.
+    M = 5,
+}
+
+impl Decision {
+    /// The decision for class `k` of Ω_PG in frame order (0 = F … 4 = M); `Unknown` otherwise.
+    pub fn from_class(k: usize) -> Decision {
+        match k {
+            0 => Decision::F,
+            1 => Decision::I,
+            2 => Decision::U,
+            3 => Decision::S,
+            4 => Decision::M,
+            _ => Decision::Unknown,
+        }
+    }
+
+    /// Short name: `unknown`, or the class letter `F`, `I`, `U`, `S`, `M`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Decision::Unknown => "unknown",
+            Decision::F => "F",
+            Decision::I => "I",
+            Decision::U => "U",
+            Decision::S => "S",
+            Decision::M => "M",
+        }
+    }
+}
+
+/// Below this, 1 − m(∅) is treated as zero: the cell is in total conflict and has no betP.
+const MIN_NORMAL_MASS: f32 = 1e-6;
+
+/// Pignistic probability of each class F, I, U, S, M (eq 15): every focal set A shares its mass
+/// equally among its classes. A subnormal m (m(∅) > 0, `keep` policy) is divided by 1 − m(∅);
+/// if nothing is left (m(∅) = 1) every probability is 0.
+///
+/// # References
+/// Smets & Kennes 1994; Kurdej et al. 2013 eq 15; SPEC §1, §6.
+pub fn betp(m: &[f32; N_SETS]) -> [f32; 5] {
+    let mut p = [0.0_f32; 5];
+    for (set, &mass) in m.iter().enumerate().skip(1) {
+        let share = mass / set.count_ones() as f32;
+        for (k, pk) in p.iter_mut().enumerate() {
+            if set & (1 << k) != 0 {
+                *pk += share;
+            }
+        }
+    }
+    let normal = 1.0 - m[0];
+    if normal <= MIN_NORMAL_MASS {
+        return [0.0; 5];
+    }
+    p.map(|pk| pk / normal)
+}
+
+/// The decided class (SPEC §6): `Unknown` where the cell was never `seen`, where
+/// m(Ω) > `unknown_threshold`, or in total conflict; otherwise the class of largest betP (the
+/// first in frame order F, I, U, S, M on a tie).
+pub fn decide(m: &[f32; N_SETS], seen: bool, unknown_threshold: f64) -> Decision {
+    if !seen || f64::from(m[OMEGA]) > unknown_threshold || 1.0 - m[0] <= MIN_NORMAL_MASS {
+        return Decision::Unknown;
+    }
+    let p = betp(m);
+    let mut best = 0;
+    for k in 1..5 {
+        if p[k] > p[best] {
+            best = k;
+        }
+    }
+    Decision::from_class(best)
+}
+
+/// Decides every cell of `pg` into `out` (same storage order), in parallel.
+///
+/// # Panics
+/// If `out.len() != pg.len()`.
+pub fn decide_grid(pg: &PerceptionGrid, unknown_threshold: f64, out: &mut [Decision]) {
+    assert_eq!(out.len(), pg.len(), "decision buffer size");
+    out.par_iter_mut().enumerate().with_min_len(4096).for_each(|(idx, d)| {
+        *d = decide(&pg.cell_masses(idx), pg.seen()[idx] != 0, unknown_threshold);
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grids::class::{F, I, M, O, S, U};
+
+    fn close(a: f32, b: f32) -> bool {
+        (a - b).abs() < 1e-6
+    }
+
+    #[test]
+    fn betp_shares_each_set_among_its_classes() {
+        // m({F}) = 0.2, m({I,U}) = 0.4, m(O) = 0.2, m(Ω) = 0.2:
+        // F = 0.2 + 0.2/5 = 0.24; I = U = 0.2 + 0.05 + 0.04 = 0.29; S = M = 0.05 + 0.04 = 0.09.
+        let mut m = [0.0; N_SETS];
+        m[F] = 0.2;
+        m[I | U] = 0.4;
+        m[O] = 0.2;
+        m[OMEGA] = 0.2;
+        let p = betp(&m);
+        for (got, want) in p.iter().zip([0.24, 0.29, 0.29, 0.09, 0.09]) {
+            assert!(close(*got, want), "{p:?}");
+        }
+        assert!(close(p.iter().sum(), 1.0));
+    }
+
+    #[test]
+    fn betp_of_subnormal_mass_is_normalised() {
+        // m(∅) = 0.5, m({S}) = 0.3, m({S,M}) = 0.2: S = (0.3 + 0.1)/0.5 = 0.8, M = 0.1/0.5 = 0.2.
+        let mut m = [0.0; N_SETS];
+        m[0] = 0.5;
+        m[S] = 0.3;
+        m[S | M] = 0.2;
+        let p = betp(&m);
+        assert!(close(p[3], 0.8) && close(p[4], 0.2), "{p:?}");
+        m = [0.0; N_SETS];
+        m[0] = 1.0;
+        assert_eq!(betp(&m), [0.0; 5]);
+    }
+
+    #[test]
+    fn decision_is_unknown_when_ignorant_unseen_or_in_total_conflict() {
+        let mut m = [0.0; N_SETS];
+        m[F] = 0.4;
+        m[OMEGA] = 0.6;
+        assert_eq!(decide(&m, true, 0.5), Decision::Unknown); // m(Ω) = 0.6 > 0.5
+        assert_eq!(decide(&m, true, 0.6), Decision::F); // not above
+        assert_eq!(decide(&m, false, 0.9), Decision::Unknown);
+        let mut conflict = [0.0; N_SETS];
+        conflict[0] = 1.0;
+        assert_eq!(decide(&conflict, true, 0.5), Decision::Unknown);
+    }
+
+    #[test]
+    fn decision_is_argmax_betp_first_class_on_tie() {
+        // {I,U} 0.8 splits into I 0.4 + U 0.4 (+ Ω 0.2/5 each): a tie, won by I (first).
+        let mut m = [0.0; N_SETS];
+        m[I | U] = 0.8;
+        m[OMEGA] = 0.2;
+        assert_eq!(decide(&m, true, 0.5), Decision::I);
+        m[U] = 0.1;
+        m[I | U] = 0.7;
+        assert_eq!(decide(&m, true, 0.5), Decision::U);
+    }
+
+    #[test]
+    fn grid_decision_matches_cell_decision() {
+        let mut pg = PerceptionGrid::new(3, 1);
+        let mut m = [0.0; N_SETS];
+        m[M] = 0.9;
+        m[OMEGA] = 0.1;
+        pg.set_cell_masses(1, &m);
+        let mut out = [Decision::F; 3];
+        decide_grid(&pg, 0.5, &mut out);
+        // Never seen: unknown everywhere, whatever the masses.
+        assert_eq!(out, [Decision::Unknown; 3]);
+    }
+}

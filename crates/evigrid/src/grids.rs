@@ -1,0 +1,405 @@
+//! Storage of the three grids: structure-of-arrays over one W × H layout (SPEC §2).
+//!
+//! Each grid stores one plane per quantity, every plane indexed `storage_row · W + storage_col`.
+//! How a world cell maps to a storage cell (the circular buffer) is the window's business; the
+//! fusion step only walks the storage linearly. Meaning sits on top: these types know the frame
+//! Ω_PG only through the plane index, which is the focal set's bitmask
+//! (F = bit 0, I = bit 1, U = bit 2, S = bit 3, M = bit 4; plane 0 is ∅).
+//!
+//! Memory per cell: PerceptionGrid 32 mass planes + ζ + ∅_FO + ∅_OF (4 bytes each) + the seen
+//! flag (1 byte) = 141 bytes; SensorGrid 8 bytes; GisGrid 1 byte: 150 bytes in all. The step
+//! updates the PerceptionGrid in place, so there is no second copy.
+
+use geodata::MapContext;
+use std::ops::Range;
+
+/// Number of focal sets of Ω_PG = {F, I, U, S, M}: one mass plane each.
+pub const N_SETS: usize = 32;
+/// Bitmask of Ω_PG, the index of the plane m(Ω).
+pub const OMEGA: usize = 31;
+
+/// Bit of each class of Ω_PG, in frame order.
+pub mod class {
+    /// F, free space.
+    pub const F: usize = 1;
+    /// I, mapped infrastructure (buildings).
+    pub const I: usize = 1 << 1;
+    /// U, unmapped infrastructure.
+    pub const U: usize = 1 << 2;
+    /// S, stopped objects.
+    pub const S: usize = 1 << 3;
+    /// M, moving objects.
+    pub const M: usize = 1 << 4;
+    /// O = {I, U, S, M}, occupied (the refinement of the sensor's O, eq 18).
+    pub const O: usize = I | U | S | M;
+    /// Class letters in frame order (bit 0 first).
+    pub const LETTERS: [char; 5] = ['F', 'I', 'U', 'S', 'M'];
+}
+
+/// The PerceptionGrid: a mass function on Ω_PG per cell, with the accumulator ζ, the last
+/// conflict masses ∅_FO and ∅_OF, and whether the cell was ever observed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PerceptionGrid {
+    width: usize,
+    height: usize,
+    /// The 32 mass planes one after the other: plane `set` is
+    /// `masses[set·len .. (set+1)·len]`.
+    masses: Vec<f32>,
+    zeta: Vec<f32>,
+    conflict_fo: Vec<f32>,
+    conflict_of: Vec<f32>,
+    seen: Vec<u8>,
+}
+
+impl PerceptionGrid {
+    /// A `width × height` grid whose cells are all vacuous (m(Ω) = 1), with ζ = 0, no conflict,
+    /// never observed.
+    pub fn new(width: usize, height: usize) -> Self {
+        let len = width * height;
+        let mut masses = vec![0.0; N_SETS * len];
+        masses[OMEGA * len..].fill(1.0);
+        Self {
+            width,
+            height,
+            masses,
+            zeta: vec![0.0; len],
+            conflict_fo: vec![0.0; len],
+            conflict_of: vec![0.0; len],
+            seen: vec![0; len],
+        }
+    }
+
+    /// Number of columns.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Number of rows.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Number of cells, `width · height`.
+    pub fn len(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// True for a grid without cells.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Makes one cell vacuous again (m(Ω) = 1, ζ = 0, no conflict, never observed): for a cell that
+    /// enters the window.
+    ///
+    /// # Panics
+    /// If `idx` is not below [`len`](Self::len).
+    pub fn reset_cell(&mut self, idx: usize) {
+        self.reset_range(idx..idx + 1);
+    }
+
+    /// Makes a range of storage cells vacuous again, as [`reset_cell`](Self::reset_cell).
+    ///
+    /// # Panics
+    /// If the range goes past [`len`](Self::len).
+    pub fn reset_range(&mut self, range: Range<usize>) {
+        let len = self.len();
+        assert!(
+            range.start <= range.end && range.end <= len,
+            "cell range {range:?} outside a grid of {len} cells"
+        );
+        for (set, plane) in self.masses.chunks_exact_mut(len.max(1)).enumerate() {
+            let value = if set == OMEGA { 1.0 } else { 0.0 };
+            plane[range.clone()].fill(value);
+        }
+        self.zeta[range.clone()].fill(0.0);
+        self.conflict_fo[range.clone()].fill(0.0);
+        self.conflict_of[range.clone()].fill(0.0);
+        self.seen[range].fill(0);
+    }
+
+    /// Makes every cell vacuous again.
+    pub fn reset_all(&mut self) {
+        self.reset_range(0..self.len());
+    }
+
+    /// m(set) at storage cell `idx`; `set` is a bitmask of Ω_PG (see [`class`]).
+    ///
+    /// # Panics
+    /// If `set ≥ 32` or `idx ≥ len`.
+    pub fn mass(&self, set: usize, idx: usize) -> f32 {
+        self.plane(set)[idx]
+    }
+
+    /// The plane of m(set) over all cells.
+    ///
+    /// # Panics
+    /// If `set ≥ 32`.
+    pub fn plane(&self, set: usize) -> &[f32] {
+        let len = self.len();
+        &self.masses[set * len..(set + 1) * len]
+    }
+
+    /// The plane of m(set), writable (to set up a scene or a test).
+    ///
+    /// # Panics
+    /// If `set ≥ 32`.
+    pub fn plane_mut(&mut self, set: usize) -> &mut [f32] {
+        let len = self.len();
+        &mut self.masses[set * len..(set + 1) * len]
+    }
+
+    /// The 32 masses of one cell, indexed by bitmask.
+    ///
+    /// # Panics
+    /// If `idx ≥ len`.
+    pub fn cell_masses(&self, idx: usize) -> [f32; N_SETS] {
+        std::array::from_fn(|set| self.mass(set, idx))
+    }
+
+    /// Overwrites the 32 masses of one cell (to set up a scene or a test; not checked).
+    ///
+    /// # Panics
+    /// If `idx ≥ len`.
+    pub fn set_cell_masses(&mut self, idx: usize, masses: &[f32; N_SETS]) {
+        for (set, &m) in masses.iter().enumerate() {
+            self.plane_mut(set)[idx] = m;
+        }
+    }
+
+    /// The accumulator ζ of every cell (eq 24-27), in `[0, 1]`.
+    pub fn zeta(&self) -> &[f32] {
+        &self.zeta
+    }
+
+    /// The accumulator ζ, writable.
+    pub fn zeta_mut(&mut self) -> &mut [f32] {
+        &mut self.zeta
+    }
+
+    /// ∅_FO of the last step (eq 23): free before, occupied now: an object appeared.
+    pub fn conflict_fo(&self) -> &[f32] {
+        &self.conflict_fo
+    }
+
+    /// ∅_OF of the last step (eq 22): occupied before, free now: an object left.
+    pub fn conflict_of(&self) -> &[f32] {
+        &self.conflict_of
+    }
+
+    /// 1 where the sensor has ever said something about the cell (non-vacuous SensorGrid since
+    /// the cell entered the window), else 0.
+    pub fn seen(&self) -> &[u8] {
+        &self.seen
+    }
+
+    /// Every plane as disjoint writable slices, for the step.
+    pub(crate) fn planes_mut(&mut self) -> PerceptionPlanesMut<'_> {
+        let len = self.len();
+        let mut masses: [&mut [f32]; N_SETS] = Default::default();
+        if len > 0 {
+            for (slot, plane) in masses.iter_mut().zip(self.masses.chunks_exact_mut(len)) {
+                *slot = plane;
+            }
+        }
+        PerceptionPlanesMut {
+            masses,
+            zeta: &mut self.zeta,
+            conflict_fo: &mut self.conflict_fo,
+            conflict_of: &mut self.conflict_of,
+            seen: &mut self.seen,
+        }
+    }
+}
+
+/// Writable views of the planes of a run of consecutive storage cells of a PerceptionGrid.
+pub(crate) struct PerceptionPlanesMut<'a> {
+    pub(crate) masses: [&'a mut [f32]; N_SETS],
+    pub(crate) zeta: &'a mut [f32],
+    pub(crate) conflict_fo: &'a mut [f32],
+    pub(crate) conflict_of: &'a mut [f32],
+    pub(crate) seen: &'a mut [u8],
+}
+
+impl<'a> PerceptionPlanesMut<'a> {
+    /// Number of cells in the run.
+    #[cfg(test)]
+    pub(crate) fn len(&self) -> usize {
+        self.zeta.len()
+    }
+
+    /// Splits the run into cells `..mid` and `mid..`.
+    pub(crate) fn split_at(self, mid: usize) -> (Self, Self) {
+        let mut left: [&'a mut [f32]; N_SETS] = Default::default();
+        let mut right: [&'a mut [f32]; N_SETS] = Default::default();
+        for ((l, r), plane) in left.iter_mut().zip(right.iter_mut()).zip(self.masses) {
+            (*l, *r) = plane.split_at_mut(mid);
+        }
+        let (zeta_l, zeta_r) = self.zeta.split_at_mut(mid);
+        let (fo_l, fo_r) = self.conflict_fo.split_at_mut(mid);
+        let (of_l, of_r) = self.conflict_of.split_at_mut(mid);
+        let (seen_l, seen_r) = self.seen.split_at_mut(mid);
+        (
+            Self {
+                masses: left,
+                zeta: zeta_l,
+                conflict_fo: fo_l,
+                conflict_of: of_l,
+                seen: seen_l,
+            },
+            Self {
+                masses: right,
+                zeta: zeta_r,
+                conflict_fo: fo_r,
+                conflict_of: of_r,
+                seen: seen_r,
+            },
+        )
+    }
+}
+
+/// The SensorGrid of one scan: a mass function on Ω_SG = {F, O} per cell (SPEC §3).
+///
+/// m(Ω) = 1 − m(F) − m(O) is not stored. The step reads masses outside `[0, 1]`, a sum above 1
+/// or a NaN as the nearest valid mass function (NaN counts as 0).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SensorGrid {
+    /// Number of columns.
+    pub width: usize,
+    /// Number of rows.
+    pub height: usize,
+    /// m({F}) per cell, `width · height` values.
+    pub m_free: Vec<f32>,
+    /// m({O}) per cell, `width · height` values.
+    pub m_occupied: Vec<f32>,
+}
+
+impl SensorGrid {
+    /// A vacuous `width × height` SensorGrid (the sensor says nothing).
+    pub fn new(width: usize, height: usize) -> Self {
+        let len = width * height;
+        Self {
+            width,
+            height,
+            m_free: vec![0.0; len],
+            m_occupied: vec![0.0; len],
+        }
+    }
+
+    /// Number of cells, `width · height`.
+    pub fn len(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// True for a grid without cells.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Makes every cell vacuous, ready for the next scan.
+    pub fn clear(&mut self) {
+        self.m_free.fill(0.0);
+        self.m_occupied.fill(0.0);
+    }
+}
+
+/// The GISGrid: the map context of every cell (SPEC §4). Its mass function on Ω_PG is derived
+/// from the context and the β parameters when the step runs, so a cell costs one byte.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GisGrid {
+    /// Number of columns.
+    pub width: usize,
+    /// Number of rows.
+    pub height: usize,
+    /// Map context per cell, `width · height` values.
+    pub context: Vec<MapContext>,
+}
+
+impl GisGrid {
+    /// A `width × height` GISGrid without map information (every cell `Unknown`: vacuous).
+    pub fn new(width: usize, height: usize) -> Self {
+        Self {
+            width,
+            height,
+            context: vec![MapContext::Unknown; width * height],
+        }
+    }
+
+    /// Number of cells, `width · height`.
+    pub fn len(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// True for a grid without cells.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn new_grid_is_vacuous_everywhere() {
+        let pg = PerceptionGrid::new(3, 2);
+        assert_eq!(pg.len(), 6);
+        for idx in 0..6 {
+            let m = pg.cell_masses(idx);
+            assert_eq!(m[OMEGA], 1.0);
+            assert_eq!(m.iter().sum::<f32>(), 1.0);
+        }
+        assert!(pg.zeta().iter().all(|&z| z == 0.0));
+        assert!(pg.seen().iter().all(|&s| s == 0));
+    }
+
+    #[test]
+    fn reset_range_touches_only_that_range() {
+        let mut pg = PerceptionGrid::new(4, 1);
+        let mut occupied = [0.0; N_SETS];
+        occupied[class::S] = 1.0;
+        for idx in 0..4 {
+            pg.set_cell_masses(idx, &occupied);
+            pg.zeta_mut()[idx] = 0.5;
+        }
+        pg.reset_range(1..3);
+        assert_eq!(pg.cell_masses(0), occupied);
+        assert_eq!(pg.mass(OMEGA, 1), 1.0);
+        assert_eq!(pg.mass(class::S, 2), 0.0);
+        assert_eq!(pg.zeta(), &[0.5, 0.0, 0.0, 0.5]);
+        assert_eq!(pg.cell_masses(3), occupied);
+        pg.reset_cell(3);
+        assert_eq!(pg.mass(OMEGA, 3), 1.0);
+    }
+
+    #[test]
+    fn planes_split_into_disjoint_runs() {
+        let mut pg = PerceptionGrid::new(5, 1);
+        let planes = pg.planes_mut();
+        let (left, right) = planes.split_at(2);
+        assert_eq!((left.len(), right.len()), (2, 3));
+        assert!(left.masses.iter().all(|p| p.len() == 2));
+        assert!(right.masses.iter().all(|p| p.len() == 3));
+        right.masses[OMEGA][0] = 0.25;
+        assert_eq!(pg.mass(OMEGA, 2), 0.25);
+    }
+
+    #[test]
+    fn empty_grids_are_allowed() {
+        let mut pg = PerceptionGrid::new(0, 7);
+        assert!(pg.is_empty());
+        pg.reset_all();
+        assert_eq!(pg.planes_mut().len(), 0);
+        assert!(SensorGrid::new(0, 0).is_empty());
+        assert!(GisGrid::new(3, 0).is_empty());
+    }
+
+    #[test]
+    fn sensor_grid_clear_makes_it_vacuous() {
+        let mut sg = SensorGrid::new(2, 2);
+        sg.m_free[1] = 0.7;
+        sg.m_occupied[2] = 0.8;
+        sg.clear();
+        assert_eq!(sg, SensorGrid::new(2, 2));
+    }
+}

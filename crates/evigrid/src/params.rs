@@ -1,0 +1,725 @@
+//! Every parameter of the method in one structure, read from and written to TOML (SPEC §7).
+//!
+//! A TOML file may set any subset of the parameters: the rest keep their defaults. Unknown keys
+//! are rejected (a misspelt key would otherwise be silently ignored), and [`Params::validate`]
+//! rejects out-of-range values with a [`ParamsError`] naming the parameter by its TOML path.
+//!
+//! ```
+//! use evigrid::Params;
+//!
+//! let params = Params::from_toml_str(
+//!     "[fusion]\ndiscount_per_second = 0.2\n[map]\nbeta_road = 0.6\n",
+//! )?;
+//! assert_eq!(params.map.beta_road, 0.6);
+//! assert_eq!(params.fusion.discount_per_second.moving, 0.2);
+//! assert_eq!(params.sensor.mu_free, 0.7); // default
+//! // Printed with the results it produced, and read back unchanged.
+//! assert_eq!(Params::from_toml_str(&params.to_toml_string()?)?, params);
+//! # Ok::<(), evigrid::params::ParamsError>(())
+//! ```
+
+use serde::{Deserialize, Deserializer, Serialize};
+
+/// Why a parameter set was rejected.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ParamsError {
+    /// A mass, confidence, rate, step or threshold outside `[0, 1]` (or not a number).
+    #[error("{name} = {value} is outside [0, 1]")]
+    OutOfUnitRange {
+        /// TOML path of the parameter, e.g. `map.beta_road`.
+        name: &'static str,
+        /// The rejected value.
+        value: f64,
+    },
+    /// A length that must be strictly positive and finite.
+    #[error("{name} = {value} must be positive and finite")]
+    NotPositive {
+        /// TOML path of the parameter, e.g. `grid.cell_size_m`.
+        name: &'static str,
+        /// The rejected value.
+        value: f64,
+    },
+    /// Two parameters that must be ordered are not.
+    #[error("{low_name} = {low} must be below {high_name} = {high}")]
+    Misordered {
+        /// TOML path of the parameter that must be the smaller.
+        low_name: &'static str,
+        /// Its value.
+        low: f64,
+        /// TOML path of the parameter that must be the larger.
+        high_name: &'static str,
+        /// Its value.
+        high: f64,
+    },
+    /// A window without cells.
+    #[error("window.width_cells = {width}, window.height_cells = {height}: the window is empty")]
+    EmptyWindow {
+        /// Requested width, cells.
+        width: usize,
+        /// Requested height, cells.
+        height: usize,
+    },
+    /// The text is not TOML, has an unknown key or a value of the wrong type.
+    #[error("{message}")]
+    Parse {
+        /// The TOML reader's message (it names the key and the line).
+        message: String,
+    },
+    /// The parameters could not be written as TOML (does not happen for valid parameters).
+    #[error("cannot write parameters as TOML: {message}")]
+    Write {
+        /// The TOML writer's message.
+        message: String,
+    },
+}
+
+/// All parameters of evigrid, one section per stage (SPEC §7).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Params {
+    /// Cell geometry.
+    pub grid: GridParams,
+    /// Size of the live window that follows the vehicle.
+    pub window: WindowParams,
+    /// Sensor model (SPEC §3).
+    pub sensor: SensorParams,
+    /// Map prior, the GISGrid (SPEC §4).
+    pub map: MapParams,
+    /// Discounting and fusion (SPEC §5 steps 3-4).
+    pub fusion: FusionParams,
+    /// Occupancy accumulator ζ (SPEC §5 step 5).
+    pub accumulator: AccumulatorParams,
+    /// Decision (SPEC §6).
+    pub decision: DecisionParams,
+}
+
+impl Params {
+    /// Reads parameters from TOML text in the SPEC §7 layout and validates them.
+    ///
+    /// Any subset of the keys may be given; the others keep their defaults.
+    ///
+    /// # Errors
+    /// [`ParamsError::Parse`] for malformed TOML, an unknown key or a value of the wrong type;
+    /// the range errors of [`Params::validate`].
+    pub fn from_toml_str(text: &str) -> Result<Self, ParamsError> {
+        let params: Params = toml::from_str(text).map_err(|e| ParamsError::Parse {
+            message: e.to_string().trim().replace('\n', " "),
+        })?;
+        params.validate()?;
+        Ok(params)
+    }
+
+    /// Writes every parameter (defaults included) as TOML in the SPEC §7 layout, so that a result
+    /// can be printed with the parameters that produced it and reproduced from them.
+    ///
+    /// # Errors
+    /// [`ParamsError::Write`] if the TOML writer fails (it does not for finite values).
+    pub fn to_toml_string(&self) -> Result<String, ParamsError> {
+        toml::to_string(self).map_err(|e| ParamsError::Write {
+            message: e.to_string(),
+        })
+    }
+
+    /// Checks every parameter's range.
+    ///
+    /// # Errors
+    /// The first offending parameter, by its TOML path: [`ParamsError::OutOfUnitRange`] for
+    /// μ, β, α, δ, γ and the unknown threshold outside `[0, 1]`; [`ParamsError::NotPositive`] for
+    /// a non-positive cell size or sensor length; [`ParamsError::EmptyWindow`];
+    /// [`ParamsError::Misordered`] when the obstacle height band is empty.
+    pub fn validate(&self) -> Result<(), ParamsError> {
+        positive("grid.cell_size_m", self.grid.cell_size_m)?;
+        if self.window.width_cells == 0 || self.window.height_cells == 0 {
+            return Err(ParamsError::EmptyWindow {
+                width: self.window.width_cells,
+                height: self.window.height_cells,
+            });
+        }
+        let s = &self.sensor;
+        unit("sensor.mu_free", s.mu_free)?;
+        unit("sensor.mu_occupied", s.mu_occupied)?;
+        positive("sensor.angular_resolution_deg", s.angular_resolution_deg)?;
+        positive("sensor.max_range_m", s.max_range_m)?;
+        positive("sensor.ground_band_m", s.ground_band_m)?;
+        finite("sensor.min_obstacle_height_m", s.min_obstacle_height_m)?;
+        finite("sensor.max_obstacle_height_m", s.max_obstacle_height_m)?;
+        if s.min_obstacle_height_m >= s.max_obstacle_height_m {
+            return Err(ParamsError::Misordered {
+                low_name: "sensor.min_obstacle_height_m",
+                low: s.min_obstacle_height_m,
+                high_name: "sensor.max_obstacle_height_m",
+                high: s.max_obstacle_height_m,
+            });
+        }
+        unit("map.beta_building", self.map.beta_building)?;
+        unit("map.beta_road", self.map.beta_road)?;
+        unit("map.beta_other", self.map.beta_other)?;
+        let rates = &self.fusion.discount_per_second;
+        unit("fusion.discount_per_second.F", rates.free)?;
+        unit("fusion.discount_per_second.I", rates.mapped_infrastructure)?;
+        unit("fusion.discount_per_second.U", rates.unmapped_infrastructure)?;
+        unit("fusion.discount_per_second.S", rates.stopped)?;
+        unit("fusion.discount_per_second.M", rates.moving)?;
+        let a = &self.accumulator;
+        unit("accumulator.delta_inc", a.delta_inc)?;
+        unit("accumulator.delta_dec", a.delta_dec)?;
+        unit("accumulator.gamma_occupied", a.gamma_occupied)?;
+        unit("accumulator.gamma_conflict", a.gamma_conflict)?;
+        unit(
+            "decision.unknown_threshold",
+            self.decision.unknown_threshold,
+        )?;
+        Ok(())
+    }
+}
+
+fn unit(name: &'static str, value: f64) -> Result<(), ParamsError> {
+    // `contains` is false for NaN, so a NaN is rejected too.
+    if (0.0..=1.0).contains(&value) {
+        Ok(())
+    } else {
+        Err(ParamsError::OutOfUnitRange { name, value })
+    }
+}
+
+fn positive(name: &'static str, value: f64) -> Result<(), ParamsError> {
+    if value > 0.0 && value.is_finite() {
+        Ok(())
+    } else {
+        Err(ParamsError::NotPositive { name, value })
+    }
+}
+
+fn finite(name: &'static str, value: f64) -> Result<(), ParamsError> {
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(ParamsError::NotPositive { name, value })
+    }
+}
+
+/// Cell geometry (SPEC §2).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GridParams {
+    /// Side of a square cell, metres. By default 0.5 m (paper IV-D).
+    pub cell_size_m: f64,
+}
+
+impl Default for GridParams {
+    fn default() -> Self {
+        Self { cell_size_m: 0.5 }
+    }
+}
+
+/// Size of the window of cells that follows the vehicle (SPEC §2). Memory is proportional to it
+/// (about 150 bytes per cell for the three grids) and independent of the drive's length.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct WindowParams {
+    /// Number of columns (west to east). By default 320 cells, 160 m at 0.5 m cells: the useful
+    /// range of a Velodyne HDL-64E on each side (provisional, to be tuned on the benchmark).
+    pub width_cells: usize,
+    /// Number of rows (south to north). By default 320 cells (provisional, as `width_cells`).
+    pub height_cells: usize,
+}
+
+impl Default for WindowParams {
+    fn default() -> Self {
+        Self {
+            width_cells: 320,
+            height_cells: 320,
+        }
+    }
+}
+
+/// Sensor model: how one scan becomes a SensorGrid (SPEC §3).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SensorParams {
+    /// μ_F, the mass on {F} of a cell a ray crosses before its first obstacle. By default 0.7
+    /// (paper IV-D).
+    pub mu_free: f64,
+    /// μ_O, the mass on {O} of a cell holding an obstacle return. By default 0.8 (paper IV-D).
+    pub mu_occupied: f64,
+    /// Width of an angular sector, degrees. By default 0.5°, about the angle of a 0.5 m cell
+    /// seen from 57 m (provisional, to be tuned on the benchmark).
+    pub angular_resolution_deg: f64,
+    /// Lowest height above the ground of an obstacle point, metres. By default 0.3 m
+    /// (provisional, to be tuned on the benchmark).
+    pub min_obstacle_height_m: f64,
+    /// Highest height above the ground of an obstacle point, metres: higher points (branches,
+    /// bridges) do not block the way. By default 2.5 m (provisional, to be tuned on the benchmark).
+    pub max_obstacle_height_m: f64,
+    /// Returns farther than this are ignored, metres. By default 60 m (provisional, to be tuned on
+    /// the benchmark).
+    pub max_range_m: f64,
+    /// How returns are split into obstacle and ground points: `"plane"` (3-D lidar: fit a
+    /// ground plane per scan) or `"none"` (planar or multi-layer scanner: every return is an
+    /// obstacle). By default `"plane"`, for the Velodyne data the project is tested on.
+    pub ground_model: crate::sensor_model::GroundModel,
+    /// Half-thickness of the ground band, metres: returns within it of the fitted plane are
+    /// ground returns. By default 0.2 m (provisional: above the HDL-64E's range noise, below a
+    /// kerb; to be tuned on the benchmark).
+    pub ground_band_m: f64,
+}
+
+impl Default for SensorParams {
+    fn default() -> Self {
+        Self {
+            mu_free: 0.7,
+            mu_occupied: 0.8,
+            angular_resolution_deg: 0.5,
+            min_obstacle_height_m: 0.3,
+            max_obstacle_height_m: 2.5,
+            max_range_m: 60.0,
+            ground_model: crate::sensor_model::GroundModel::Plane,
+            ground_band_m: 0.2,
+        }
+    }
+}
+
+/// Confidence in the map, per context (SPEC §4, eq 34-38).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MapParams {
+    /// β_B, mass on {I} in a building cell. By default 0.9 (provisional, to be tuned on the
+    /// benchmark; the paper gives none).
+    pub beta_building: f64,
+    /// β_R, mass on {F, S, M} in a road cell. By default 0.8 (provisional, to be tuned on the
+    /// benchmark).
+    pub beta_road: f64,
+    /// β_T, mass on {F, U, S, M} in the intermediate space. By default 0.7 (provisional, to be
+    /// tuned on the benchmark).
+    pub beta_other: f64,
+}
+
+impl Default for MapParams {
+    fn default() -> Self {
+        Self {
+            beta_building: 0.9,
+            beta_road: 0.8,
+            beta_other: 0.7,
+        }
+    }
+}
+
+/// How the previous PerceptionGrid is discounted before fusion (SPEC §5 step 3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DiscountMode {
+    /// One rate for every focal set (eq 13-14): the `set_rate` aggregate of the class rates, which
+    /// is the rate itself when `discount_per_second` is a single number.
+    Classical,
+    /// Each focal set A ≠ Ω keeps 1 − α_A of its mass and gives the rest to Ω, α_A being the
+    /// `set_rate` aggregate of the rates of the classes in A (Kurdej & Cherfaoui 2013).
+    ClassRates,
+    /// Contextual discounting with the singleton contexts {F}, …, {M} (Mercier, Quost & Denœux
+    /// 2008): mass on A moves to supersets A ∪ {θ}, not to Ω.
+    Mercier,
+}
+
+/// How `class_rates` derives the rate of a focal set from the rates of its classes.
+///
+/// The per-second rates are aggregated, then converted to the step's rate, so that the rate of
+/// every set, not only of the singletons, composes exactly over time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SetRate {
+    /// The smallest rate of the set's classes (optimistic: a set fades as slowly as its most
+    /// lasting class).
+    Min,
+    /// The largest rate (conservative: anything that may be moving fades fast).
+    Max,
+    /// The mean of the classes' rates (proportional).
+    Mean,
+}
+
+/// Where the residual conflict of the fusion goes (SPEC §5 step 4), and the mass that the
+/// specialisation moves from {M} to ∅ (step 6).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ResidualPolicy {
+    /// Added to m(Ω), as Yager's rule: the paper's "roughly equivalent to Yager's rule".
+    ToOmega,
+    /// Stays on ∅ (open world, transferable belief model); m(∅) then accumulates.
+    Keep,
+    /// Removed, and the other masses rescaled to sum to 1, as Dempster's rule. If nothing is
+    /// left to rescale, the cell falls back to `to_omega` (vacuous) and the event is counted.
+    Normalise,
+}
+
+/// One discount rate per class of Ω_PG, per second, each in `[0, 1]`.
+///
+/// In TOML either a single number (every class) or a table `{ F = .., I = .., U = .., S = .., M = .. }`
+/// in which missing classes keep their default.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ClassRates {
+    /// Rate of F, free space.
+    #[serde(rename = "F")]
+    pub free: f64,
+    /// Rate of I, mapped infrastructure.
+    #[serde(rename = "I")]
+    pub mapped_infrastructure: f64,
+    /// Rate of U, unmapped infrastructure.
+    #[serde(rename = "U")]
+    pub unmapped_infrastructure: f64,
+    /// Rate of S, stopped objects.
+    #[serde(rename = "S")]
+    pub stopped: f64,
+    /// Rate of M, moving objects.
+    #[serde(rename = "M")]
+    pub moving: f64,
+}
+
+impl ClassRates {
+    /// The same rate for every class.
+    pub fn uniform(rate: f64) -> Self {
+        Self {
+            free: rate,
+            mapped_infrastructure: rate,
+            unmapped_infrastructure: rate,
+            stopped: rate,
+            moving: rate,
+        }
+    }
+
+    /// The rates in frame order F, I, U, S, M (bit 0 to bit 4).
+    pub fn as_array(&self) -> [f64; 5] {
+        [
+            self.free,
+            self.mapped_infrastructure,
+            self.unmapped_infrastructure,
+            self.stopped,
+            self.moving,
+        ]
+    }
+}
+
+impl Default for ClassRates {
+    /// Free space changes quickly (objects move in); buildings almost never; unmapped
+    /// infrastructure rarely; a stopped object may leave; a moving object is gone within a second
+    /// (90 % of its mass discounted per second, about 21 % per 10 Hz scan). By default F 0.5,
+    /// I 0.05, U 0.2, S 0.3, M 0.9 per second (provisional, to be tuned on the benchmark).
+    fn default() -> Self {
+        Self {
+            free: 0.5,
+            mapped_infrastructure: 0.05,
+            unmapped_infrastructure: 0.2,
+            stopped: 0.3,
+            moving: 0.9,
+        }
+    }
+}
+
+/// Accepts `discount_per_second = 0.2` as well as `discount_per_second = { M = 0.9, .. }`.
+fn class_rates_from_number_or_table<'de, D: Deserializer<'de>>(
+    deserializer: D,
+) -> Result<ClassRates, D::Error> {
+    struct Visitor;
+    impl<'de> serde::de::Visitor<'de> for Visitor {
+        type Value = ClassRates;
+
+        fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("a rate per second, or a table of rates per class F, I, U, S, M")
+        }
+
+        fn visit_f64<E: serde::de::Error>(self, rate: f64) -> Result<ClassRates, E> {
+            Ok(ClassRates::uniform(rate))
+        }
+
+        fn visit_i64<E: serde::de::Error>(self, rate: i64) -> Result<ClassRates, E> {
+            Ok(ClassRates::uniform(rate as f64))
+        }
+
+        fn visit_u64<E: serde::de::Error>(self, rate: u64) -> Result<ClassRates, E> {
+            Ok(ClassRates::uniform(rate as f64))
+        }
+
+        fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> Result<ClassRates, A::Error> {
+            ClassRates::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+        }
+    }
+    deserializer.deserialize_any(Visitor)
+}
+
+/// Discounting and fusion (SPEC §5 steps 3-4, 6).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FusionParams {
+    /// Discounting mode. By default `class_rates` (SPEC §5 step 3 decision).
+    pub discount_mode: DiscountMode,
+    /// Rate of a set from its classes' rates (`class_rates` and `classical`). By default `max`, so
+    /// that every set that may hold a moving object fades at M's rate (provisional, to be tuned on
+    /// the benchmark).
+    pub set_rate: SetRate,
+    /// Discount rate per second of each class, α_1s; a step of `dt` seconds applies
+    /// α(dt) = 1 − (1 − α_1s)^dt. By default F 0.5, I 0.05, U 0.2, S 0.3, M 0.9 (provisional, to be
+    /// tuned on the benchmark).
+    #[serde(deserialize_with = "class_rates_from_number_or_table")]
+    pub discount_per_second: ClassRates,
+    /// Residual conflict policy. By default `to_omega` (SPEC §5 step 4 decision).
+    pub residual: ResidualPolicy,
+}
+
+impl Default for FusionParams {
+    fn default() -> Self {
+        Self {
+            discount_mode: DiscountMode::ClassRates,
+            set_rate: SetRate::Max,
+            discount_per_second: ClassRates::default(),
+            residual: ResidualPolicy::ToOmega,
+        }
+    }
+}
+
+/// The occupancy accumulator ζ (eq 24-27).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AccumulatorParams {
+    /// δ_inc, added to ζ when the cell is steadily occupied. By default 0.1: ten steadily occupied
+    /// scans make ζ = 1 (provisional, to be tuned on the benchmark).
+    pub delta_inc: f64,
+    /// δ_dec, removed from ζ on conflict. By default 0.3 (provisional, to be tuned on the
+    /// benchmark).
+    pub delta_dec: f64,
+    /// γ_O, the m(O) a cell needs to count as occupied. By default 0.5 (provisional, to be tuned on
+    /// the benchmark).
+    pub gamma_occupied: f64,
+    /// γ_∅, the conflict ∅_FO + ∅_OF above which ζ decreases. By default 0.2 (provisional, to be
+    /// tuned on the benchmark).
+    pub gamma_conflict: f64,
+}
+
+impl Default for AccumulatorParams {
+    fn default() -> Self {
+        Self {
+            delta_inc: 0.1,
+            delta_dec: 0.3,
+            gamma_occupied: 0.5,
+            gamma_conflict: 0.2,
+        }
+    }
+}
+
+/// Decision (SPEC §6).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DecisionParams {
+    /// A cell with m(Ω) above this is `unknown`. By default 0.5 (SPEC §6).
+    pub unknown_threshold: f64,
+}
+
+impl Default for DecisionParams {
+    fn default() -> Self {
+        Self {
+            unknown_threshold: 0.5,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    type TestResult = Result<(), Box<dyn std::error::Error>>;
+
+    #[test]
+    fn defaults_are_valid_and_documented_values() -> TestResult {
+        let p = Params::default();
+        p.validate()?;
+        assert_eq!(p.grid.cell_size_m, 0.5);
+        assert_eq!((p.sensor.mu_free, p.sensor.mu_occupied), (0.7, 0.8));
+        assert_eq!(p.fusion.discount_mode, DiscountMode::ClassRates);
+        assert_eq!(p.fusion.residual, ResidualPolicy::ToOmega);
+        Ok(())
+    }
+
+    #[test]
+    fn empty_file_gives_defaults() -> TestResult {
+        assert_eq!(Params::from_toml_str("")?, Params::default());
+        Ok(())
+    }
+
+    #[test]
+    fn spec_layout_is_read_in_full() -> TestResult {
+        let text = r#"
+[grid]
+cell_size_m = 0.25
+[sensor]
+mu_free = 0.6
+mu_occupied = 0.75
+[map]
+beta_building = 0.95
+beta_road = 0.85
+beta_other = 0.5
+[fusion]
+discount_mode = "mercier"
+set_rate = "mean"
+discount_per_second = { F = 0.1, I = 0.2, U = 0.3, S = 0.4, M = 0.5 }
+residual = "normalise"
+[accumulator]
+delta_inc = 0.2
+delta_dec = 0.4
+gamma_occupied = 0.6
+gamma_conflict = 0.1
+[decision]
+unknown_threshold = 0.7
+"#;
+        let p = Params::from_toml_str(text)?;
+        assert_eq!(p.grid.cell_size_m, 0.25);
+        assert_eq!(p.sensor.mu_occupied, 0.75);
+        assert_eq!(p.map.beta_other, 0.5);
+        assert_eq!(p.fusion.discount_mode, DiscountMode::Mercier);
+        assert_eq!(p.fusion.set_rate, SetRate::Mean);
+        assert_eq!(
+            p.fusion.discount_per_second.as_array(),
+            [0.1, 0.2, 0.3, 0.4, 0.5]
+        );
+        assert_eq!(p.fusion.residual, ResidualPolicy::Normalise);
+        assert_eq!(p.accumulator.delta_dec, 0.4);
+        assert_eq!(p.accumulator.gamma_conflict, 0.1);
+        assert_eq!(p.decision.unknown_threshold, 0.7);
+        // Untouched sections keep their defaults.
+        assert_eq!(p.window, WindowParams::default());
+        Ok(())
+    }
+
+    #[test]
+    fn partial_file_keeps_other_defaults() -> TestResult {
+        let p = Params::from_toml_str("[accumulator]\ndelta_inc = 0.25\n")?;
+        let mut expected = Params::default();
+        expected.accumulator.delta_inc = 0.25;
+        assert_eq!(p, expected);
+        Ok(())
+    }
+
+    #[test]
+    fn discount_rate_accepts_a_number_or_a_partial_table() -> TestResult {
+        let p = Params::from_toml_str("[fusion]\ndiscount_per_second = 0.3\n")?;
+        assert_eq!(p.fusion.discount_per_second, ClassRates::uniform(0.3));
+        let p = Params::from_toml_str("[fusion]\ndiscount_per_second = 1\n")?;
+        assert_eq!(p.fusion.discount_per_second, ClassRates::uniform(1.0));
+        let p = Params::from_toml_str("[fusion]\ndiscount_per_second = { M = 0.99 }\n")?;
+        let mut expected = ClassRates::default();
+        expected.moving = 0.99;
+        assert_eq!(p.fusion.discount_per_second, expected);
+        Ok(())
+    }
+
+    #[test]
+    fn unknown_keys_are_rejected_with_their_name() {
+        for text in [
+            "[grid]\ncell_size = 0.5\n",
+            "[nonsense]\n",
+            "[fusion]\ndiscount_per_second = { X = 0.1 }\n",
+        ] {
+            let err = Params::from_toml_str(text).err();
+            let message = err.map(|e| e.to_string()).unwrap_or_default();
+            assert!(message.contains("unknown field"), "{text}: {message}");
+        }
+    }
+
+    #[test]
+    fn wrong_value_type_and_enum_name_are_rejected() {
+        for text in [
+            "[fusion]\nresidual = \"sideways\"\n",
+            "[fusion]\ndiscount_per_second = \"fast\"\n",
+            "[sensor]\nmu_free = \"high\"\n",
+        ] {
+            assert!(
+                matches!(
+                    Params::from_toml_str(text),
+                    Err(ParamsError::Parse { .. })
+                ),
+                "{text}"
+            );
+        }
+    }
+
+    #[test]
+    fn each_out_of_range_parameter_is_named() {
+        let cases = [
+            ("[sensor]\nmu_free = 1.5", "sensor.mu_free"),
+            ("[sensor]\nmu_occupied = -0.1", "sensor.mu_occupied"),
+            ("[map]\nbeta_building = 2", "map.beta_building"),
+            ("[map]\nbeta_road = -1", "map.beta_road"),
+            ("[map]\nbeta_other = 1.01", "map.beta_other"),
+            (
+                "[fusion]\ndiscount_per_second = 1.5",
+                "fusion.discount_per_second.F",
+            ),
+            (
+                "[fusion]\ndiscount_per_second = { M = -0.5 }",
+                "fusion.discount_per_second.M",
+            ),
+            (
+                "[fusion]\ndiscount_per_second = { S = nan }",
+                "fusion.discount_per_second.S",
+            ),
+            ("[accumulator]\ndelta_inc = 1.1", "accumulator.delta_inc"),
+            ("[accumulator]\ndelta_dec = -0.1", "accumulator.delta_dec"),
+            (
+                "[accumulator]\ngamma_occupied = 3",
+                "accumulator.gamma_occupied",
+            ),
+            (
+                "[accumulator]\ngamma_conflict = -3",
+                "accumulator.gamma_conflict",
+            ),
+            (
+                "[decision]\nunknown_threshold = 1.5",
+                "decision.unknown_threshold",
+            ),
+            ("[grid]\ncell_size_m = 0", "grid.cell_size_m"),
+            ("[grid]\ncell_size_m = -0.5", "grid.cell_size_m"),
+            ("[grid]\ncell_size_m = inf", "grid.cell_size_m"),
+            ("[window]\nwidth_cells = 0", "window.width_cells"),
+            ("[window]\nheight_cells = 0", "window.height_cells"),
+            (
+                "[sensor]\nangular_resolution_deg = 0",
+                "sensor.angular_resolution_deg",
+            ),
+            ("[sensor]\nmax_range_m = -1", "sensor.max_range_m"),
+            (
+                "[sensor]\nmin_obstacle_height_m = 3.0",
+                "sensor.min_obstacle_height_m",
+            ),
+        ];
+        for (text, name) in cases {
+            match Params::from_toml_str(text) {
+                Ok(_) => panic!("{text} accepted"),
+                Err(e) => {
+                    assert!(!matches!(e, ParamsError::Parse { .. }), "{text}: {e}");
+                    assert!(e.to_string().contains(name), "{text}: {e}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn boundary_values_are_accepted() -> TestResult {
+        let p = Params::from_toml_str(
+            "[map]\nbeta_road = 0\nbeta_building = 1\n[fusion]\ndiscount_per_second = 0\n",
+        )?;
+        assert_eq!(p.map.beta_road, 0.0);
+        Ok(())
+    }
+
+    #[test]
+    fn toml_round_trip_preserves_every_value() -> TestResult {
+        let mut p = Params::default();
+        p.fusion.discount_mode = DiscountMode::Mercier;
+        p.fusion.set_rate = SetRate::Min;
+        p.fusion.residual = ResidualPolicy::Keep;
+        p.fusion.discount_per_second.stopped = 0.125;
+        p.window.width_cells = 17;
+        let text = p.to_toml_string()?;
+        assert!(text.contains("[fusion]"), "{text}");
+        assert!(text.contains("discount_mode = \"mercier\""), "{text}");
+        assert_eq!(Params::from_toml_str(&text)?, p);
+        Ok(())
+    }
+}

@@ -1,0 +1,574 @@
+//! Reading lidar scans: PCD v0.7 (ascii and binary) and KITTI Velodyne `.bin` files.
+//!
+//! A scan is a list of points in the *sensor* frame (metres), with an intensity per point when
+//! the file has one. Nothing is filtered here: NaN or far points are the sensor model's business,
+//! which counts what it drops (see [`crate::sensor_model`]).
+//!
+//! The PCD reader is a small one of our own: it accepts fields `x y z` and optionally
+//! `intensity` in any order among other fields, of type `F` with size 4 or 8 (intensity may also
+//! be an unsigned or signed integer), `COUNT` 1 for those fields, `DATA ascii` or `DATA binary`.
+//! `binary_compressed` is refused with a clear error.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+/// Why a scan file could not be read. Every variant names the file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ScanError {
+    /// The file or directory could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// A PCD header line is malformed or a required header line is missing.
+    #[error("{path}: PCD header: {message}")]
+    Header {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A required field (`x`, `y` or `z`) is not in the file.
+    #[error("{path}: PCD has no field `{field}`")]
+    MissingField {
+        /// The file.
+        path: PathBuf,
+        /// The missing field.
+        field: &'static str,
+    },
+    /// A field has a type/size or count this reader does not handle.
+    #[error("{path}: PCD field `{field}` has unsupported TYPE {kind} SIZE {size} COUNT {count}")]
+    UnsupportedField {
+        /// The file.
+        path: PathBuf,
+        /// Field name.
+        field: String,
+        /// PCD type letter (`F`, `U`, `I`).
+        kind: char,
+        /// Size in bytes.
+        size: usize,
+        /// Element count.
+        count: usize,
+    },
+    /// The `DATA` encoding is not `ascii` or `binary`.
+    #[error("{path}: PCD DATA `{encoding}` is not supported (use ascii or binary)")]
+    UnsupportedEncoding {
+        /// The file.
+        path: PathBuf,
+        /// The encoding named in the header.
+        encoding: String,
+    },
+    /// The data section is shorter than the header announces.
+    #[error("{path}: expected {expected} points, data holds {found}")]
+    Truncated {
+        /// The file.
+        path: PathBuf,
+        /// Points announced by the header.
+        expected: usize,
+        /// Complete points present.
+        found: usize,
+    },
+    /// An ascii data line could not be parsed.
+    #[error("{path}: line {line}: {message}")]
+    AsciiData {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number in the file.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A KITTI `.bin` file's length is not a whole number of 16-byte records.
+    #[error("{path}: {len} bytes is not a whole number of 16-byte KITTI records (x y z intensity f32)")]
+    KittiLength {
+        /// The file.
+        path: PathBuf,
+        /// File length in bytes.
+        len: usize,
+    },
+    /// The file's extension is neither `.pcd` nor `.bin`.
+    #[error("{path}: unknown scan format (expected .pcd or .bin)")]
+    UnknownFormat {
+        /// The file.
+        path: PathBuf,
+    },
+}
+
+/// One lidar scan: points in the sensor frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Scan {
+    /// Points `[x, y, z]` in the sensor frame, metres (x forward, y left, z up for KITTI).
+    pub points_in_sensor: Vec<[f32; 3]>,
+    /// Intensity per point when the file has it (same length as the points), else empty.
+    pub intensity: Vec<f32>,
+}
+
+impl Scan {
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.points_in_sensor.len()
+    }
+
+    /// True for a scan without points.
+    pub fn is_empty(&self) -> bool {
+        self.points_in_sensor.is_empty()
+    }
+}
+
+/// Reads a scan, choosing the format by extension: `.pcd` (PCD v0.7) or `.bin` (KITTI).
+///
+/// # Errors
+///
+/// Any [`ScanError`], naming the file.
+pub fn read_scan(path: &Path) -> Result<Scan, ScanError> {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase) {
+        Some(ext) if ext == "pcd" => read_pcd(path),
+        Some(ext) if ext == "bin" => read_kitti_bin(path),
+        _ => Err(ScanError::UnknownFormat {
+            path: path.to_path_buf(),
+        }),
+    }
+}
+
+/// The `.pcd` and `.bin` files of a directory, sorted by file name (the scan order).
+///
+/// # Errors
+///
+/// [`ScanError::Io`] if the directory cannot be listed.
+pub fn list_scans(dir: &Path) -> Result<Vec<PathBuf>, ScanError> {
+    let io = |source| ScanError::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let mut paths = Vec::new();
+    for entry in fs::read_dir(dir).map_err(io)? {
+        let path = entry.map_err(io)?.path();
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        if path.is_file() && matches!(ext.as_deref(), Some("pcd" | "bin")) {
+            paths.push(path);
+        }
+    }
+    paths.sort_by(|a, b| a.file_name().cmp(&b.file_name()));
+    Ok(paths)
+}
+
+/// Reads a KITTI Velodyne `.bin` file: little-endian `f32` records `x y z intensity`.
+///
+/// # Errors
+///
+/// [`ScanError::Io`], or [`ScanError::KittiLength`] if the length is not a multiple of 16.
+pub fn read_kitti_bin(path: &Path) -> Result<Scan, ScanError> {
+    let bytes = fs::read(path).map_err(|source| ScanError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_kitti_bin(&bytes, path)
+}
+
+/// Parses the bytes of a KITTI `.bin` file; `path` only names the source in errors.
+///
+/// # Errors
+///
+/// [`ScanError::KittiLength`] if the length is not a multiple of 16.
+pub fn parse_kitti_bin(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
+    if bytes.len() % 16 != 0 {
+        return Err(ScanError::KittiLength {
+            path: path.to_path_buf(),
+            len: bytes.len(),
+        });
+    }
+    let n = bytes.len() / 16;
+    let mut scan = Scan {
+        points_in_sensor: Vec::with_capacity(n),
+        intensity: Vec::with_capacity(n),
+    };
+    for record in bytes.chunks_exact(16) {
+        let f = |i: usize| f32::from_le_bytes([record[i], record[i + 1], record[i + 2], record[i + 3]]);
+        scan.points_in_sensor.push([f(0), f(4), f(8)]);
+        scan.intensity.push(f(12));
+    }
+    Ok(scan)
+}
+
+/// Reads a PCD v0.7 file (ascii or binary data).
+///
+/// # Errors
+///
+/// Any [`ScanError`], naming the file.
+pub fn read_pcd(path: &Path) -> Result<Scan, ScanError> {
+    let bytes = fs::read(path).map_err(|source| ScanError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_pcd(&bytes, path)
+}
+
+/// How one field is stored in a PCD record.
+#[derive(Debug, Clone)]
+struct PcdField {
+    name: String,
+    kind: char,
+    size: usize,
+    count: usize,
+    /// Byte offset inside a binary record; element offset inside an ascii line.
+    offset: usize,
+    column: usize,
+}
+
+impl PcdField {
+    /// Decodes this field (first element) from a little-endian binary record.
+    fn decode(&self, record: &[u8]) -> f32 {
+        let b = &record[self.offset..self.offset + self.size];
+        match (self.kind, self.size) {
+            ('F', 4) => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+            ('F', 8) => f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]) as f32,
+            ('U', 1) => f32::from(b[0]),
+            ('U', 2) => f32::from(u16::from_le_bytes([b[0], b[1]])),
+            ('U', 4) => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
+            ('I', 1) => f32::from(b[0] as i8),
+            ('I', 2) => f32::from(i16::from_le_bytes([b[0], b[1]])),
+            ('I', 4) => i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
+            // Unreachable: `check_supported` refused every other combination.
+            _ => f32::NAN,
+        }
+    }
+}
+
+/// Parses the bytes of a PCD v0.7 file; `path` only names the source in errors.
+///
+/// # Errors
+///
+/// Any [`ScanError`] but `Io`, naming `path`.
+pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
+    let header_error = |message: String| ScanError::Header {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut names: Vec<String> = Vec::new();
+    let mut sizes: Vec<usize> = Vec::new();
+    let mut kinds: Vec<char> = Vec::new();
+    let mut counts: Vec<usize> = Vec::new();
+    let mut width: Option<usize> = None;
+    let mut height: usize = 1;
+    let mut points: Option<usize> = None;
+    let mut cursor = 0usize;
+    let mut line_number = 0usize;
+    let encoding = loop {
+        let Some(rel_end) = bytes[cursor..].iter().position(|&b| b == b'\n') else {
+            return Err(header_error("no DATA line".into()));
+        };
+        let line = String::from_utf8_lossy(&bytes[cursor..cursor + rel_end]).into_owned();
+        cursor += rel_end + 1;
+        line_number += 1;
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let mut words = line.split_whitespace();
+        let key = words.next().unwrap_or_default().to_ascii_uppercase();
+        let values: Vec<&str> = words.collect();
+        let parse_all = |what: &str| -> Result<Vec<usize>, ScanError> {
+            values
+                .iter()
+                .map(|v| {
+                    v.parse::<usize>()
+                        .map_err(|_| header_error(format!("line {line_number}: bad {what} `{v}`")))
+                })
+                .collect()
+        };
+        let parse_one = |what: &str| -> Result<usize, ScanError> {
+            match parse_all(what)?.as_slice() {
+                [v] => Ok(*v),
+                _ => Err(header_error(format!("line {line_number}: {what} needs one value"))),
+            }
+        };
+        match key.as_str() {
+            "VERSION" | "VIEWPOINT" => {}
+            "FIELDS" => names = values.iter().map(|s| s.to_string()).collect(),
+            "SIZE" => sizes = parse_all("SIZE")?,
+            "COUNT" => counts = parse_all("COUNT")?,
+            "TYPE" => {
+                kinds = values
+                    .iter()
+                    .map(|v| match v.chars().collect::<Vec<_>>().as_slice() {
+                        [c @ ('F' | 'U' | 'I')] => Ok(*c),
+                        _ => Err(header_error(format!("line {line_number}: bad TYPE `{v}`"))),
+                    })
+                    .collect::<Result<_, _>>()?
+            }
+            "WIDTH" => width = Some(parse_one("WIDTH")?),
+            "HEIGHT" => height = parse_one("HEIGHT")?,
+            "POINTS" => points = Some(parse_one("POINTS")?),
+            "DATA" => break values.first().map(|s| s.to_ascii_lowercase()).unwrap_or_default(),
+            other => return Err(header_error(format!("line {line_number}: unknown key `{other}`"))),
+        }
+    };
+    if counts.is_empty() {
+        counts = vec![1; names.len()];
+    }
+    if names.is_empty() || sizes.len() != names.len() || kinds.len() != names.len() || counts.len() != names.len() {
+        return Err(header_error(format!(
+            "FIELDS ({}), SIZE ({}), TYPE ({}) and COUNT ({}) disagree",
+            names.len(),
+            sizes.len(),
+            kinds.len(),
+            counts.len()
+        )));
+    }
+    let expected = match (points, width) {
+        (Some(p), _) => p,
+        (None, Some(w)) => w.saturating_mul(height),
+        (None, None) => return Err(header_error("neither POINTS nor WIDTH given".into())),
+    };
+    let mut fields = Vec::with_capacity(names.len());
+    let (mut offset, mut column) = (0usize, 0usize);
+    for i in 0..names.len() {
+        fields.push(PcdField {
+            name: names[i].clone(),
+            kind: kinds[i],
+            size: sizes[i],
+            count: counts[i],
+            offset,
+            column,
+        });
+        offset += sizes[i] * counts[i];
+        column += counts[i];
+    }
+    let record_len = offset;
+    let find = |name: &'static str, required: bool| -> Result<Option<PcdField>, ScanError> {
+        let Some(field) = fields.iter().find(|f| f.name == name) else {
+            return if required {
+                Err(ScanError::MissingField {
+                    path: path.to_path_buf(),
+                    field: name,
+                })
+            } else {
+                Ok(None)
+            };
+        };
+        let coordinate = name != "intensity";
+        let supported = field.count == 1
+            && match field.kind {
+                'F' => matches!(field.size, 4 | 8),
+                'U' | 'I' => !coordinate && matches!(field.size, 1 | 2 | 4),
+                _ => false,
+            };
+        if !supported {
+            return Err(ScanError::UnsupportedField {
+                path: path.to_path_buf(),
+                field: field.name.clone(),
+                kind: field.kind,
+                size: field.size,
+                count: field.count,
+            });
+        }
+        Ok(Some(field.clone()))
+    };
+    let (Some(fx), Some(fy), Some(fz)) = (find("x", true)?, find("y", true)?, find("z", true)?) else {
+        // `find` with `required` never returns Ok(None).
+        return Err(ScanError::MissingField {
+            path: path.to_path_buf(),
+            field: "x",
+        });
+    };
+    let fi = find("intensity", false)?;
+    let mut scan = Scan {
+        points_in_sensor: Vec::with_capacity(expected),
+        intensity: Vec::with_capacity(if fi.is_some() { expected } else { 0 }),
+    };
+    let data = &bytes[cursor..];
+    match encoding.as_str() {
+        "binary" => {
+            let found = data.len() / record_len.max(1);
+            if found < expected || record_len == 0 {
+                return Err(ScanError::Truncated {
+                    path: path.to_path_buf(),
+                    expected,
+                    found,
+                });
+            }
+            for record in data.chunks_exact(record_len).take(expected) {
+                scan.points_in_sensor
+                    .push([fx.decode(record), fy.decode(record), fz.decode(record)]);
+                if let Some(fi) = &fi {
+                    scan.intensity.push(fi.decode(record));
+                }
+            }
+        }
+        "ascii" => {
+            let text = String::from_utf8_lossy(data);
+            let mut values: Vec<f32> = Vec::with_capacity(column);
+            for (i, line) in text.lines().enumerate() {
+                if scan.points_in_sensor.len() == expected {
+                    break;
+                }
+                let line = line.trim();
+                if line.is_empty() {
+                    continue;
+                }
+                let number = line_number + i + 1;
+                values.clear();
+                for word in line.split_whitespace() {
+                    // PCD writes non-finite values as `nan`; Rust parses `nan`/`inf` as such.
+                    let v: f64 = word.parse().map_err(|_| ScanError::AsciiData {
+                        path: path.to_path_buf(),
+                        line: number,
+                        message: format!("`{word}` is not a number"),
+                    })?;
+                    values.push(v as f32);
+                }
+                if values.len() < column {
+                    return Err(ScanError::AsciiData {
+                        path: path.to_path_buf(),
+                        line: number,
+                        message: format!("{} values, header declares {column}", values.len()),
+                    });
+                }
+                scan.points_in_sensor
+                    .push([values[fx.column], values[fy.column], values[fz.column]]);
+                if let Some(fi) = &fi {
+                    scan.intensity.push(values[fi.column]);
+                }
+            }
+            if scan.points_in_sensor.len() < expected {
+                return Err(ScanError::Truncated {
+                    path: path.to_path_buf(),
+                    expected,
+                    found: scan.points_in_sensor.len(),
+                });
+            }
+        }
+        other => {
+            return Err(ScanError::UnsupportedEncoding {
+                path: path.to_path_buf(),
+                encoding: other.to_string(),
+            });
+        }
+    }
+    Ok(scan)
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    fn shared_scans() -> Option<Vec<PathBuf>> {
+        let root = std::env::var("EVIGRID_SHARED").map(PathBuf::from).unwrap_or_else(|_| {
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared")
+        });
+        let dir = root.join("data/lidar/kitti-city-22");
+        match list_scans(&dir) {
+            Ok(paths) if !paths.is_empty() => Some(paths),
+            _ => {
+                assert!(
+                    std::env::var("EVIGRID_REQUIRE_SHARED").as_deref() != Ok("1"),
+                    "shared lidar data missing at {}",
+                    dir.display()
+                );
+                eprintln!("note: skipping, no shared lidar data at {}", dir.display());
+                None
+            }
+        }
+    }
+
+    #[test]
+    fn ascii_pcd_with_fields_in_any_order_and_f8() {
+        let text = "# .PCD v0.7\nVERSION 0.7\nFIELDS intensity z y x\nSIZE 4 8 4 4\nTYPE U F F F\n\
+                    COUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n\
+                    7 3.5 2 1\n9 nan -2 -1.5\n";
+        let scan = parse_pcd(text.as_bytes(), Path::new("t.pcd")).unwrap();
+        assert_eq!(scan.points_in_sensor[0], [1.0, 2.0, 3.5]);
+        assert_eq!(scan.points_in_sensor[1][..2], [-1.5, -2.0]);
+        assert!(scan.points_in_sensor[1][2].is_nan());
+        assert_eq!(scan.intensity, vec![7.0, 9.0]);
+    }
+
+    #[test]
+    fn binary_pcd_with_extra_field_and_f8() {
+        let mut bytes = b"VERSION 0.7\nFIELDS x ring y z\nSIZE 8 2 4 4\nTYPE F U F F\nCOUNT 1 1 1 1\n\
+                          WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary\n"
+            .to_vec();
+        bytes.extend_from_slice(&(-2.25f64).to_le_bytes());
+        bytes.extend_from_slice(&5u16.to_le_bytes());
+        bytes.extend_from_slice(&0.5f32.to_le_bytes());
+        bytes.extend_from_slice(&(-1.75f32).to_le_bytes());
+        let scan = parse_pcd(&bytes, Path::new("b.pcd")).unwrap();
+        assert_eq!(scan.points_in_sensor, vec![[-2.25, 0.5, -1.75]]);
+        assert!(scan.intensity.is_empty());
+    }
+
+    #[test]
+    fn errors_name_the_file_and_the_problem() {
+        let head = "VERSION 0.7\nFIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2\n";
+        let err = parse_pcd(head.as_bytes(), Path::new("scan7.pcd")).unwrap_err();
+        assert!(matches!(err, ScanError::MissingField { field: "z", .. }));
+        assert!(err.to_string().starts_with("scan7.pcd:"));
+
+        let compressed = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA binary_compressed\n";
+        assert!(matches!(
+            parse_pcd(compressed.as_bytes(), Path::new("c.pcd")),
+            Err(ScanError::UnsupportedEncoding { .. })
+        ));
+        let short = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 2\nDATA binary\n0123456789ab";
+        assert!(matches!(
+            parse_pcd(short.as_bytes(), Path::new("s.pcd")),
+            Err(ScanError::Truncated { expected: 2, found: 1, .. })
+        ));
+        let int_x = "FIELDS x y z\nSIZE 4 4 4\nTYPE I F F\nPOINTS 0\nDATA ascii\n";
+        assert!(matches!(
+            parse_pcd(int_x.as_bytes(), Path::new("i.pcd")),
+            Err(ScanError::UnsupportedField { kind: 'I', .. })
+        ));
+        assert!(matches!(
+            parse_kitti_bin(&[0u8; 20], Path::new("k.bin")),
+            Err(ScanError::KittiLength { len: 20, .. })
+        ));
+        assert!(matches!(
+            read_scan(Path::new("x.las")),
+            Err(ScanError::UnknownFormat { .. })
+        ));
+        assert!(matches!(read_scan(Path::new("/nonexistent/a.pcd")), Err(ScanError::Io { .. })));
+    }
+
+    #[test]
+    fn kitti_bin_records() {
+        let mut bytes = Vec::new();
+        for v in [1.0f32, 2.0, 3.0, 0.5, -4.0, 5.5, -1.0, 0.25] {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+        let scan = parse_kitti_bin(&bytes, Path::new("k.bin")).unwrap();
+        assert_eq!(scan.points_in_sensor, vec![[1.0, 2.0, 3.0], [-4.0, 5.5, -1.0]]);
+        assert_eq!(scan.intensity, vec![0.5, 0.25]);
+    }
+
+    #[test]
+    fn reads_the_shared_kitti_scans() {
+        let Some(paths) = shared_scans() else { return };
+        assert_eq!(paths.len(), 22);
+        let scan = read_scan(&paths[0]).unwrap();
+        // Header of 0000000000.pcd announces 119 978 points with intensity.
+        assert_eq!(scan.len(), 119_978);
+        assert_eq!(scan.intensity.len(), scan.len());
+        // An HDL-64E reaches about 120 m and sits about 1.73 m above the road: the bulk of the
+        // points lie in a plausible box around the sensor.
+        let plausible = scan
+            .points_in_sensor
+            .iter()
+            .filter(|p| p.iter().all(|v| v.is_finite()) && p[0].abs() < 130.0 && p[1].abs() < 130.0 && p[2] > -4.0 && p[2] < 10.0)
+            .count();
+        assert!(plausible as f64 > 0.99 * scan.len() as f64, "{plausible}");
+        // The same scan written as a KITTI record stream reads back identically.
+        let mut bin = Vec::new();
+        for (p, i) in scan.points_in_sensor.iter().zip(&scan.intensity) {
+            for v in [p[0], p[1], p[2], *i] {
+                bin.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        assert_eq!(parse_kitti_bin(&bin, Path::new("copy.bin")).unwrap(), scan);
+    }
+}

@@ -1,0 +1,598 @@
+//! One time step of the fusion (SPEC §5, eq 16-31), for every cell of the window.
+//!
+//! The PerceptionGrid is updated in place. Cells are processed in blocks of 16 loaded from the
+//! 32 mass planes into a small stack buffer; every stage is a pass over the block (see
+//! [`passes`](self::passes)), so the work per cell is a fixed sequence of vectorisable
+//! multiply-adds without branches or allocation. Row ranges run in parallel with rayon; each cell
+//! is computed alone and the statistics are integer counts, so the result is bit-identical
+//! whatever the number of threads.
+//!
+//! ```
+//! use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid, step::step};
+//! use evigrid::grids::class;
+//! use geodata::MapContext;
+//!
+//! let mut pg = PerceptionGrid::new(2, 1);
+//! let mut sg = SensorGrid::new(2, 1);
+//! let mut gg = GisGrid::new(2, 1);
+//! sg.m_free[0] = 0.7; // the sensor sees cell 0 free …
+//! gg.context[0] = MapContext::Road; // … on a road
+//! let stats = step(&mut pg, &sg, &gg, &Params::default(), 0.1);
+//! assert_eq!(stats.observed_cells, 1);
+//! // r(SG) ⊕ GG on a road: {F} 0.7, {F,S,M} 0.8·0.3 = 0.24, Ω 0.06; the vacuous past changes nothing.
+//! assert!((pg.mass(class::F, 0) - 0.7).abs() < 1e-6);
+//! assert!((pg.mass(class::F | class::S | class::M, 0) - 0.24).abs() < 1e-6);
+//! assert_eq!(pg.mass(31, 1), 1.0); // cell 1 was not observed: still vacuous
+//! ```
+
+mod passes;
+
+use crate::grids::{GisGrid, N_SETS, OMEGA, PerceptionGrid, PerceptionPlanesMut, SensorGrid, class};
+use crate::params::{DiscountMode, Params, ResidualPolicy, SetRate};
+use geodata::MapContext;
+use passes::{
+    BLOCK, BlockMasses, Lanes, TOO_SMALL_TO_RESCALE, add_class, discount_to_omega,
+    occupied_mass, remove_class, sum_sets,
+};
+use rayon::iter::ParallelIterator;
+
+/// A Dempster conflict K between the sensor and the map at or above `1 − this` counts as total
+/// (K = 1, SPEC §5 step 2): dividing by a smaller 1 − K would only amplify f32 rounding.
+const TOTAL_CONFLICT_MARGIN: f32 = 1e-6;
+
+/// Parallel tasks hold at least this many cells (whole rows), so that task overhead stays small.
+const MIN_CELLS_PER_TASK: usize = 8192;
+
+/// What happened during one step, counted over the window.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct StepStats {
+    /// Cells updated.
+    pub cells: u64,
+    /// Cells whose SensorGrid was not vacuous.
+    pub observed_cells: u64,
+    /// Cells where the sensor and the map were in total conflict (K = 1, SPEC §5 step 2): the
+    /// refined sensor grid r(SG) was used there without the map.
+    pub total_map_conflicts: u64,
+    /// Times the `normalise` residual policy had nothing left to rescale and fell back to
+    /// `to_omega` (fusion or specialisation; a cell may count twice).
+    pub normalisation_fallbacks: u64,
+}
+
+impl StepStats {
+    fn merged(self, other: StepStats) -> StepStats {
+        StepStats {
+            cells: self.cells + other.cells,
+            observed_cells: self.observed_cells + other.observed_cells,
+            total_map_conflicts: self.total_map_conflicts + other.total_map_conflicts,
+            normalisation_fallbacks: self.normalisation_fallbacks + other.normalisation_fallbacks,
+        }
+    }
+}
+
+/// Runs one time step (SPEC §5) on every cell: fuses the SensorGrid `sg` of this scan and the
+/// map prior `gg` into the PerceptionGrid `pg`, `dt_s` seconds after the previous step.
+///
+/// `params` should have passed [`Params::validate`]. A negative or NaN `dt_s` counts as 0 (no
+/// discounting). Runs on the current rayon pool (use `ThreadPool::install` to choose one).
+///
+/// # Panics
+/// If the three grids do not have the same width and height, or a SensorGrid or GisGrid plane
+/// does not hold `width · height` values.
+///
+/// # References
+/// SPEC §5; Kurdej et al. 2013, eq 16-31.
+pub fn step(
+    pg: &mut PerceptionGrid,
+    sg: &SensorGrid,
+    gg: &GisGrid,
+    params: &Params,
+    dt_s: f64,
+) -> StepStats {
+    let (width, len) = (pg.width(), pg.len());
+    assert!(
+        (sg.width, sg.height, gg.width, gg.height) == (width, pg.height(), width, pg.height()),
+        "grid sizes differ: PerceptionGrid {width}×{}, SensorGrid {}×{}, GisGrid {}×{}",
+        pg.height(),
+        sg.width,
+        sg.height,
+        gg.width,
+        gg.height
+    );
+    assert!(
+        sg.m_free.len() == len && sg.m_occupied.len() == len && gg.context.len() == len,
+        "a SensorGrid or GisGrid plane does not hold {len} cells"
+    );
+    let constants = StepConstants::new(params, dt_s);
+    let cells = CellRun {
+        pg: pg.planes_mut(),
+        m_free: &sg.m_free,
+        m_occupied: &sg.m_occupied,
+        context: &gg.context,
+        width: width.max(1),
+    };
+    rayon::iter::split(cells, CellRun::split_rows)
+        .map(|run| run.step(&constants))
+        .reduce(StepStats::default, StepStats::merged)
+}
+
+/// Everything the step derives from the parameters once, before touching a cell.
+#[derive(Clone, Debug)]
+struct StepConstants {
+    discount: Discount,
+    /// The GISGrid mass function of each map context, indexed by `MapContext as u8`.
+    map_prior: [MapPrior; 4],
+    residual: ResidualPolicy,
+    delta_inc: f32,
+    delta_dec: f32,
+    gamma_occupied: f32,
+    gamma_conflict: f32,
+}
+
+/// The discounting of step 3, as rates for this step's `dt`.
+#[derive(Clone, Debug)]
+enum Discount {
+    /// Classical and class-rate discounting: the rate α_A(dt) of every focal set, to Ω.
+    ToOmega([f32; N_SETS]),
+    /// Mercier contextual discounting: the rate α_θ(dt) of each class context {θ}.
+    Mercier([f32; 5]),
+}
+
+/// The GISGrid of one map context: β on the focal set G, 1 − β on Ω (eq 34-38), with the
+/// indicators the fusion needs, as 0/1 factors.
+#[derive(Clone, Copy, Debug)]
+struct MapPrior {
+    beta: f32,
+    /// 1 for each class θ ∉ G (F, I, U, S, M): restricting to G removes these classes.
+    excluded: [f32; 5],
+    /// [F ∈ G], [O ∩ G ≠ ∅], [G = {F}], [∅ ≠ G ⊆ O].
+    free_in_g: f32,
+    occupied_meets_g: f32,
+    g_is_free: f32,
+    g_within_occupied: f32,
+}
+
+impl MapPrior {
+    fn new(g: usize, beta: f64) -> Self {
+        let indicator = |condition: bool| if condition { 1.0 } else { 0.0 };
+        MapPrior {
+            beta: beta as f32,
+            excluded: std::array::from_fn(|k| indicator(g & (1 << k) == 0)),
+            free_in_g: indicator(g & class::F != 0),
+            occupied_meets_g: indicator(g & class::O != 0),
+            g_is_free: indicator(g == class::F),
+            g_within_occupied: indicator(g != 0 && g & class::F == 0),
+        }
+    }
+}
+
+/// α(dt) = 1 − (1 − α_1s)^dt: a rate per second applied over `dt_s` seconds (SPEC §5 step 3).
+pub fn rate_for_step(rate_per_second: f64, dt_s: f64) -> f64 {
+    1.0 - (1.0 - rate_per_second).powf(dt_s)
+}
+
+/// α_A per second from the rates of the classes in A (`class_rates` and `classical` modes).
+///
+/// For A = ∅ (mass kept on ∅ by the `keep` policy) the classes of Ω are used, so that equal rates
+/// give classical discounting on every set, ∅ included (eq 13).
+pub fn set_rate_per_second(set: usize, class_rates: &[f64; 5], set_rate: SetRate) -> f64 {
+    let members = if set == 0 { OMEGA } else { set };
+    let rates = (0..5)
+        .filter(|k| members & (1 << k) != 0)
+        .map(|k| class_rates[k]);
+    match set_rate {
+        SetRate::Min => rates.fold(f64::INFINITY, f64::min),
+        SetRate::Max => rates.fold(f64::NEG_INFINITY, f64::max),
+        SetRate::Mean => {
+            let count = members.count_ones() as f64;
+            rates.sum::<f64>() / count
+        }
+    }
+}
+
+impl StepConstants {
+    fn new(params: &Params, dt_s: f64) -> Self {
+        let dt_s = if dt_s > 0.0 { dt_s } else { 0.0 };
+        let fusion = &params.fusion;
+        let class_rates = fusion.discount_per_second.as_array();
+        let discount = match fusion.discount_mode {
+            DiscountMode::Classical => {
+                let rate = set_rate_per_second(OMEGA, &class_rates, fusion.set_rate);
+                Discount::ToOmega([rate_for_step(rate, dt_s) as f32; N_SETS])
+            }
+            DiscountMode::ClassRates => Discount::ToOmega(std::array::from_fn(|set| {
+                let rate = set_rate_per_second(set, &class_rates, fusion.set_rate);
+                rate_for_step(rate, dt_s) as f32
+            })),
+            DiscountMode::Mercier => {
+                Discount::Mercier(class_rates.map(|rate| rate_for_step(rate, dt_s) as f32))
+            }
+        };
+        let map = &params.map;
+        let mut map_prior = [MapPrior::new(OMEGA, 0.0); 4];
+        map_prior[MapContext::Other as usize] = MapPrior::new(
+            class::F | class::U | class::S | class::M,
+            map.beta_other,
+        );
+        map_prior[MapContext::Road as usize] =
+            MapPrior::new(class::F | class::S | class::M, map.beta_road);
+        map_prior[MapContext::Building as usize] = MapPrior::new(class::I, map.beta_building);
+        let acc = &params.accumulator;
+        StepConstants {
+            discount,
+            map_prior,
+            residual: fusion.residual,
+            delta_inc: acc.delta_inc as f32,
+            delta_dec: acc.delta_dec as f32,
+            gamma_occupied: acc.gamma_occupied as f32,
+            gamma_conflict: acc.gamma_conflict as f32,
+        }
+    }
+}
+
+/// A run of consecutive storage cells: the unit of parallel work.
+struct CellRun<'a> {
+    pg: PerceptionPlanesMut<'a>,
+    m_free: &'a [f32],
+    m_occupied: &'a [f32],
+    context: &'a [MapContext],
+    width: usize,
+}
+
+impl<'a> CellRun<'a> {
+    /// Halves the run on a row boundary while both halves stay large enough.
+    fn split_rows(self) -> (Self, Option<Self>) {
+        let rows = self.m_free.len() / self.width;
+        if rows < 2 || self.m_free.len() < 2 * MIN_CELLS_PER_TASK {
+            return (self, None);
+        }
+        let mid = rows / 2 * self.width;
+        let (pg_left, pg_right) = self.pg.split_at(mid);
+        let (free_left, free_right) = self.m_free.split_at(mid);
+        let (occ_left, occ_right) = self.m_occupied.split_at(mid);
+        let (ctx_left, ctx_right) = self.context.split_at(mid);
+        let left = CellRun {
+            pg: pg_left,
+            m_free: free_left,
+            m_occupied: occ_left,
+            context: ctx_left,
+            width: self.width,
+        };
+        let right = CellRun {
+            pg: pg_right,
+            m_free: free_right,
+            m_occupied: occ_right,
+            context: ctx_right,
+            width: self.width,
+        };
+        (left, Some(right))
+    }
+
+    /// Steps every cell of the run, block by block.
+    fn step(mut self, k: &StepConstants) -> StepStats {
+        let mut stats = StepStats::default();
+        let mut start = 0;
+        while start < self.m_free.len() {
+            let end = (start + BLOCK).min(self.m_free.len());
+            let mut block = Block::load(&self, start..end);
+            let events = step_block(&mut block, k);
+            block.store(&mut self, start..end);
+            stats = stats.merged(events);
+            start = end;
+        }
+        stats
+    }
+}
+
+/// The state of up to [`BLOCK`] cells, one lane each; lanes past the run's end are vacuous
+/// padding, computed and discarded.
+struct Block {
+    m: BlockMasses,
+    zeta: Lanes,
+    conflict_fo: Lanes,
+    conflict_of: Lanes,
+    seen: [u8; BLOCK],
+    sensor_free: Lanes,
+    sensor_occupied: Lanes,
+    context: [MapContext; BLOCK],
+    /// Lanes holding real cells.
+    len: usize,
+}
+
+impl Block {
+    fn load(run: &CellRun<'_>, cells: std::ops::Range<usize>) -> Block {
+        let len = cells.len();
+        let mut m = [[0.0; BLOCK]; N_SETS];
+        m[OMEGA] = [1.0; BLOCK];
+        for (lanes, plane) in m.iter_mut().zip(&run.pg.masses) {
+            lanes[..len].copy_from_slice(&plane[cells.clone()]);
+        }
+        let mut block = Block {
+            m,
+            zeta: [0.0; BLOCK],
+            conflict_fo: [0.0; BLOCK],
+            conflict_of: [0.0; BLOCK],
+            seen: [0; BLOCK],
+            sensor_free: [0.0; BLOCK],
+            sensor_occupied: [0.0; BLOCK],
+            context: [MapContext::Unknown; BLOCK],
+            len,
+        };
+        block.zeta[..len].copy_from_slice(&run.pg.zeta[cells.clone()]);
+        block.seen[..len].copy_from_slice(&run.pg.seen[cells.clone()]);
+        block.sensor_free[..len].copy_from_slice(&run.m_free[cells.clone()]);
+        block.sensor_occupied[..len].copy_from_slice(&run.m_occupied[cells.clone()]);
+        block.context[..len].copy_from_slice(&run.context[cells]);
+        block
+    }
+
+    fn store(&self, run: &mut CellRun<'_>, cells: std::ops::Range<usize>) {
+        let len = self.len;
+        for (lanes, plane) in self.m.iter().zip(run.pg.masses.iter_mut()) {
+            plane[cells.clone()].copy_from_slice(&lanes[..len]);
+        }
+        run.pg.zeta[cells.clone()].copy_from_slice(&self.zeta[..len]);
+        run.pg.conflict_fo[cells.clone()].copy_from_slice(&self.conflict_fo[..len]);
+        run.pg.conflict_of[cells.clone()].copy_from_slice(&self.conflict_of[..len]);
+        run.pg.seen[cells].copy_from_slice(&self.seen[..len]);
+    }
+}
+
+/// SPEC §5 on one block: PG_{t−1}, ζ_{t−1} in the block become PG_t, ζ_t.
+fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
+    let m = &mut block.m;
+    // 1-2. The sensor's evidence, refined to Ω_PG and combined with the map prior by Dempster's
+    //      rule: SG'_t = r(SG_t) ⊕ GG (eq 16-21).
+    let sensor = SensorEvidence::new(&block.sensor_free, &block.sensor_occupied, &block.context, k);
+    // 3. Discount the previous grid, so that old information fades.
+    match &k.discount {
+        Discount::ToOmega(rate_per_set) => discount_to_omega(m, rate_per_set),
+        Discount::Mercier(rate_per_class) => {
+            for (bit, &alpha) in rate_per_class.iter().enumerate() {
+                add_class(m, 1 << bit, alpha);
+            }
+        }
+    }
+    // 4. Modified conjunctive rule (eq 22-23, 30-31): ∅_FO = m(F)·m'(O) goes to {M} (an object
+    //    appeared), ∅_OF = m(O)·m'(F) to Ω (an object left), the residual conflict to the policy.
+    let (conflict_fo, conflict_of) = conflict_masses(m, &sensor);
+    conjunctive_with_sensor(m, &sensor);
+    for i in 0..BLOCK {
+        m[class::M][i] += conflict_fo[i];
+        m[OMEGA][i] += conflict_of[i];
+        m[0][i] = (m[0][i] - conflict_fo[i] - conflict_of[i]).max(0.0);
+    }
+    let fallbacks_fusion = settle_empty_set(m, k.residual);
+    // 5. Update the accumulator ζ with m(O) and ∅_FO + ∅_OF of this step (eq 24-27).
+    update_accumulator(&mut block.zeta, &occupied_mass(m), &conflict_fo, &conflict_of, k);
+    // 6. Specialise (eq 28-29): every A ∋ M gives ζ·m(A) to A∖{M}; what {M} gives to ∅ follows
+    //    the residual policy.
+    remove_class(m, class::M, &block.zeta);
+    let fallbacks_specialisation = settle_empty_set(m, k.residual);
+    // 7. Keep the conflict masses for display, and whether the sensor ever saw the cell.
+    block.conflict_fo = conflict_fo;
+    block.conflict_of = conflict_of;
+    for i in 0..BLOCK {
+        block.seen[i] |= sensor.observed[i];
+    }
+    let real = block.len;
+    StepStats {
+        cells: real as u64,
+        observed_cells: count(&sensor.observed[..real]),
+        total_map_conflicts: count(&sensor.total_conflict[..real]),
+        normalisation_fallbacks: count(&fallbacks_fusion[..real])
+            + count(&fallbacks_specialisation[..real]),
+    }
+}
+
+fn count(flags: &[u8]) -> u64 {
+    flags.iter().map(|&f| u64::from(f)).sum()
+}
+
+/// SG'_t = r(SG_t) ⊕ GG per cell, in the compact form the fusion needs.
+///
+/// r(SG) has mass m_F on {F}, m_O on O = {I,U,S,M}, m_Ω on Ω (eq 16-20). GG has β on G, 1 − β on
+/// Ω. Their conjunctive combination has m_F·β on {F}∩G, m_F(1 − β) on {F}, m_O·β on O∩G,
+/// m_O(1 − β) on O, m_Ω·β on G, m_Ω(1 − β) on Ω; the conflict K is the part of m_F·β and m_O·β
+/// whose intersection is empty, and Dempster's rule divides the rest by 1 − K (eq 9-11, 21).
+struct SensorEvidence {
+    /// r(SG): m_F, m_O, m_Ω, after clamping to a valid mass function.
+    free: Lanes,
+    occupied: Lanes,
+    omega: Lanes,
+    /// β of the cell's context; 0 where the conflict is total (then SG' = r(SG)).
+    beta: Lanes,
+    /// 1 for each class θ ∉ G, per class then per cell.
+    excluded: [Lanes; 5],
+    /// K and 1 / (1 − K).
+    conflict: Lanes,
+    inv_normaliser: Lanes,
+    /// m_SG'({F}) and m_SG'(O), the masses eq 22-23 multiply.
+    sg_free: Lanes,
+    sg_occupied: Lanes,
+    /// Non-vacuous sensor grid (1) or not (0); total conflict (1) or not (0).
+    observed: [u8; BLOCK],
+    total_conflict: [u8; BLOCK],
+}
+
+impl SensorEvidence {
+    fn new(
+        m_free: &Lanes,
+        m_occupied: &Lanes,
+        context: &[MapContext; BLOCK],
+        k: &StepConstants,
+    ) -> Self {
+        let mut e = SensorEvidence {
+            free: [0.0; BLOCK],
+            occupied: [0.0; BLOCK],
+            omega: [0.0; BLOCK],
+            beta: [0.0; BLOCK],
+            excluded: [[0.0; BLOCK]; 5],
+            conflict: [0.0; BLOCK],
+            inv_normaliser: [0.0; BLOCK],
+            sg_free: [0.0; BLOCK],
+            sg_occupied: [0.0; BLOCK],
+            observed: [0; BLOCK],
+            total_conflict: [0; BLOCK],
+        };
+        // The map prior of each cell, looked up by context (a table, not a branch).
+        let mut in_f = [0.0; BLOCK];
+        let mut meets_o = [0.0; BLOCK];
+        let mut is_f = [0.0; BLOCK];
+        let mut within_o = [0.0; BLOCK];
+        for i in 0..BLOCK {
+            let prior = &k.map_prior[context[i] as usize];
+            e.beta[i] = prior.beta;
+            for (class_lanes, &x) in e.excluded.iter_mut().zip(&prior.excluded) {
+                class_lanes[i] = x;
+            }
+            in_f[i] = prior.free_in_g;
+            meets_o[i] = prior.occupied_meets_g;
+            is_f[i] = prior.g_is_free;
+            within_o[i] = prior.g_within_occupied;
+        }
+        for i in 0..BLOCK {
+            // A valid mass function whatever the input: NaN → 0 (`max` ignores NaN), sum ≤ 1.
+            let free = m_free[i].max(0.0).min(1.0);
+            let occupied = m_occupied[i].max(0.0).min(1.0 - free);
+            let omega = 1.0 - free - occupied;
+            let beta = e.beta[i];
+            let conflict = beta * (free * (1.0 - in_f[i]) + occupied * (1.0 - meets_o[i]));
+            let total = conflict >= 1.0 - TOTAL_CONFLICT_MARGIN;
+            let (beta, conflict) = if total { (0.0, 0.0) } else { (beta, conflict) };
+            let inv = 1.0 / (1.0 - conflict);
+            e.free[i] = free;
+            e.occupied[i] = occupied;
+            e.omega[i] = omega;
+            e.beta[i] = beta;
+            e.conflict[i] = conflict;
+            e.inv_normaliser[i] = inv;
+            e.sg_free[i] = (free * (1.0 - beta) + free * beta * in_f[i] + omega * beta * is_f[i]) * inv;
+            e.sg_occupied[i] = (occupied * (1.0 - beta)
+                + occupied * beta * meets_o[i]
+                + omega * beta * within_o[i])
+                * inv;
+            e.observed[i] = u8::from(free + occupied > 0.0);
+            e.total_conflict[i] = u8::from(total);
+        }
+        e
+    }
+}
+
+/// ∅_FO = m_PG^α({F})·m_SG'(O) and ∅_OF = m_PG^α(O)·m_SG'({F}) (eq 22-23), from the discounted
+/// previous grid.
+fn conflict_masses(m: &BlockMasses, sensor: &SensorEvidence) -> (Lanes, Lanes) {
+    let pg_occupied = occupied_mass(m);
+    let mut fo = [0.0; BLOCK];
+    let mut of = [0.0; BLOCK];
+    for i in 0..BLOCK {
+        fo[i] = m[class::F][i] * sensor.sg_occupied[i];
+        of[i] = pg_occupied[i] * sensor.sg_free[i];
+    }
+    (fo, of)
+}
+
+/// m ← m ∩ SG'_t, the unnormalised conjunctive combination, in place.
+///
+/// By associativity, m ∩ r(SG) ∩ GG is computed first, then the sensor–map conflict K removed:
+/// since SG' = (r(SG) ∩ GG − K·δ_∅) / (1 − K) and m sums to 1,
+/// m ∩ SG' = (m ∩ r(SG) ∩ GG − K·δ_∅) / (1 − K), which differs from the plain product only on ∅.
+fn conjunctive_with_sensor(m: &mut BlockMasses, sensor: &SensorEvidence) {
+    // m ∩ r(SG) = m_Ω·m + m_O·(m restricted to O) + m_F·(m restricted to {F}).
+    // Restricting to O gives every A its mass and that of A ∪ {F}: pairs (A, A ∪ {F}) for A ∌ F.
+    // Restricting to {F} puts pl(F) = Σ_{A∋F} m(A) on {F} and the rest on ∅.
+    let with_free = sum_sets(m, |set| set & class::F != 0);
+    let without_free = sum_sets(m, |set| set & class::F == 0);
+    for set in (0..N_SETS).step_by(2) {
+        for i in 0..BLOCK {
+            let (a, a_and_f) = (m[set][i], m[set | class::F][i]);
+            m[set][i] = sensor.omega[i] * a + sensor.occupied[i] * (a + a_and_f);
+            m[set | class::F][i] = sensor.omega[i] * a_and_f;
+        }
+    }
+    for i in 0..BLOCK {
+        m[class::F][i] += sensor.free[i] * with_free[i];
+        m[0][i] += sensor.free[i] * without_free[i];
+    }
+    // ∩ GG = (1 − β)·m + β·(m restricted to G); restricting to G removes each θ ∉ G in turn.
+    let mut restricted = *m;
+    for (bit, excluded) in sensor.excluded.iter().enumerate() {
+        remove_class(&mut restricted, 1 << bit, excluded);
+    }
+    for (set, plane) in m.iter_mut().enumerate() {
+        for i in 0..BLOCK {
+            let combined = (1.0 - sensor.beta[i]) * plane[i] + sensor.beta[i] * restricted[set][i];
+            // Dempster's normalisation of SG' (K is 0 outside building cells).
+            let k_part = if set == 0 { sensor.conflict[i] } else { 0.0 };
+            plane[i] = (combined - k_part) * sensor.inv_normaliser[i];
+        }
+    }
+}
+
+/// Applies the residual policy to the mass on ∅; returns 1 per cell where `normalise` had
+/// nothing to rescale and fell back to `to_omega`.
+///
+/// - `to_omega`: m(Ω) += m(∅), m(∅) = 0.
+/// - `keep`: m(∅) stays.
+/// - `normalise`: every other mass is divided by their sum, m(∅) = 0.
+fn settle_empty_set(m: &mut BlockMasses, policy: ResidualPolicy) -> [u8; BLOCK] {
+    let mut fallback = [0; BLOCK];
+    match policy {
+        ResidualPolicy::ToOmega => {
+            for i in 0..BLOCK {
+                m[OMEGA][i] += m[0][i];
+                m[0][i] = 0.0;
+            }
+        }
+        ResidualPolicy::Keep => {}
+        ResidualPolicy::Normalise => {
+            let rest = sum_sets(m, |set| set != 0);
+            let mut scale = [1.0; BLOCK];
+            let mut to_omega = [0.0; BLOCK];
+            for i in 0..BLOCK {
+                let enough = rest[i] > TOO_SMALL_TO_RESCALE;
+                scale[i] = if enough { 1.0 / rest[i] } else { 1.0 };
+                to_omega[i] = if enough { 0.0 } else { m[0][i] };
+                fallback[i] = u8::from(!enough);
+            }
+            for plane in m.iter_mut().skip(1) {
+                for i in 0..BLOCK {
+                    plane[i] *= scale[i];
+                }
+            }
+            for i in 0..BLOCK {
+                m[OMEGA][i] += to_omega[i];
+                m[0][i] = 0.0;
+            }
+        }
+    }
+    fallback
+}
+
+/// ζ += δ_inc (capped at 1) if m(O) ≥ γ_O and ∅_FO + ∅_OF ≤ γ_∅; ζ −= δ_dec (floored at 0) if
+/// ∅_FO + ∅_OF > γ_∅; else unchanged (eq 24-27).
+fn update_accumulator(
+    zeta: &mut Lanes,
+    occupied: &Lanes,
+    conflict_fo: &Lanes,
+    conflict_of: &Lanes,
+    k: &StepConstants,
+) {
+    for i in 0..BLOCK {
+        let conflict = conflict_fo[i] + conflict_of[i];
+        let increase = occupied[i] >= k.gamma_occupied && conflict <= k.gamma_conflict;
+        let decrease = conflict > k.gamma_conflict;
+        let raised = (zeta[i] + k.delta_inc).min(1.0);
+        let lowered = (zeta[i] - k.delta_dec).max(0.0);
+        zeta[i] = if increase {
+            raised
+        } else if decrease {
+            lowered
+        } else {
+            zeta[i]
+        };
+    }
+}
+
+#[cfg(test)]
+mod tests;

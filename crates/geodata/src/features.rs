@@ -1,0 +1,176 @@
+//! Map features as read from a file, before projection: the common output of every reader.
+
+use std::collections::BTreeMap;
+
+use geo::{LineString, Polygon, Rect};
+
+use crate::buffer::buffer_line;
+use crate::tags::road_width_m;
+
+/// A vehicle-road centreline with the tags that decide its width.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RoadCentreline {
+    /// The centreline, in the coordinates of the [`MapFeatures`] holding it.
+    pub line: LineString<f64>,
+    /// The `highway` class (a vehicle class, see [`is_vehicle_road`](crate::tags::is_vehicle_road)).
+    pub highway: String,
+    /// The raw `width` tag, if any.
+    pub width_tag: Option<String>,
+    /// The raw `lanes` tag, if any.
+    pub lanes_tag: Option<String>,
+}
+
+impl RoadCentreline {
+    /// The width the centreline is buffered to, metres (see [`road_width_m`]).
+    pub fn width_m(&self) -> f64 {
+        road_width_m(
+            &self.highway,
+            self.width_tag.as_deref(),
+            self.lanes_tag.as_deref(),
+        )
+        .unwrap_or(0.0)
+    }
+}
+
+/// Why an item of the input was left out of the map.
+///
+/// Real OSM extracts are incomplete at their border; these are counted, not errors.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum SkipReason {
+    /// An area way refers to nodes absent from the extract (cut at the border).
+    AreaWayMissingNodes,
+    /// A road way refers to nodes absent from the extract; the present runs were kept, this counts
+    /// the ways that lost part of their length.
+    RoadWayPartlyMissing,
+    /// A road way with fewer than two present nodes: nothing left to draw.
+    RoadWayTooShort,
+    /// An area way that is not closed (first node ≠ last node).
+    UnclosedAreaWay,
+    /// A ring with fewer than three distinct points.
+    DegenerateRing,
+    /// A ring that crosses itself.
+    SelfIntersectingRing,
+    /// A multipolygon relation's member ways are absent from the extract.
+    RelationMissingMembers,
+    /// A multipolygon relation whose member ways do not join into closed rings.
+    RelationOpenRing,
+    /// A multipolygon relation with no usable outer ring.
+    RelationNoOuterRing,
+    /// An inner ring of a multipolygon that lies in none of its outer rings.
+    OrphanInnerRing,
+    /// A GeoJSON feature whose geometry type cannot carry its role (a Point, a LineString
+    /// building, a GeometryCollection, no geometry).
+    UnsupportedGeometry,
+}
+
+impl SkipReason {
+    /// snake_case name, as in JSON output.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::AreaWayMissingNodes => "area_way_missing_nodes",
+            Self::RoadWayPartlyMissing => "road_way_partly_missing",
+            Self::RoadWayTooShort => "road_way_too_short",
+            Self::UnclosedAreaWay => "unclosed_area_way",
+            Self::DegenerateRing => "degenerate_ring",
+            Self::SelfIntersectingRing => "self_intersecting_ring",
+            Self::RelationMissingMembers => "relation_missing_members",
+            Self::RelationOpenRing => "relation_open_ring",
+            Self::RelationNoOuterRing => "relation_no_outer_ring",
+            Self::OrphanInnerRing => "orphan_inner_ring",
+            Self::UnsupportedGeometry => "unsupported_geometry",
+        }
+    }
+}
+
+/// Counts of skipped items by reason.
+pub type SkipCounts = BTreeMap<SkipReason, usize>;
+
+/// Counts of tagged elements in the source, before any geometry is built. They make a reader
+/// checkable against an independent count (e.g. pyosmium's).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct SourceCounts {
+    /// OSM ways (or GeoJSON features) tagged `building=*` other than `no`.
+    pub building_ways: usize,
+    /// OSM multipolygon relations tagged `building=*` other than `no`.
+    pub building_relations: usize,
+    /// OSM ways (or GeoJSON features) tagged `highway=*`, any class.
+    pub highway_ways: usize,
+    /// Of those, the ones of a vehicle class.
+    pub vehicle_road_ways: usize,
+}
+
+/// Everything a reader extracted from a map, in the file's coordinates (x = longitude,
+/// y = latitude for WGS84 sources; metres for local sources).
+#[derive(Clone, Debug, Default)]
+pub struct MapFeatures {
+    /// Building footprints (outer ring, holes).
+    pub buildings: Vec<Polygon<f64>>,
+    /// `area:highway` surfaces and vehicle `highway` ways tagged `area=yes`.
+    pub road_areas: Vec<Polygon<f64>>,
+    /// `amenity=parking` areas.
+    pub parking: Vec<Polygon<f64>>,
+    /// Vehicle-road centrelines, to be buffered.
+    pub roads: Vec<RoadCentreline>,
+    /// The extent the file declares (OSM `<bounds>`, the PBF header box, a GeoJSON `bbox`).
+    pub declared_bounds: Option<Rect<f64>>,
+    /// The bounding box of every coordinate read (all nodes, not only used ones).
+    pub coordinate_bounds: Option<Rect<f64>>,
+    /// Tagged elements seen.
+    pub source_counts: SourceCounts,
+    /// Items left out, by reason.
+    pub skipped: SkipCounts,
+}
+
+impl MapFeatures {
+    /// Counts one skipped item.
+    pub(crate) fn skip(&mut self, reason: SkipReason) {
+        *self.skipped.entry(reason).or_insert(0) += 1;
+    }
+
+    /// Extends the coordinate bounds to hold `(x, y)`.
+    pub(crate) fn include_coordinate(&mut self, x: f64, y: f64) {
+        let point = geo::coord! { x: x, y: y };
+        self.coordinate_bounds = Some(match self.coordinate_bounds {
+            None => Rect::new(point, point),
+            Some(rect) => Rect::new(
+                geo::coord! { x: rect.min().x.min(x), y: rect.min().y.min(y) },
+                geo::coord! { x: rect.max().x.max(x), y: rect.max().y.max(y) },
+            ),
+        });
+    }
+
+    /// The map's extent in source coordinates: the declared bounds if any, else the bounding box
+    /// of all coordinates.
+    pub fn extent(&self) -> Option<Rect<f64>> {
+        self.declared_bounds.or(self.coordinate_bounds)
+    }
+
+    /// Converts the features to road-surface and building polygons in local metres, with
+    /// `to_local` mapping one source coordinate to local metres. Centrelines are converted then
+    /// buffered in metres. Returns `(buildings, road_surface, road_pieces_from_centrelines)`.
+    pub(crate) fn to_local_polygons(
+        &self,
+        to_local: impl Fn(geo::Coord<f64>) -> geo::Coord<f64>,
+    ) -> (Vec<Polygon<f64>>, Vec<Polygon<f64>>, usize) {
+        use geo::MapCoords;
+        let buildings = self
+            .buildings
+            .iter()
+            .map(|p| p.map_coords(&to_local))
+            .collect();
+        let mut roads: Vec<Polygon<f64>> = self
+            .road_areas
+            .iter()
+            .chain(&self.parking)
+            .map(|p| p.map_coords(&to_local))
+            .collect();
+        let areas = roads.len();
+        for road in &self.roads {
+            buffer_line(&road.line.map_coords(&to_local), road.width_m(), &mut roads);
+        }
+        let pieces = roads.len() - areas;
+        (buildings, roads, pieces)
+    }
+}

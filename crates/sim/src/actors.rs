@@ -1,0 +1,496 @@
+//! Actors: cars (moving, stopping, queueing, parked), pedestrians (walking, standing) and
+//! unmapped street furniture, each with a footprint and a class at every instant.
+//!
+//! Motion is kinematic and deliberately simple: a car follows its lane (a route offset to the
+//! right of the road's middle) at its cruise speed, brakes to stop at junctions it decided to stop
+//! at, and keeps a gap behind whatever is ahead in its lane, which makes queues form. All actors
+//! are updated from a snapshot of the previous instant, in id order, so the result depends only
+//! on the seed.
+
+use crate::geometry::{Footprint, Pose2, Polyline, Vec2, wrap_angle};
+use crate::roadnet::{RoadNetwork, Route};
+use crate::scenario::TrafficConfig;
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+/// What an actor is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum ActorKind {
+    /// A car, moving or parked.
+    Car,
+    /// A pedestrian.
+    Pedestrian,
+    /// A lamp post or sign pole.
+    Pole,
+    /// A tree trunk.
+    Tree,
+    /// A litter or recycling bin.
+    Bin,
+    /// A bollard.
+    Bollard,
+}
+
+impl ActorKind {
+    /// Whether this is street furniture (truth class U) rather than a road user.
+    pub fn is_infrastructure(self) -> bool {
+        matches!(self, ActorKind::Pole | ActorKind::Tree | ActorKind::Bin | ActorKind::Bollard)
+    }
+    /// Footprint of this kind.
+    pub fn footprint(self) -> Footprint {
+        match self {
+            ActorKind::Car => Footprint::Rect {
+                half_length_m: CAR_HALF_LENGTH_M,
+                half_width_m: 0.9,
+            },
+            ActorKind::Pedestrian => Footprint::Circle { radius_m: 0.3 },
+            ActorKind::Pole => Footprint::Circle { radius_m: 0.12 },
+            ActorKind::Tree => Footprint::Circle { radius_m: 0.35 },
+            ActorKind::Bin => Footprint::Rect {
+                half_length_m: 0.3,
+                half_width_m: 0.3,
+            },
+            ActorKind::Bollard => Footprint::Circle { radius_m: 0.1 },
+        }
+    }
+}
+
+/// Half of a car's length, metres (a 4.5 m compact car).
+pub const CAR_HALF_LENGTH_M: f64 = 2.25;
+/// Comfortable deceleration for planned stops, m/s².
+const BRAKE_MPS2: f64 = 3.0;
+/// Acceleration, m/s².
+const ACCEL_MPS2: f64 = 2.0;
+/// Hardest braking allowed to avoid running into a leader, m/s².
+const MAX_BRAKE_MPS2: f64 = 8.0;
+/// Bumper-to-bumper gap kept when stopped in a queue, metres.
+const STANDSTILL_GAP_M: f64 = 2.5;
+/// Stop line distance before a junction centre, metres.
+const STOP_LINE_BEFORE_JUNCTION_M: f64 = 9.0;
+
+/// A car following a lane.
+#[derive(Clone, Debug)]
+pub struct Driving {
+    lane: Polyline,
+    junctions_m: Vec<f64>,
+    s_m: f64,
+    cruise_mps: f64,
+    next_junction: usize,
+    stop_at_m: Option<f64>,
+    wait_left_s: f64,
+    /// Junction stops on or off (the ego never stops on its own).
+    stops: bool,
+}
+
+/// A pedestrian walking back and forth along a pavement.
+#[derive(Clone, Debug)]
+pub struct Walking {
+    path: Polyline,
+    s_m: f64,
+    forward: bool,
+    cruise_mps: f64,
+    standing: bool,
+    phase_left_s: f64,
+}
+
+/// How an actor moves.
+#[derive(Clone, Debug)]
+pub enum Motion {
+    /// Never moves (parked cars, street furniture).
+    Fixed,
+    /// Follows a lane.
+    Driving(Box<Driving>),
+    /// Walks a pavement.
+    Walking(Box<Walking>),
+}
+
+/// An actor at the current instant.
+#[derive(Clone, Debug)]
+pub struct Actor {
+    /// Stable id (index in the actor list).
+    pub id: u32,
+    /// What it is.
+    pub kind: ActorKind,
+    /// Its shape.
+    pub footprint: Footprint,
+    /// `world_from_actor` now.
+    pub pose: Pose2,
+    /// Speed now, m/s (≥ 0).
+    pub speed_mps: f64,
+    /// How it moves.
+    pub motion: Motion,
+}
+
+fn uniform(rng: &mut impl Rng, range: [f64; 2]) -> f64 {
+    if range[1] > range[0] { rng.random_range(range[0]..=range[1]) } else { range[0] }
+}
+
+/// Lateral offset of a lane from the road's middle, metres: a 3.5 m lane on roads 7 m or wider,
+/// half of the half-width on narrower ones.
+fn lane_offset_m(half_width_m: f64) -> f64 {
+    (half_width_m * 0.5).min(1.75)
+}
+
+impl Actor {
+    /// A car on `route`, driving on the right, starting `start_m` along it.
+    pub fn driving_car(id: u32, route: &Route, start_m: f64, cruise_mps: f64, stops: bool) -> Self {
+        let lane = route.path.offset(-lane_offset_m(route.half_width_m));
+        let ratio = if route.path.length_m() > 0.0 { lane.length_m() / route.path.length_m() } else { 1.0 };
+        let junctions_m = route.junctions_m.iter().map(|s| s * ratio).collect();
+        let s_m = start_m.clamp(0.0, lane.length_m());
+        let (p, t) = lane.at(s_m);
+        Self {
+            id,
+            kind: ActorKind::Car,
+            footprint: ActorKind::Car.footprint(),
+            pose: Pose2::new(p, t.y.atan2(t.x)),
+            speed_mps: cruise_mps,
+            motion: Motion::Driving(Box::new(Driving {
+                lane,
+                junctions_m,
+                s_m,
+                cruise_mps,
+                next_junction: 0,
+                stop_at_m: None,
+                wait_left_s: 0.0,
+                stops,
+            })),
+        }
+    }
+
+    /// A fixed actor.
+    pub fn fixed(id: u32, kind: ActorKind, pose: Pose2) -> Self {
+        Self {
+            id,
+            kind,
+            footprint: kind.footprint(),
+            pose,
+            speed_mps: 0.0,
+            motion: Motion::Fixed,
+        }
+    }
+
+    /// A pedestrian on `path`.
+    pub fn pedestrian(id: u32, path: Polyline, rng: &mut impl Rng, cfg: &TrafficConfig) -> Self {
+        let s_m = rng.random_range(0.0..=path.length_m());
+        let standing = rng.random_bool(0.3);
+        let phase_left_s = uniform(rng, if standing { cfg.stand_duration_s } else { cfg.walk_duration_s });
+        let cruise_mps = uniform(rng, cfg.walking_speed_mps);
+        let forward = rng.random_bool(0.5);
+        let (p, t) = path.at(s_m);
+        let heading = t.y.atan2(t.x) + if forward { 0.0 } else { std::f64::consts::PI };
+        Self {
+            id,
+            kind: ActorKind::Pedestrian,
+            footprint: ActorKind::Pedestrian.footprint(),
+            pose: Pose2::new(p, wrap_angle(heading)),
+            speed_mps: if standing { 0.0 } else { cruise_mps },
+            motion: Motion::Walking(Box::new(Walking {
+                path,
+                s_m,
+                forward,
+                cruise_mps,
+                standing,
+                phase_left_s,
+            })),
+        }
+    }
+
+    /// Distance to the nearest obstacle ahead in this actor's lane among `others`
+    /// (bumper to bumper, metres), looking `horizon_m` ahead.
+    fn gap_ahead(&self, others: &[Obstacle], horizon_m: f64) -> f64 {
+        let mut gap = f64::INFINITY;
+        let my_half = self.footprint.bounding_radius_m().min(CAR_HALF_LENGTH_M);
+        for o in others {
+            if o.id == self.id {
+                continue;
+            }
+            let rel = self.pose.body_from_world(o.position);
+            // In the lane ahead: a lane is 3.5 m wide, so centres within 1.6 m laterally.
+            if rel.x > 0.0 && rel.x < horizon_m && rel.y.abs() < 1.6 {
+                gap = gap.min(rel.x - my_half - o.half_length_m);
+            }
+        }
+        gap
+    }
+}
+
+/// What a driver looks at: another road user's position and half length along the lane.
+#[derive(Clone, Copy, Debug)]
+pub struct Obstacle {
+    /// Actor id (the ego uses `u32::MAX`).
+    pub id: u32,
+    /// Centre, world metres.
+    pub position: Vec2,
+    /// Half length, metres.
+    pub half_length_m: f64,
+}
+
+/// The snapshot every car brakes for: cars and pedestrians (a pedestrian on a pavement never sits
+/// in a lane, so only cars matter in practice).
+pub fn obstacles(actors: &[Actor], extra: &[Obstacle]) -> Vec<Obstacle> {
+    actors
+        .iter()
+        .filter(|a| a.kind == ActorKind::Car)
+        .map(|a| Obstacle {
+            id: a.id,
+            position: a.pose.position_m,
+            half_length_m: CAR_HALF_LENGTH_M,
+        })
+        .chain(extra.iter().copied())
+        .collect()
+}
+
+/// Advances one actor by `dt_s` given the snapshot `others`. When a car reaches the end of its
+/// lane it gets a new route from `net` starting where it is.
+pub fn advance(actor: &mut Actor, others: &[Obstacle], dt_s: f64, cfg: &TrafficConfig, net: &RoadNetwork, rng: &mut impl Rng) {
+    let gap = match &actor.motion {
+        Motion::Driving(_) => actor.gap_ahead(others, 40.0),
+        _ => f64::INFINITY,
+    };
+    match &mut actor.motion {
+        Motion::Fixed => actor.speed_mps = 0.0,
+        Motion::Driving(d) => {
+            let mut v = actor.speed_mps;
+            if d.wait_left_s > 0.0 {
+                d.wait_left_s -= dt_s;
+                v = 0.0;
+            } else {
+                // Decide about the next junction once it is within braking reach plus a margin.
+                if d.stop_at_m.is_none()
+                    && let Some(&j) = d.junctions_m.get(d.next_junction)
+                {
+                    let line = j - STOP_LINE_BEFORE_JUNCTION_M;
+                    let reach = v * v / (2.0 * BRAKE_MPS2) + 15.0;
+                    if line - d.s_m < reach {
+                        if d.stops && line > d.s_m && rng.random_bool(cfg.stop_probability) {
+                            d.stop_at_m = Some(line);
+                        } else {
+                            d.next_junction += 1;
+                        }
+                    }
+                }
+                let mut v_target = d.cruise_mps;
+                if let Some(line) = d.stop_at_m {
+                    let to_line = (line - d.s_m).max(0.0);
+                    v_target = v_target.min((2.0 * BRAKE_MPS2 * to_line).sqrt());
+                    if to_line < 0.5 && v < 0.3 {
+                        d.wait_left_s = uniform(rng, cfg.stop_duration_s);
+                        d.stop_at_m = None;
+                        d.next_junction += 1;
+                        v_target = 0.0;
+                    }
+                }
+                let free = (gap - STANDSTILL_GAP_M).max(0.0);
+                v_target = v_target.min((2.0 * BRAKE_MPS2 * free).sqrt());
+                v = if v_target >= v {
+                    (v + ACCEL_MPS2 * dt_s).min(v_target)
+                } else {
+                    (v - MAX_BRAKE_MPS2 * dt_s).max(v_target)
+                };
+                // Never drive into the leader, whatever the braking limit says.
+                if gap.is_finite() {
+                    v = v.min(((gap - 0.5).max(0.0)) / dt_s);
+                }
+            }
+            d.s_m += v * dt_s;
+            if d.s_m >= d.lane.length_m() {
+                let end = d.lane.at(d.lane.length_m()).0;
+                match net.random_route_from(end, 150.0, 600.0, rng) {
+                    Some(route) if d.stops => {
+                        let next = Actor::driving_car(actor.id, &route, 0.0, d.cruise_mps, d.stops);
+                        if let Motion::Driving(nd) = next.motion {
+                            *d = nd;
+                        }
+                    }
+                    // The ego keeps its route and stops at its end; so does a car with nowhere to go.
+                    _ => {
+                        d.s_m = d.lane.length_m();
+                        v = 0.0;
+                    }
+                }
+            }
+            let (p, t) = d.lane.at(d.s_m);
+            actor.pose = Pose2::new(p, t.y.atan2(t.x));
+            actor.speed_mps = v;
+        }
+        Motion::Walking(w) => {
+            w.phase_left_s -= dt_s;
+            if w.phase_left_s <= 0.0 {
+                w.standing = !w.standing;
+                w.phase_left_s = uniform(rng, if w.standing { cfg.stand_duration_s } else { cfg.walk_duration_s });
+            }
+            let v = if w.standing { 0.0 } else { w.cruise_mps };
+            let len = w.path.length_m();
+            let mut s = w.s_m + if w.forward { v * dt_s } else { -v * dt_s };
+            // Turn around at the ends of the pavement stretch.
+            if s > len {
+                s = 2.0 * len - s;
+                w.forward = false;
+            } else if s < 0.0 {
+                s = -s;
+                w.forward = true;
+            }
+            w.s_m = s.clamp(0.0, len);
+            let (p, t) = w.path.at(w.s_m);
+            let heading = t.y.atan2(t.x) + if w.forward { 0.0 } else { std::f64::consts::PI };
+            actor.pose = Pose2::new(p, wrap_angle(heading));
+            actor.speed_mps = v;
+        }
+    }
+}
+
+/// Places the scenario's actors on the road network. Fewer actors than asked are placed when the
+/// map has no room for them (the count placed is the length of the returned list).
+pub fn populate(net: &RoadNetwork, cfg: &TrafficConfig, rng: &mut impl Rng) -> Vec<Actor> {
+    let mut actors: Vec<Actor> = Vec::new();
+    if net.anchor_count() == 0 {
+        return actors;
+    }
+    let far_from_cars = |actors: &[Actor], p: Vec2, min_m: f64| {
+        actors
+            .iter()
+            .filter(|a| a.kind == ActorKind::Car)
+            .all(|a| a.pose.position_m.sub(p).norm() >= min_m)
+    };
+    // Moving cars.
+    for _ in 0..cfg.moving_cars {
+        for _attempt in 0..20 {
+            let Some(route) = net.random_route(150.0, 600.0, rng) else { break };
+            let start = rng.random_range(0.0..=route.path.length_m() * 0.5);
+            let cruise = uniform(rng, cfg.car_speed_mps);
+            let car = Actor::driving_car(actors.len() as u32, &route, start, cruise, true);
+            if far_from_cars(&actors, car.pose.position_m, 10.0) {
+                actors.push(car);
+                break;
+            }
+        }
+    }
+    // Parked cars along kerbs of roads wide enough to keep a lane free (half-width ≥ 4 m).
+    for _ in 0..cfg.parked_cars {
+        for _attempt in 0..40 {
+            let Some(route) = net.random_route(10.0, 200.0, rng) else { break };
+            let s = rng.random_range(0.0..=route.path.length_m());
+            let (p, t) = route.path.at(s);
+            let hw = net.half_width_at(p);
+            if hw < 4.0 {
+                continue;
+            }
+            let side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            let centre = p.add(t.perp_left().scale(side * (hw - 1.2)));
+            let heading = t.y.atan2(t.x) + if rng.random_bool(0.5) { 0.0 } else { std::f64::consts::PI };
+            let pose = Pose2::new(centre, wrap_angle(heading));
+            let corners = [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
+                .map(|(a, b)| pose.world_from_body(Vec2::new(a * CAR_HALF_LENGTH_M, b * 0.9)));
+            if corners.iter().all(|&c| net.is_road(c)) && far_from_cars(&actors, centre, 5.5) {
+                actors.push(Actor::fixed(actors.len() as u32, ActorKind::Car, pose));
+                break;
+            }
+        }
+    }
+    // Pedestrians on a pavement 1.5 m beyond the kerb, where it is neither road nor building.
+    for _ in 0..cfg.pedestrians {
+        for _attempt in 0..30 {
+            let Some(route) = net.random_route(30.0, 150.0, rng) else { break };
+            let side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            let path = route.path.offset(side * (route.half_width_m + 1.5));
+            if pavement_fraction(net, &path) >= 0.9 {
+                actors.push(Actor::pedestrian(actors.len() as u32, path, rng, cfg));
+                break;
+            }
+        }
+    }
+    // Street furniture 0.6 m beyond the kerb.
+    for _ in 0..cfg.infrastructure {
+        for _attempt in 0..30 {
+            let Some(route) = net.random_route(10.0, 200.0, rng) else { break };
+            let s = rng.random_range(0.0..=route.path.length_m());
+            let (p, t) = route.path.at(s);
+            let side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            let q = p.add(t.perp_left().scale(side * (net.half_width_at(p) + 0.6)));
+            if !net.is_road(q) && !net.is_building(q) {
+                let kind = [ActorKind::Pole, ActorKind::Tree, ActorKind::Bin, ActorKind::Bollard][rng.random_range(0..4)];
+                let heading = t.y.atan2(t.x);
+                actors.push(Actor::fixed(actors.len() as u32, kind, Pose2::new(q, heading)));
+                break;
+            }
+        }
+    }
+    actors
+}
+
+/// Fraction of points every 2 m along `path` that are off the road and outside buildings.
+fn pavement_fraction(net: &RoadNetwork, path: &Polyline) -> f64 {
+    let n = (path.length_m() / 2.0).ceil().max(1.0) as usize;
+    let ok = (0..=n)
+        .filter(|&k| {
+            let p = path.at(k as f64 * 2.0).0;
+            !net.is_road(p) && !net.is_building(p)
+        })
+        .count();
+    ok as f64 / (n + 1) as f64
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use crate::roadnet::Route;
+
+    fn straight_route(len: f64, junction_at: Option<f64>) -> Route {
+        Route {
+            path: Polyline::new(vec![Vec2::new(0.0, 0.0), Vec2::new(len, 0.0)]).unwrap(),
+            junctions_m: junction_at.into_iter().collect(),
+            half_width_m: 4.0,
+        }
+    }
+
+    fn net() -> RoadNetwork {
+        RoadNetwork::new(&crate::world::World::new(vec![], vec![], (Vec2::new(0.0, -10.0), Vec2::new(10.0, 10.0))))
+    }
+
+    #[test]
+    fn car_stops_at_junction_then_goes_again() {
+        use rand::SeedableRng;
+        let cfg = TrafficConfig {
+            stop_probability: 1.0,
+            stop_duration_s: [3.0, 3.0],
+            ..TrafficConfig::default()
+        };
+        let net = net();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let mut car = Actor::driving_car(0, &straight_route(500.0, Some(100.0)), 0.0, 10.0, true);
+        // Lane is 1.75 m right of the middle (half-width 4 m).
+        assert!((car.pose.position_m.y + 1.75).abs() < 1e-9);
+        let mut stopped_for = 0.0;
+        let mut max_x_while_stopped: f64 = 0.0;
+        for _ in 0..400 {
+            advance(&mut car, &[], 0.1, &cfg, &net, &mut rng);
+            if car.speed_mps < 0.01 {
+                stopped_for += 0.1;
+                max_x_while_stopped = max_x_while_stopped.max(car.pose.position_m.x);
+            }
+        }
+        // It waited about 3 s just before the 91 m stop line, then drove on.
+        assert!((2.9..=3.6).contains(&stopped_for), "{stopped_for}");
+        assert!((89.0..=91.1).contains(&max_x_while_stopped), "{max_x_while_stopped}");
+        assert!(car.pose.position_m.x > 200.0);
+    }
+
+    #[test]
+    fn follower_queues_behind_a_stopped_leader() {
+        use rand::SeedableRng;
+        let cfg = TrafficConfig::default();
+        let net = net();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let route = straight_route(500.0, None);
+        let mut car = Actor::driving_car(0, &route, 0.0, 10.0, true);
+        // A stopped leader at x = 60 in the same lane.
+        let leader = Obstacle { id: 9, position: Vec2::new(60.0, -1.75), half_length_m: CAR_HALF_LENGTH_M };
+        for _ in 0..200 {
+            advance(&mut car, &[leader], 0.1, &cfg, &net, &mut rng);
+        }
+        let gap = 60.0 - car.pose.position_m.x - 2.0 * CAR_HALF_LENGTH_M;
+        assert!(car.speed_mps < 0.01);
+        assert!((0.5..=STANDSTILL_GAP_M + 0.5).contains(&gap), "gap {gap}");
+    }
+}

@@ -1,0 +1,390 @@
+//! Planar geometry for the simulator: points, poses, footprints and exact ray intersections.
+//!
+//! Everything is in the map's local metric frame (x east, y north, metres) unless a name says
+//! otherwise. Ray intersections return the ray parameter `t` in metres along a unit direction, so
+//! the range of a return is `t` itself.
+
+use serde::{Deserialize, Serialize};
+
+/// A point or vector in the plane, metres.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Vec2 {
+    /// East (or sensor-forward in a sensor frame), metres.
+    pub x: f64,
+    /// North (or sensor-left in a sensor frame), metres.
+    pub y: f64,
+}
+
+impl Vec2 {
+    /// A point from its coordinates.
+    pub const fn new(x: f64, y: f64) -> Self {
+        Self { x, y }
+    }
+    /// Unit vector at angle `angle_rad` from the x axis (counter-clockwise).
+    pub fn from_angle(angle_rad: f64) -> Self {
+        Self::new(angle_rad.cos(), angle_rad.sin())
+    }
+    /// Sum.
+    pub fn add(self, o: Self) -> Self {
+        Self::new(self.x + o.x, self.y + o.y)
+    }
+    /// Difference `self − o`.
+    pub fn sub(self, o: Self) -> Self {
+        Self::new(self.x - o.x, self.y - o.y)
+    }
+    /// Scaled by `k`.
+    pub fn scale(self, k: f64) -> Self {
+        Self::new(self.x * k, self.y * k)
+    }
+    /// Dot product.
+    pub fn dot(self, o: Self) -> f64 {
+        self.x * o.x + self.y * o.y
+    }
+    /// z component of the cross product.
+    pub fn cross(self, o: Self) -> f64 {
+        self.x * o.y - self.y * o.x
+    }
+    /// Euclidean length.
+    pub fn norm(self) -> f64 {
+        self.x.hypot(self.y)
+    }
+    /// The vector turned by +90° (to the left of `self`).
+    pub fn perp_left(self) -> Self {
+        Self::new(-self.y, self.x)
+    }
+    /// Rotated counter-clockwise by `angle_rad`.
+    pub fn rotated(self, angle_rad: f64) -> Self {
+        let (s, c) = angle_rad.sin_cos();
+        Self::new(c * self.x - s * self.y, s * self.x + c * self.y)
+    }
+}
+
+/// A rigid planar transform `world_from_body`: position of the body origin in the world and the
+/// heading of its x axis (radians, counter-clockwise from east).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pose2 {
+    /// Position of the body origin in the world frame, metres.
+    pub position_m: Vec2,
+    /// Heading of the body x axis, radians counter-clockwise from the world x axis.
+    pub heading_rad: f64,
+}
+
+impl Pose2 {
+    /// A pose from position and heading.
+    pub const fn new(position_m: Vec2, heading_rad: f64) -> Self {
+        Self {
+            position_m,
+            heading_rad,
+        }
+    }
+    /// Maps a point in the body frame to the world frame.
+    pub fn world_from_body(&self, point_in_body: Vec2) -> Vec2 {
+        point_in_body.rotated(self.heading_rad).add(self.position_m)
+    }
+    /// Maps a point in the world frame to the body frame.
+    pub fn body_from_world(&self, point_in_world: Vec2) -> Vec2 {
+        point_in_world
+            .sub(self.position_m)
+            .rotated(-self.heading_rad)
+    }
+    /// Composition `self ∘ other`: the pose of a frame given relative to this body.
+    pub fn compose(&self, body_from_child: &Pose2) -> Pose2 {
+        Pose2::new(
+            self.world_from_body(body_from_child.position_m),
+            self.heading_rad + body_from_child.heading_rad,
+        )
+    }
+}
+
+/// The shape an actor occupies, in its own body frame (x forward).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Footprint {
+    /// A disc of the given radius centred on the body origin.
+    Circle {
+        /// Radius, metres.
+        radius_m: f64,
+    },
+    /// A rectangle centred on the body origin, `length` along body x, `width` along body y.
+    Rect {
+        /// Half of the length along body x, metres.
+        half_length_m: f64,
+        /// Half of the width along body y, metres.
+        half_width_m: f64,
+    },
+}
+
+impl Footprint {
+    /// Radius of the smallest disc centred on the body origin that holds the footprint.
+    pub fn bounding_radius_m(&self) -> f64 {
+        match *self {
+            Footprint::Circle { radius_m } => radius_m,
+            Footprint::Rect {
+                half_length_m,
+                half_width_m,
+            } => half_length_m.hypot(half_width_m),
+        }
+    }
+
+    /// Whether a world point lies inside the footprint placed at `world_from_body`
+    /// (boundary counts as inside).
+    pub fn contains(&self, world_from_body: &Pose2, point_in_world: Vec2) -> bool {
+        let p = world_from_body.body_from_world(point_in_world);
+        match *self {
+            Footprint::Circle { radius_m } => p.dot(p) <= radius_m * radius_m,
+            Footprint::Rect {
+                half_length_m,
+                half_width_m,
+            } => p.x.abs() <= half_length_m && p.y.abs() <= half_width_m,
+        }
+    }
+
+    /// Distance along a ray (unit `direction`) from `origin` to the first point of the footprint
+    /// placed at `world_from_body`, if the ray hits it at `t > 0`. A ray starting inside reports
+    /// no hit: a sensor inside an object sees nothing of that object.
+    pub fn ray_hit(&self, world_from_body: &Pose2, origin: Vec2, direction: Vec2) -> Option<f64> {
+        // Work in the body frame: the ray's length is preserved by the rotation.
+        let o = world_from_body.body_from_world(origin);
+        let d = direction.rotated(-world_from_body.heading_rad);
+        match *self {
+            Footprint::Circle { radius_m } => ray_circle(o, d, radius_m),
+            Footprint::Rect {
+                half_length_m,
+                half_width_m,
+            } => ray_centred_box(o, d, half_length_m, half_width_m),
+        }
+    }
+}
+
+/// Ray (`origin`, unit `direction`) against a disc of radius `radius_m` at the origin; the
+/// entry distance when it is positive.
+pub fn ray_circle(origin: Vec2, direction: Vec2, radius_m: f64) -> Option<f64> {
+    // |o + t d|² = r²  ⇒  t² + 2 b t + c = 0 with b = o·d, c = |o|² − r².
+    let b = origin.dot(direction);
+    let c = origin.dot(origin) - radius_m * radius_m;
+    if c <= 0.0 {
+        return None;
+    }
+    let disc = b * b - c;
+    if disc < 0.0 {
+        return None;
+    }
+    let t = -b - disc.sqrt();
+    (t > 0.0).then_some(t)
+}
+
+/// Ray against the axis-aligned box [−hx, hx] × [−hy, hy] (slab method); the entry distance when
+/// the origin is outside and the entry is ahead.
+pub fn ray_centred_box(origin: Vec2, direction: Vec2, hx: f64, hy: f64) -> Option<f64> {
+    if origin.x.abs() <= hx && origin.y.abs() <= hy {
+        return None;
+    }
+    let mut t_enter = f64::NEG_INFINITY;
+    let mut t_exit = f64::INFINITY;
+    for (o, d, h) in [(origin.x, direction.x, hx), (origin.y, direction.y, hy)] {
+        if d == 0.0 {
+            if o.abs() > h {
+                return None;
+            }
+        } else {
+            let t1 = (-h - o) / d;
+            let t2 = (h - o) / d;
+            t_enter = t_enter.max(t1.min(t2));
+            t_exit = t_exit.min(t1.max(t2));
+        }
+    }
+    (t_enter <= t_exit && t_enter > 0.0).then_some(t_enter)
+}
+
+/// Ray against the segment `a`–`b`; the distance `t > 0` where they cross. Parallel rays never
+/// hit (a grazing ray along a wall returns from the next wall instead).
+pub fn ray_segment(origin: Vec2, direction: Vec2, a: Vec2, b: Vec2) -> Option<f64> {
+    let e = b.sub(a);
+    let denom = direction.cross(e);
+    if denom == 0.0 {
+        return None;
+    }
+    let ao = a.sub(origin);
+    let t = ao.cross(e) / denom;
+    let u = ao.cross(direction) / denom;
+    (t > 0.0 && (0.0..=1.0).contains(&u)).then_some(t)
+}
+
+/// Even–odd point-in-ring test (the ring may or may not repeat its first vertex).
+pub fn ring_contains(ring: &[Vec2], p: Vec2) -> bool {
+    let mut inside = false;
+    let n = ring.len();
+    if n < 3 {
+        return false;
+    }
+    let mut j = n - 1;
+    for i in 0..n {
+        let (a, b) = (ring[i], ring[j]);
+        if (a.y > p.y) != (b.y > p.y) {
+            let x_cross = a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x);
+            if p.x < x_cross {
+                inside = !inside;
+            }
+        }
+        j = i;
+    }
+    inside
+}
+
+/// Wraps an angle to (−π, π].
+pub fn wrap_angle(angle_rad: f64) -> f64 {
+    let two_pi = std::f64::consts::TAU;
+    let mut a = angle_rad % two_pi;
+    if a <= -std::f64::consts::PI {
+        a += two_pi;
+    } else if a > std::f64::consts::PI {
+        a -= two_pi;
+    }
+    a
+}
+
+/// A polyline with cumulative arc length, for moving along it by distance.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Polyline {
+    points: Vec<Vec2>,
+    cumulative_m: Vec<f64>,
+}
+
+impl Polyline {
+    /// Builds a polyline; consecutive duplicate points are dropped. `None` with fewer than two
+    /// distinct points.
+    pub fn new(points: Vec<Vec2>) -> Option<Self> {
+        let mut kept: Vec<Vec2> = Vec::with_capacity(points.len());
+        for p in points {
+            if !(p.x.is_finite() && p.y.is_finite()) {
+                return None;
+            }
+            if kept.last().is_none_or(|q| q.sub(p).norm() > 1e-9) {
+                kept.push(p);
+            }
+        }
+        if kept.len() < 2 {
+            return None;
+        }
+        let mut cumulative_m = Vec::with_capacity(kept.len());
+        let mut acc = 0.0;
+        cumulative_m.push(0.0);
+        for w in kept.windows(2) {
+            acc += w[1].sub(w[0]).norm();
+            cumulative_m.push(acc);
+        }
+        Some(Self {
+            points: kept,
+            cumulative_m,
+        })
+    }
+    /// Vertices.
+    pub fn points(&self) -> &[Vec2] {
+        &self.points
+    }
+    /// Total length, metres.
+    pub fn length_m(&self) -> f64 {
+        self.cumulative_m.last().copied().unwrap_or(0.0)
+    }
+    /// Point and unit tangent at arc length `s_m` (clamped to the ends).
+    pub fn at(&self, s_m: f64) -> (Vec2, Vec2) {
+        let s = s_m.clamp(0.0, self.length_m());
+        // Index of the segment holding s: last i with cumulative[i] <= s.
+        let i = match self
+            .cumulative_m
+            .binary_search_by(|c| c.total_cmp(&s))
+        {
+            Ok(i) => i,
+            Err(i) => i.saturating_sub(1),
+        }
+        .min(self.points.len() - 2);
+        let a = self.points[i];
+        let b = self.points[i + 1];
+        let seg = b.sub(a);
+        let len = seg.norm();
+        let tangent = if len > 0.0 { seg.scale(1.0 / len) } else { Vec2::new(1.0, 0.0) };
+        let u = if len > 0.0 { (s - self.cumulative_m[i]) / len } else { 0.0 };
+        (a.add(seg.scale(u)), tangent)
+    }
+    /// The same path walked the other way.
+    pub fn reversed(&self) -> Self {
+        let mut pts = self.points.clone();
+        pts.reverse();
+        // Reversing a valid polyline keeps it valid.
+        Self::new(pts).unwrap_or_else(|| self.clone())
+    }
+    /// The polyline shifted sideways by `offset_m` (positive to the left), vertex normals averaged
+    /// at joints. Good for lanes and pavements along gently curving roads.
+    pub fn offset(&self, offset_m: f64) -> Self {
+        let n = self.points.len();
+        let mut out = Vec::with_capacity(n);
+        for i in 0..n {
+            let prev = if i > 0 { self.points[i - 1] } else { self.points[i] };
+            let next = if i + 1 < n { self.points[i + 1] } else { self.points[i] };
+            let t = next.sub(prev);
+            let len = t.norm();
+            let normal = if len > 0.0 { t.scale(1.0 / len).perp_left() } else { Vec2::default() };
+            out.push(self.points[i].add(normal.scale(offset_m)));
+        }
+        Self::new(out).unwrap_or_else(|| self.clone())
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn ray_hits_segment_at_exact_distance() {
+        // Wall x = 5 from y = −1 to 1, ray from origin along +x: t = 5.
+        let t = ray_segment(Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(5.0, -1.0), Vec2::new(5.0, 1.0));
+        assert_relative_eq!(t.unwrap(), 5.0);
+        // Diagonal ray at 45° hits x = 5 at y = 5, outside the wall.
+        let d = Vec2::from_angle(std::f64::consts::FRAC_PI_4);
+        assert!(ray_segment(Vec2::default(), d, Vec2::new(5.0, -1.0), Vec2::new(5.0, 1.0)).is_none());
+        // Behind the origin: no hit.
+        assert!(ray_segment(Vec2::default(), Vec2::new(-1.0, 0.0), Vec2::new(5.0, -1.0), Vec2::new(5.0, 1.0)).is_none());
+    }
+
+    #[test]
+    fn ray_hits_circle_at_entry() {
+        // Disc radius 1 centred at (10, 0); ray along +x from origin enters at 9.
+        let pose = Pose2::new(Vec2::new(10.0, 0.0), 0.3);
+        let t = Footprint::Circle { radius_m: 1.0 }.ray_hit(&pose, Vec2::default(), Vec2::new(1.0, 0.0));
+        assert_relative_eq!(t.unwrap(), 9.0, epsilon = 1e-12);
+        // Ray offset by y = 0.6: entry at 10 − sqrt(1 − 0.36) = 9.2.
+        let t = Footprint::Circle { radius_m: 1.0 }.ray_hit(&pose, Vec2::new(0.0, 0.6), Vec2::new(1.0, 0.0));
+        assert_relative_eq!(t.unwrap(), 9.2, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn ray_hits_rotated_rectangle() {
+        // 4 × 2 box rotated 90° at (10, 0): along x it spans 10 ± 1, so the entry is at 9.
+        let pose = Pose2::new(Vec2::new(10.0, 0.0), std::f64::consts::FRAC_PI_2);
+        let fp = Footprint::Rect { half_length_m: 2.0, half_width_m: 1.0 };
+        let t = fp.ray_hit(&pose, Vec2::default(), Vec2::new(1.0, 0.0)).unwrap();
+        assert_relative_eq!(t, 9.0, epsilon = 1e-12);
+        assert!(fp.contains(&pose, Vec2::new(10.0, 1.9)));
+        assert!(!fp.contains(&pose, Vec2::new(11.1, 0.0)));
+    }
+
+    #[test]
+    fn ring_contains_uses_even_odd() {
+        let sq = [Vec2::new(0.0, 0.0), Vec2::new(2.0, 0.0), Vec2::new(2.0, 2.0), Vec2::new(0.0, 2.0)];
+        assert!(ring_contains(&sq, Vec2::new(1.0, 1.0)));
+        assert!(!ring_contains(&sq, Vec2::new(3.0, 1.0)));
+    }
+
+    #[test]
+    fn polyline_walks_by_arc_length() {
+        let pl = Polyline::new(vec![Vec2::new(0.0, 0.0), Vec2::new(3.0, 0.0), Vec2::new(3.0, 4.0)]).unwrap();
+        assert_relative_eq!(pl.length_m(), 7.0);
+        let (p, t) = pl.at(5.0);
+        assert_relative_eq!(p.x, 3.0);
+        assert_relative_eq!(p.y, 2.0);
+        assert_relative_eq!(t.y, 1.0);
+        let left = pl.offset(1.0);
+        assert_relative_eq!(left.points()[0].y, 1.0);
+    }
+}

@@ -1,0 +1,340 @@
+//! Scenario description: what populates the world, how the ego drives, which sensor it carries
+//! and which map and localisation errors are injected. Read from TOML; every field has a default,
+//! so a file may set any subset.
+//!
+//! ```toml
+//! seed = 7
+//! duration_s = 30.0
+//! [traffic]
+//! moving_cars = 12
+//! car_speed_mps = [7.0, 13.0]
+//! [ego]
+//! speed_mps = 8.0
+//! [sensor]
+//! kind = "ibeo"          # or "multibeam"
+//! [errors]
+//! missing_buildings = 1  # buildings in the world but not in the map (truth: U)
+//! map_offset_m = [0.5, 0.0]
+//! ```
+
+use crate::SimError;
+use serde::{Deserialize, Serialize};
+
+/// A whole scenario. By default: 30 s of a 10 Hz IBEO-like scanner on an ego driving at 8 m/s
+/// among 12 moving cars, 20 parked cars, 20 pedestrians and 30 pieces of street furniture.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Scenario {
+    /// Seed of every random choice; the same seed gives the same drive, scans and truth.
+    pub seed: u64,
+    /// Length of the drive, seconds.
+    pub duration_s: f64,
+    /// Other road users and street furniture.
+    pub traffic: TrafficConfig,
+    /// The ego vehicle.
+    pub ego: EgoConfig,
+    /// The scanner on the ego.
+    pub sensor: SensorConfig,
+    /// Map and localisation errors.
+    pub errors: ErrorConfig,
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            duration_s: 30.0,
+            traffic: TrafficConfig::default(),
+            ego: EgoConfig::default(),
+            sensor: SensorConfig::default(),
+            errors: ErrorConfig::default(),
+        }
+    }
+}
+
+/// Actors other than the ego. Ranges `[lo, hi]` are sampled uniformly per actor.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrafficConfig {
+    /// Cars driving along the roads (they stop at junctions and queue).
+    pub moving_cars: usize,
+    /// Cruise speed of a moving car, m/s. By default 7–13 m/s (25–47 km/h, urban).
+    pub car_speed_mps: [f64; 2],
+    /// Probability that a car stops at a junction it reaches. By default 0.4.
+    pub stop_probability: f64,
+    /// How long a car waits at a junction stop, seconds. By default 2–8 s.
+    pub stop_duration_s: [f64; 2],
+    /// Cars parked along the road edges (and in wide paved areas such as car parks).
+    pub parked_cars: usize,
+    /// Pedestrians on the pavements.
+    pub pedestrians: usize,
+    /// Walking speed, m/s. By default 0.9–1.6 m/s.
+    pub walking_speed_mps: [f64; 2],
+    /// How long a pedestrian walks before standing, seconds. By default 4–15 s.
+    pub walk_duration_s: [f64; 2],
+    /// How long a pedestrian stands still, seconds. By default 2–10 s.
+    pub stand_duration_s: [f64; 2],
+    /// Unmapped street furniture on the pavements: poles, trees, bins, bollards.
+    pub infrastructure: usize,
+}
+
+impl Default for TrafficConfig {
+    fn default() -> Self {
+        Self {
+            moving_cars: 12,
+            car_speed_mps: [7.0, 13.0],
+            stop_probability: 0.4,
+            stop_duration_s: [2.0, 8.0],
+            parked_cars: 20,
+            pedestrians: 20,
+            walking_speed_mps: [0.9, 1.6],
+            walk_duration_s: [4.0, 15.0],
+            stand_duration_s: [2.0, 10.0],
+            infrastructure: 30,
+        }
+    }
+}
+
+/// The ego vehicle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EgoConfig {
+    /// Cruise speed, m/s (it slows behind other cars). By default 8 m/s.
+    pub speed_mps: f64,
+    /// Waypoints in local metres; the route follows the roads through them. Empty: a random route
+    /// long enough for the whole drive, drawn from the seed.
+    pub waypoints: Vec<[f64; 2]>,
+}
+
+impl Default for EgoConfig {
+    fn default() -> Self {
+        Self {
+            speed_mps: 8.0,
+            waypoints: Vec::new(),
+        }
+    }
+}
+
+/// Which scanner.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ScannerKind {
+    /// IBEO Alasca/Lux-like: 4 layers, frontal field of view, about 800 points per scan.
+    Ibeo,
+    /// A 360° multi-beam scanner (Velodyne-like) seen in the plane: `beams` layers all round.
+    Multibeam,
+}
+
+/// The scanner. By default an IBEO-like 4-layer scanner, 110° field of view, 200 points per layer
+/// (800 per scan), 10 Hz, 80 m range, 3 cm range noise, 2 % dropouts, mounted 3.7 m ahead of the
+/// ego's centre (front bumper), as on the paper's vehicle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SensorConfig {
+    /// Scanner type.
+    pub kind: ScannerKind,
+    /// Number of layers: 4 for `ibeo`, the beam count for `multibeam` (by default 16).
+    pub layers: Option<usize>,
+    /// Horizontal field of view, degrees (110 for `ibeo`, 360 for `multibeam`).
+    pub fov_deg: Option<f64>,
+    /// Points per layer per scan (200 for `ibeo`, 900 — 0.4° — for `multibeam`).
+    pub points_per_layer: Option<usize>,
+    /// Scan rate, Hz. The simulation steps once per scan.
+    pub rate_hz: f64,
+    /// Maximum range, metres; no return beyond.
+    pub max_range_m: f64,
+    /// Standard deviation of the Gaussian range noise, metres.
+    pub range_noise_m: f64,
+    /// Probability that a return is lost.
+    pub dropout_probability: f64,
+    /// Sensor position ahead of the ego's centre, metres (None: 3.7 m for `ibeo`, 0 for `multibeam`).
+    pub mount_forward_m: Option<f64>,
+}
+
+impl Default for SensorConfig {
+    fn default() -> Self {
+        Self {
+            kind: ScannerKind::Ibeo,
+            layers: None,
+            fov_deg: None,
+            points_per_layer: None,
+            rate_hz: 10.0,
+            max_range_m: 80.0,
+            range_noise_m: 0.03,
+            dropout_probability: 0.02,
+            mount_forward_m: None,
+        }
+    }
+}
+
+impl SensorConfig {
+    /// Layers after defaults.
+    pub fn layer_count(&self) -> usize {
+        self.layers.unwrap_or(match self.kind {
+            ScannerKind::Ibeo => 4,
+            ScannerKind::Multibeam => 16,
+        })
+    }
+    /// Field of view after defaults, radians.
+    pub fn fov_rad(&self) -> f64 {
+        self.fov_deg
+            .unwrap_or(match self.kind {
+                ScannerKind::Ibeo => 110.0,
+                ScannerKind::Multibeam => 360.0,
+            })
+            .to_radians()
+    }
+    /// Points per layer after defaults.
+    pub fn points_per_layer_count(&self) -> usize {
+        self.points_per_layer.unwrap_or(match self.kind {
+            ScannerKind::Ibeo => 200,
+            ScannerKind::Multibeam => 900,
+        })
+    }
+    /// Mount offset after defaults, metres.
+    pub fn mount_forward(&self) -> f64 {
+        self.mount_forward_m.unwrap_or(match self.kind {
+            ScannerKind::Ibeo => 3.7,
+            ScannerKind::Multibeam => 0.0,
+        })
+    }
+}
+
+/// Map and localisation errors. By default none.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ErrorConfig {
+    /// Buildings near the ego route that exist in the world but are left out of the map handed to
+    /// the pipeline. Their truth class is U (unmapped infrastructure).
+    pub missing_buildings: usize,
+    /// Buildings near the ego route that stay in the map but are removed from the world
+    /// (demolished since mapping). Their cells are free in truth.
+    pub phantom_buildings: usize,
+    /// Shift of the whole map handed to the pipeline, metres (east, north).
+    pub map_offset_m: [f64; 2],
+    /// Standard deviation of the position error of the estimated sensor pose, metres per axis,
+    /// drawn independently each scan.
+    pub pose_sigma_m: f64,
+    /// Standard deviation of the heading error of the estimated pose, degrees.
+    pub pose_sigma_heading_deg: f64,
+}
+
+impl Scenario {
+    /// Parses a scenario from TOML and validates it.
+    ///
+    /// # Errors
+    /// [`SimError::ScenarioToml`] for malformed TOML or unknown keys, [`SimError::InvalidScenario`]
+    /// for out-of-range values.
+    pub fn from_toml(text: &str) -> Result<Self, SimError> {
+        let s: Scenario = toml::from_str(text).map_err(|e| SimError::ScenarioToml {
+            message: e.to_string(),
+        })?;
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// Checks every value is in range.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidScenario`] naming the first offending field and its value.
+    pub fn validate(&self) -> Result<(), SimError> {
+        let bad = |field: &'static str, value: f64| Err(SimError::InvalidScenario { field, value });
+        let t = &self.traffic;
+        let s = &self.sensor;
+        let e = &self.errors;
+        let positive: [(&'static str, f64); 4] = [
+            ("duration_s", self.duration_s),
+            ("sensor.rate_hz", s.rate_hz),
+            ("sensor.max_range_m", s.max_range_m),
+            ("sensor.fov_deg", s.fov_rad().to_degrees()),
+        ];
+        for (field, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(field, v);
+            }
+        }
+        let non_negative: [(&'static str, f64); 6] = [
+            ("ego.speed_mps", self.ego.speed_mps),
+            ("sensor.range_noise_m", s.range_noise_m),
+            ("errors.pose_sigma_m", e.pose_sigma_m),
+            ("errors.pose_sigma_heading_deg", e.pose_sigma_heading_deg),
+            ("errors.map_offset_m[0]", e.map_offset_m[0].abs()),
+            ("errors.map_offset_m[1]", e.map_offset_m[1].abs()),
+        ];
+        for (field, v) in non_negative {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(field, v);
+            }
+        }
+        for (field, v) in [
+            ("traffic.stop_probability", t.stop_probability),
+            ("sensor.dropout_probability", s.dropout_probability),
+        ] {
+            if !(0.0..=1.0).contains(&v) {
+                return bad(field, v);
+            }
+        }
+        for (field, r) in [
+            ("traffic.car_speed_mps", t.car_speed_mps),
+            ("traffic.stop_duration_s", t.stop_duration_s),
+            ("traffic.walking_speed_mps", t.walking_speed_mps),
+            ("traffic.walk_duration_s", t.walk_duration_s),
+            ("traffic.stand_duration_s", t.stand_duration_s),
+        ] {
+            if !(r[0].is_finite() && r[1].is_finite() && r[0] >= 0.0 && r[1] >= r[0]) {
+                return bad(field, if r[0] < 0.0 { r[0] } else { r[1] });
+            }
+        }
+        if s.layer_count() == 0 || s.layer_count() > 256 {
+            return bad("sensor.layers", s.layer_count() as f64);
+        }
+        if s.points_per_layer_count() == 0 || s.points_per_layer_count() > 100_000 {
+            return bad("sensor.points_per_layer", s.points_per_layer_count() as f64);
+        }
+        if let Some(m) = s.mount_forward_m
+            && !m.is_finite()
+        {
+            return bad("sensor.mount_forward_m", m);
+        }
+        if let Some(w) = self.ego.waypoints.iter().flatten().find(|v| !v.is_finite()) {
+            return bad("ego.waypoints", *w);
+        }
+        Ok(())
+    }
+
+    /// Number of scans in the drive.
+    pub fn frame_count(&self) -> usize {
+        (self.duration_s * self.sensor.rate_hz).round().max(0.0) as usize
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn partial_toml_keeps_defaults() -> Result<(), SimError> {
+        let s = Scenario::from_toml("seed = 9\n[traffic]\nmoving_cars = 3\n[sensor]\nkind = \"multibeam\"\n")?;
+        assert_eq!(s.seed, 9);
+        assert_eq!(s.traffic.moving_cars, 3);
+        assert_eq!(s.traffic.parked_cars, 20);
+        assert_eq!(s.sensor.layer_count(), 16);
+        assert!((s.sensor.fov_rad() - std::f64::consts::TAU).abs() < 1e-12);
+        assert_eq!(s.frame_count(), 300);
+        Ok(())
+    }
+
+    #[test]
+    fn bad_values_are_named() {
+        let err = Scenario::from_toml("[traffic]\nstop_probability = 1.5\n");
+        assert!(matches!(
+            err,
+            Err(SimError::InvalidScenario { field: "traffic.stop_probability", value }) if value == 1.5
+        ));
+        assert!(matches!(Scenario::from_toml("colour = 1\n"), Err(SimError::ScenarioToml { .. })));
+        assert!(matches!(
+            Scenario::from_toml("duration_s = -1.0\n"),
+            Err(SimError::InvalidScenario { field: "duration_s", .. })
+        ));
+    }
+}

@@ -1,0 +1,260 @@
+//! Ground truth per cell of a window at one instant, in the perception grid's classes.
+//!
+//! # Labelling rule
+//! Each cell is sampled at `n × n` points (the centres of an `n × n` subdivision; by default
+//! n = [`DEFAULT_SAMPLES_PER_AXIS`] = 3, which includes the cell centre). A cell takes the class of
+//! an object that covers at least one of its sample points; an actor also always claims the cell
+//! holding its centre, so an object thinner than a sample spacing (a 0.2 m bollard in 0.5 m cells)
+//! is never lost. When several objects claim a cell the highest class wins in the order
+//! F < I < U < S < M: a pedestrian standing against a wall is S, not I. Why this rule: with n odd
+//! the centre is a sample, so a cell the map prior calls "building" by its centre (SPEC §4) is a
+//! building in truth too; and a scanner return lands in any cell the object overlaps, so a
+//! cell half-covered by a car should count as the car.
+//!
+//! Classes: F where nothing is; I for buildings present in the map handed to the pipeline; U for
+//! street furniture and for buildings missing from that map; S for a road user slower than
+//! [`STOPPED_BELOW_MPS`]; M for one at or above it. Cells under the ego vehicle are
+//! [`IGNORED`]: its own sensor cannot see them, so scoring them would only measure the blind spot.
+
+use crate::actors::Actor;
+use crate::geometry::Vec2;
+use crate::world::World;
+use geodata::CellWindow;
+
+/// Truth class codes, ordered by priority (higher wins).
+#[repr(u8)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize, serde::Deserialize)]
+pub enum TruthClass {
+    /// Nothing occupies the cell.
+    F = 0,
+    /// A mapped building.
+    I = 1,
+    /// Unmapped infrastructure: street furniture, a building missing from the map.
+    U = 2,
+    /// A road user slower than [`STOPPED_BELOW_MPS`].
+    S = 3,
+    /// A road user at or above [`STOPPED_BELOW_MPS`].
+    M = 4,
+}
+
+impl TruthClass {
+    /// All five, in code order.
+    pub const ALL: [TruthClass; 5] = [TruthClass::F, TruthClass::I, TruthClass::U, TruthClass::S, TruthClass::M];
+    /// From a code 0..=4.
+    pub fn from_code(code: u8) -> Option<Self> {
+        Self::ALL.get(code as usize).copied()
+    }
+}
+
+/// Code of a cell excluded from scoring (under the ego).
+pub const IGNORED: u8 = 255;
+/// Speed below which a road user is stopped (S), m/s.
+pub const STOPPED_BELOW_MPS: f64 = 0.5;
+/// Default number of samples per cell side.
+pub const DEFAULT_SAMPLES_PER_AXIS: usize = 3;
+
+/// The class of an actor at this instant.
+pub fn actor_class(actor: &Actor) -> TruthClass {
+    if actor.kind.is_infrastructure() {
+        TruthClass::U
+    } else if actor.speed_mps < STOPPED_BELOW_MPS {
+        TruthClass::S
+    } else {
+        TruthClass::M
+    }
+}
+
+/// Labels every cell of `window` into `out` (row-major, `out[row * width + col]`, rows from the
+/// south): a [`TruthClass`] code, or [`IGNORED`] under the actor `ego_id`.
+///
+/// `out` is resized to the window. `samples_per_axis` is clamped to 1..=8.
+pub fn label_window(
+    world: &World,
+    actors: &[Actor],
+    ego_id: Option<u32>,
+    window: &CellWindow,
+    samples_per_axis: usize,
+    out: &mut Vec<u8>,
+) {
+    let (w, h) = (window.width, window.height);
+    out.clear();
+    out.resize(w * h, TruthClass::F as u8);
+    if w == 0 || h == 0 || !(window.cell_size_m > 0.0) {
+        return;
+    }
+    let n = samples_per_axis.clamp(1, 8);
+    let s = window.cell_size_m;
+    let sub = s / n as f64;
+    let x0 = window.first_col as f64 * s;
+    let y0 = window.first_row as f64 * s;
+    let lo = Vec2::new(x0, y0);
+    let hi = Vec2::new(x0 + w as f64 * s, y0 + h as f64 * s);
+    // Window-relative sample index k ↔ coordinate origin + (k + 0.5)·sub.
+    let first_sample = |v: f64, origin: f64| ((v - origin) / sub - 0.5).ceil();
+    let last_sample = |v: f64, origin: f64| ((v - origin) / sub - 0.5).floor();
+
+    // Buildings: scanline over every sample row.
+    let mut ids = Vec::new();
+    world.buildings_near(lo, hi, &mut ids);
+    let mut xs = Vec::new();
+    for &id in &ids {
+        let b = &world.buildings()[id as usize];
+        let class = if b.mapped { TruthClass::I } else { TruthClass::U } as u8;
+        let k0 = first_sample(b.bounds.0.y, y0).max(0.0) as usize;
+        let k1 = last_sample(b.bounds.1.y, y0).min((h * n) as f64 - 1.0);
+        if k1 < k0 as f64 {
+            continue;
+        }
+        for k in k0..=(k1 as usize) {
+            let y = y0 + (k as f64 + 0.5) * sub;
+            xs.clear();
+            b.crossings_at(y, &mut xs);
+            xs.sort_by(f64::total_cmp);
+            let row = k / n;
+            for pair in xs.chunks_exact(2) {
+                let j0 = first_sample(pair[0], x0).max(0.0);
+                let j1 = last_sample(pair[1], x0).min((w * n) as f64 - 1.0);
+                if j1 < j0 {
+                    continue;
+                }
+                let (c0, c1) = (j0 as usize / n, j1 as usize / n);
+                for cell in &mut out[row * w + c0..=row * w + c1] {
+                    *cell = (*cell).max(class);
+                }
+            }
+        }
+    }
+
+    // Actors: test the samples of the cells under each footprint's bounding box.
+    for a in actors {
+        let code = if Some(a.id) == ego_id { IGNORED } else { actor_class(a) as u8 };
+        let r = a.footprint.bounding_radius_m();
+        let p = a.pose.position_m;
+        let col_range = |v: f64| ((v - x0) / s).floor();
+        let row_range = |v: f64| ((v - y0) / s).floor();
+        let c0 = col_range(p.x - r).max(0.0);
+        let c1 = col_range(p.x + r).min(w as f64 - 1.0);
+        let r0 = row_range(p.y - r).max(0.0);
+        let r1 = row_range(p.y + r).min(h as f64 - 1.0);
+        if c1 < c0 || r1 < r0 {
+            continue;
+        }
+        for row in (r0 as usize)..=(r1 as usize) {
+            for col in (c0 as usize)..=(c1 as usize) {
+                let cx = x0 + col as f64 * s;
+                let cy = y0 + row as f64 * s;
+                let covered = (0..n * n).any(|q| {
+                    let sample = Vec2::new(cx + ((q % n) as f64 + 0.5) * sub, cy + ((q / n) as f64 + 0.5) * sub);
+                    a.footprint.contains(&a.pose, sample)
+                });
+                if covered {
+                    let cell = &mut out[row * w + col];
+                    *cell = (*cell).max(code);
+                }
+            }
+        }
+        // The cell holding the centre, for objects thinner than the sample spacing.
+        let (cc, rc) = (col_range(p.x), row_range(p.y));
+        if cc >= 0.0 && rc >= 0.0 && (cc as usize) < w && (rc as usize) < h {
+            let cell = &mut out[rc as usize * w + cc as usize];
+            *cell = (*cell).max(code);
+        }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use crate::actors::ActorKind;
+    use crate::geometry::Pose2;
+    use crate::world::Building;
+
+    fn window() -> CellWindow {
+        // 8 × 4 cells of 1 m from (0, 0).
+        CellWindow {
+            first_col: 0,
+            first_row: 0,
+            width: 8,
+            height: 4,
+            cell_size_m: 1.0,
+        }
+    }
+
+    fn rows(out: &[u8], w: usize) -> Vec<String> {
+        // Top row (north) first, for reading.
+        out.chunks(w)
+            .rev()
+            .map(|r| r.iter().map(|&c| match c { 0 => '.', 1 => 'I', 2 => 'U', 3 => 'S', 4 => 'M', _ => 'x' }).collect())
+            .collect()
+    }
+
+    #[test]
+    fn building_covering_a_third_of_a_cell_claims_it() {
+        // Building x ∈ [0.9, 2.3], y ∈ [0, 2]. Sample x positions are k + 1/6, k + 1/2, k + 5/6.
+        // Cell 0: sample 0.833 < 0.9 → free. Cell 1: all in. Cell 2: sample 2.167 ≤ 2.3 → I.
+        let b = Building::new(vec![vec![
+            Vec2::new(0.9, 0.0),
+            Vec2::new(2.3, 0.0),
+            Vec2::new(2.3, 2.0),
+            Vec2::new(0.9, 2.0),
+        ]])
+        .unwrap();
+        let world = World::new(vec![b], vec![], (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)));
+        let mut out = Vec::new();
+        label_window(&world, &[], None, &window(), 3, &mut out);
+        assert_eq!(rows(&out, 8), vec!["........", "........", ".II.....", ".II....."]);
+        // With one sample (the centre) cell 2's centre 2.5 is outside → only cell 1.
+        label_window(&world, &[], None, &window(), 1, &mut out);
+        assert_eq!(rows(&out, 8), vec!["........", "........", ".I......", ".I......"]);
+    }
+
+    #[test]
+    fn actors_take_speed_classes_and_priority() {
+        let world = World::new(vec![], vec![], (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)));
+        // A bollard (r = 0.1) at (0.5, 3.5) covers the centre sample only.
+        let bollard = Actor::fixed(0, ActorKind::Bollard, Pose2::new(Vec2::new(0.5, 3.5), 0.0));
+        // A tiny bollard between samples at (2.05, 3.05): no sample inside, centre cell rule → U.
+        let thin = Actor::fixed(1, ActorKind::Bollard, Pose2::new(Vec2::new(2.05, 3.05), 0.0));
+        // A car 4.5 × 1.8 centred at (5.0, 1.0) heading east: x ∈ [2.75, 7.25], y ∈ [0.1, 1.9].
+        let mut car = Actor::fixed(2, ActorKind::Car, Pose2::new(Vec2::new(5.0, 1.0), 0.0));
+        car.speed_mps = 0.49;
+        let mut ped = Actor::fixed(3, ActorKind::Pedestrian, Pose2::new(Vec2::new(6.5, 2.5), 0.0));
+        ped.speed_mps = 0.5;
+        let mut out = Vec::new();
+        label_window(&world, &[bollard, thin, car, ped], None, &window(), 3, &mut out);
+        // Car columns: cell 2 has samples 2.167, 2.5, 2.833 → 2.833 ≥ 2.75 inside → S;
+        // cell 7 sample 7.167 ≤ 7.25 → S. Rows 0, 1: samples y 0.167 … 1.833 within [0.1, 1.9].
+        // Pedestrian r 0.3 at (6.5, 2.5): covers samples of cell (6, 2) → M (speed 0.5 ≥ 0.5);
+        // M beats S where they would meet.
+        assert_eq!(rows(&out, 8), vec!["U.U.....", "......M.", "..SSSSSS", "..SSSSSS"]);
+    }
+
+    #[test]
+    fn unmapped_buildings_are_u_and_the_ego_is_ignored() {
+        let mut b = Building::new(vec![vec![
+            Vec2::new(0.0, 0.0),
+            Vec2::new(2.0, 0.0),
+            Vec2::new(2.0, 1.0),
+            Vec2::new(0.0, 1.0),
+        ]])
+        .unwrap();
+        b.mapped = false;
+        let world = World::new(vec![b], vec![], (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)));
+        let ego = Actor::fixed(5, ActorKind::Pedestrian, Pose2::new(Vec2::new(5.5, 2.5), 0.0));
+        let mut out = Vec::new();
+        label_window(&world, &[ego], Some(5), &window(), 3, &mut out);
+        assert_eq!(out[0], TruthClass::U as u8);
+        assert_eq!(out[8 * 2 + 5], IGNORED);
+        // Shifted window: global cells from (−2, −1); the building cell (0, 0) is now (2, 1).
+        let shifted = CellWindow {
+            first_col: -2,
+            first_row: -1,
+            ..window()
+        };
+        label_window(&world, &[], None, &shifted, 3, &mut out);
+        assert_eq!(out[8 + 2], TruthClass::U as u8);
+        assert_eq!(out[8 + 3], TruthClass::U as u8);
+        assert_eq!(out.iter().filter(|&&c| c != 0).count(), 2);
+    }
+}
