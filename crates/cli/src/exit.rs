@@ -12,6 +12,8 @@ pub struct BadInput(pub String);
 
 impl BadInput {
     /// A bad-input error with a one-line message that names the input and the problem.
+    // Returns the anyhow::Error every command propagates, so call sites stay `Err(BadInput::new(..))?`.
+    #[allow(clippy::new_ret_no_self)]
     pub fn new(message: impl Into<String>) -> anyhow::Error {
         anyhow::Error::new(BadInput(message.into()))
     }

@@ -5,6 +5,7 @@
 
 mod commands;
 mod exit;
+mod progress;
 
 use clap::{Parser, Subcommand};
 
@@ -21,12 +22,25 @@ enum Command {
     /// Belief-function calculator: combine, discount, transform mass functions given as JSON.
     #[command(subcommand)]
     Mass(commands::mass::MassCommand),
+    /// Vector maps: info (extent, counts), render (contexts as PNG), crop (to a small GeoJSON).
+    #[command(subcommand)]
+    Map(commands::map::MapCommand),
+    /// One cell, step by step: masses, betP, ζ, conflicts and decision after each observation.
+    Cell(commands::cell::CellArgs),
+    /// The perception pipeline over a drive: scans + poses + map → decision maps and grids.
+    Run(commands::run::RunArgs),
+    /// Speed of the fusion step against the memory floor and a naive baseline (ratios).
+    Bench(commands::bench::BenchArgs),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Mass(cmd) => commands::mass::run(cmd),
+        Command::Map(cmd) => commands::map::run(cmd),
+        Command::Cell(args) => commands::cell::run(args),
+        Command::Run(args) => commands::run::run(args),
+        Command::Bench(args) => commands::bench::run(args),
     };
     exit::report(result)
 }

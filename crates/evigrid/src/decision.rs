@@ -92,7 +92,8 @@ pub fn betp(m: &[f32; N_SETS]) -> [f32; 5] {
 /// m(Ω) > `unknown_threshold`, or in total conflict; otherwise the class of largest betP (the
 /// first in frame order F, I, U, S, M on a tie).
 pub fn decide(m: &[f32; N_SETS], seen: bool, unknown_threshold: f64) -> Decision {
-    if !seen || f64::from(m[OMEGA]) > unknown_threshold || 1.0 - m[0] <= MIN_NORMAL_MASS {
+    // Compared in f32, the grid's precision: m(Ω) = 0.6_f32 is not above a threshold of 0.6.
+    if !seen || m[OMEGA] > unknown_threshold as f32 || 1.0 - m[0] <= MIN_NORMAL_MASS {
         return Decision::Unknown;
     }
     let p = betp(m);
@@ -111,9 +112,12 @@ pub fn decide(m: &[f32; N_SETS], seen: bool, unknown_threshold: f64) -> Decision
 /// If `out.len() != pg.len()`.
 pub fn decide_grid(pg: &PerceptionGrid, unknown_threshold: f64, out: &mut [Decision]) {
     assert_eq!(out.len(), pg.len(), "decision buffer size");
-    out.par_iter_mut().enumerate().with_min_len(4096).for_each(|(idx, d)| {
-        *d = decide(&pg.cell_masses(idx), pg.seen()[idx] != 0, unknown_threshold);
-    });
+    out.par_iter_mut()
+        .enumerate()
+        .with_min_len(4096)
+        .for_each(|(idx, d)| {
+            *d = decide(&pg.cell_masses(idx), pg.seen()[idx] != 0, unknown_threshold);
+        });
 }
 
 #[cfg(test)]
@@ -191,5 +195,10 @@ mod tests {
         decide_grid(&pg, 0.5, &mut out);
         // Never seen: unknown everywhere, whatever the masses.
         assert_eq!(out, [Decision::Unknown; 3]);
+        pg.seen_mut().fill(1);
+        decide_grid(&pg, 0.5, &mut out);
+        // Cells 0 and 2 are vacuous (m(Ω) = 1 > 0.5); cell 1 is moving.
+        assert_eq!(out, [Decision::Unknown, Decision::M, Decision::Unknown]);
+        assert_eq!(out[1], decide(&pg.cell_masses(1), true, 0.5));
     }
 }

@@ -167,6 +167,11 @@ impl PerceptionGrid {
         }
     }
 
+    /// The seen flags, writable (to set up a scene or a test).
+    pub fn seen_mut(&mut self) -> &mut [u8] {
+        &mut self.seen
+    }
+
     /// The accumulator ζ of every cell (eq 24-27), in `[0, 1]`.
     pub fn zeta(&self) -> &[f32] {
         &self.zeta

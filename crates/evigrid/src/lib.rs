@@ -46,6 +46,6 @@ pub mod window;
 pub use decision::Decision;
 pub use grids::{GisGrid, PerceptionGrid, SensorGrid};
 pub use params::{Params, ParamsError};
-pub use step::{StepStats, step};
 pub use pipeline::Pipeline;
+pub use step::{StepStats, step};
 pub use window::Window;

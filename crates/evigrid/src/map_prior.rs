@@ -76,7 +76,8 @@ mod tests {
     /// A building on x ∈ [2, 6], y ∈ [0, 4]; a road y ∈ [−2, 0] across the map; extent
     /// [−10, 10]².
     fn raster() -> ContextRaster {
-        let building = polygon![(x: 2.0, y: 0.0), (x: 6.0, y: 0.0), (x: 6.0, y: 4.0), (x: 2.0, y: 4.0)];
+        let building =
+            polygon![(x: 2.0, y: 0.0), (x: 6.0, y: 0.0), (x: 6.0, y: 4.0), (x: 2.0, y: 4.0)];
         let road = polygon![(x: -10.0, y: -2.0), (x: 10.0, y: -2.0), (x: 10.0, y: 0.0), (x: -10.0, y: 0.0)];
         let extent = Rect::new(coord! { x: -10.0, y: -10.0 }, coord! { x: 10.0, y: 10.0 });
         ContextRaster::new(&LocalMap::new(vec![building], vec![road], extent))
@@ -100,8 +101,14 @@ mod tests {
         let mut prior = MapPrior::new(Some(raster.clone()));
         prior.fill_window(&window, &mut grid);
         assert_matches_map(&window, &grid, &raster);
-        assert_eq!(grid.context[window.storage_index(3, 1).unwrap()], MapContext::Building);
-        assert_eq!(grid.context[window.storage_index(-4, -1).unwrap()], MapContext::Road);
+        assert_eq!(
+            grid.context[window.storage_index(3, 1).unwrap()],
+            MapContext::Building
+        );
+        assert_eq!(
+            grid.context[window.storage_index(-4, -1).unwrap()],
+            MapContext::Road
+        );
         // Drive north-east and beyond the map's edge (x > 10 is Unknown).
         for (dc, dr) in [(1, 0), (2, 1), (0, -3), (5, 2), (4, 4), (-20, 0)] {
             let entered = window.move_to(window.first_col() + dc, window.first_row() + dr);
@@ -118,9 +125,19 @@ mod tests {
         let mut prior = MapPrior::new(None);
         let entered = window.move_to(1, 0);
         prior.fill_entered(&window, &entered, &mut grid);
-        let unknown = grid.context.iter().filter(|c| **c == MapContext::Unknown).count();
+        let unknown = grid
+            .context
+            .iter()
+            .filter(|c| **c == MapContext::Unknown)
+            .count();
         assert_eq!(unknown, 4);
-        assert_eq!(grid.context[window.storage_index(4, 2).unwrap()], MapContext::Unknown);
-        assert_eq!(grid.context[window.storage_index(3, 2).unwrap()], MapContext::Road);
+        assert_eq!(
+            grid.context[window.storage_index(4, 2).unwrap()],
+            MapContext::Unknown
+        );
+        assert_eq!(
+            grid.context[window.storage_index(3, 2).unwrap()],
+            MapContext::Road
+        );
     }
 }

@@ -142,6 +142,14 @@ impl Params {
         positive("sensor.angular_resolution_deg", s.angular_resolution_deg)?;
         positive("sensor.max_range_m", s.max_range_m)?;
         positive("sensor.ground_band_m", s.ground_band_m)?;
+        if !(s.min_range_m >= 0.0 && s.min_range_m < s.max_range_m) {
+            return Err(ParamsError::Misordered {
+                low_name: "sensor.min_range_m",
+                low: s.min_range_m,
+                high_name: "sensor.max_range_m",
+                high: s.max_range_m,
+            });
+        }
         finite("sensor.min_obstacle_height_m", s.min_obstacle_height_m)?;
         finite("sensor.max_obstacle_height_m", s.max_obstacle_height_m)?;
         if s.min_obstacle_height_m >= s.max_obstacle_height_m {
@@ -158,7 +166,10 @@ impl Params {
         let rates = &self.fusion.discount_per_second;
         unit("fusion.discount_per_second.F", rates.free)?;
         unit("fusion.discount_per_second.I", rates.mapped_infrastructure)?;
-        unit("fusion.discount_per_second.U", rates.unmapped_infrastructure)?;
+        unit(
+            "fusion.discount_per_second.U",
+            rates.unmapped_infrastructure,
+        )?;
         unit("fusion.discount_per_second.S", rates.stopped)?;
         unit("fusion.discount_per_second.M", rates.moving)?;
         let a = &self.accumulator;
@@ -263,6 +274,10 @@ pub struct SensorParams {
     /// ground returns. By default 0.2 m (provisional: above the HDL-64E's range noise, below a
     /// kerb; to be tuned on the benchmark).
     pub ground_band_m: f64,
+    /// Returns closer than this (horizontal distance from the sensor) are dropped, metres: the
+    /// vehicle's own body and invalid zero-range returns. By default 2.0 m (provisional: a roof
+    /// lidar on a car; 0 for a bumper-mounted scanner).
+    pub min_range_m: f64,
 }
 
 impl Default for SensorParams {
@@ -276,6 +291,7 @@ impl Default for SensorParams {
             max_range_m: 60.0,
             ground_model: crate::sensor_model::GroundModel::Plane,
             ground_band_m: 0.2,
+            min_range_m: 2.0,
         }
     }
 }
@@ -603,8 +619,10 @@ unknown_threshold = 0.7
         let p = Params::from_toml_str("[fusion]\ndiscount_per_second = 1\n")?;
         assert_eq!(p.fusion.discount_per_second, ClassRates::uniform(1.0));
         let p = Params::from_toml_str("[fusion]\ndiscount_per_second = { M = 0.99 }\n")?;
-        let mut expected = ClassRates::default();
-        expected.moving = 0.99;
+        let expected = ClassRates {
+            moving: 0.99,
+            ..ClassRates::default()
+        };
         assert_eq!(p.fusion.discount_per_second, expected);
         Ok(())
     }
@@ -630,10 +648,7 @@ unknown_threshold = 0.7
             "[sensor]\nmu_free = \"high\"\n",
         ] {
             assert!(
-                matches!(
-                    Params::from_toml_str(text),
-                    Err(ParamsError::Parse { .. })
-                ),
+                matches!(Params::from_toml_str(text), Err(ParamsError::Parse { .. })),
                 "{text}"
             );
         }

@@ -165,23 +165,37 @@ impl Pipeline {
                     self.perception.reset_range(span);
                 }
             }
-            self.map_prior.fill_entered(&self.window, &entered, &mut self.gis);
+            self.map_prior
+                .fill_entered(&self.window, &entered, &mut self.gis);
             self.trace.reset_entered(&self.window, &entered);
             entered.cell_count()
         };
 
         // Sensor grid from the scan (SPEC §3).
-        let sensor =
-            self.sensor_model
-                .build(points_in_sensor, world_from_sensor, &self.window, &mut self.sensor);
+        let sensor = self.sensor_model.build(
+            points_in_sensor,
+            world_from_sensor,
+            &self.window,
+            &mut self.sensor,
+        );
 
         // Refine, combine with the map prior, discount the past, fuse, accumulate, specialise
         // (SPEC §5).
         let dt_s = time_s - previous_s;
-        let step_stats: StepStats = step(&mut self.perception, &self.sensor, &self.gis, &self.params, dt_s);
+        let step_stats: StepStats = step(
+            &mut self.perception,
+            &self.sensor,
+            &self.gis,
+            &self.params,
+            dt_s,
+        );
 
         // Decide, and add this frame's moving cells to the trace (SPEC §6).
-        decide_grid(&self.perception, self.params.decision.unknown_threshold, &mut self.decisions);
+        decide_grid(
+            &self.perception,
+            self.params.decision.unknown_threshold,
+            &mut self.decisions,
+        );
         self.trace.record(&self.decisions);
 
         self.last_time_s = Some(time_s);
@@ -258,14 +272,27 @@ mod tests {
             pipeline.process(&[], &Isometry3::IDENTITY, 0.5),
             Err(PipelineError::Time { .. })
         ));
-        assert!(pipeline.process(&[], &Isometry3::IDENTITY, f64::NAN).is_err());
+        assert!(
+            pipeline
+                .process(&[], &Isometry3::IDENTITY, f64::NAN)
+                .is_err()
+        );
         let nan = Isometry3::from_xyz_rpy(f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0);
-        assert!(matches!(pipeline.process(&[], &nan, 2.0), Err(PipelineError::Pose { .. })));
+        assert!(matches!(
+            pipeline.process(&[], &nan, 2.0),
+            Err(PipelineError::Pose { .. })
+        ));
         let far = Isometry3::from_xyz_rpy(1e300, 0.0, 0.0, 0.0, 0.0, 0.0);
-        assert!(matches!(pipeline.process(&[], &far, 2.0), Err(PipelineError::Window(_))));
+        assert!(matches!(
+            pipeline.process(&[], &far, 2.0),
+            Err(PipelineError::Window(_))
+        ));
         let mut bad = params();
         bad.sensor.mu_free = 1.5;
-        assert!(matches!(Pipeline::new(bad, None), Err(PipelineError::Params(_))));
+        assert!(matches!(
+            Pipeline::new(bad, None),
+            Err(PipelineError::Params(_))
+        ));
     }
 
     #[test]

@@ -20,8 +20,8 @@ use crate::grids::{N_SETS, OMEGA, class};
 use crate::params::{DiscountMode, MapParams, Params, ResidualPolicy};
 use crate::step::rate_for_step;
 use belief::{
-    BeliefError, ClassRateDiscount, ClassicalDiscount, Combination, Conjunctive, ContextualDiscount,
-    Dempster, Discounting, Frame, Mass, Refining, Set, specialise_without,
+    BeliefError, ClassRateDiscount, ClassicalDiscount, Combination, Conjunctive,
+    ContextualDiscount, Dempster, Discounting, Frame, Mass, Refining, Set, specialise_without,
 };
 use geodata::MapContext;
 
@@ -124,11 +124,7 @@ pub(crate) fn reference_step_traced(
         &sg_frame,
         vec![0.0, m_free, m_occupied, 1.0 - m_free - m_occupied],
     )?;
-    let refining = Refining::new(
-        &sg_frame,
-        &pg_frame,
-        vec![set(class::F), set(class::O)],
-    )?;
+    let refining = Refining::new(&sg_frame, &pg_frame, vec![set(class::F), set(class::O)])?;
     let refined = refining.apply(&sg)?;
     // 2. SG' = r(SG) ⊕ GG; on total conflict keep r(SG) (eq 21, SPEC §5 step 2).
     let gg = map_prior(&pg_frame, context, &params.map)?;
@@ -253,9 +249,17 @@ mod tests {
     #[test]
     fn observing_a_vacuous_building_cell_free_is_conflict_normalised() -> TestResult {
         // r(SG): {F} 0.7, Ω 0.3; GG: {I} 0.9, Ω 0.1. K = 0.7·0.9 = 0.63, 1 − K = 0.37:
-        // {F} 0.07/0.37, {I} 0.27/0.37, Ω 0.03/0.37.
-        let params = Params::default();
-        let cell = reference_step(&CellState::vacuous(), 0.7, 0.0, MapContext::Building, &params, 0.1)?;
+        // {F} 0.07/0.37, {I} 0.27/0.37, Ω 0.03/0.37. (δ_inc = 0 keeps ζ at 0: no specialisation.)
+        let mut params = Params::default();
+        params.accumulator.delta_inc = 0.0;
+        let cell = reference_step(
+            &CellState::vacuous(),
+            0.7,
+            0.0,
+            MapContext::Building,
+            &params,
+            0.1,
+        )?;
         assert!((cell.masses[class::F] - 0.07 / 0.37).abs() < 1e-12);
         assert!((cell.masses[class::I] - 0.27 / 0.37).abs() < 1e-12);
         assert!((cell.masses[OMEGA] - 0.03 / 0.37).abs() < 1e-12);

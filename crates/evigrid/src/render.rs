@@ -81,7 +81,13 @@ impl ClassColours {
     /// unknown black.
     pub const THREE_CLASSES: Self = Self {
         unknown: [0, 0, 0],
-        classes: [[0, 190, 0], [40, 80, 255], [40, 80, 255], [40, 80, 255], [230, 0, 0]],
+        classes: [
+            [0, 190, 0],
+            [40, 80, 255],
+            [40, 80, 255],
+            [40, 80, 255],
+            [230, 0, 0],
+        ],
     };
 
     /// As [`THREE_CLASSES`](Self::THREE_CLASSES) with the static classes told apart by shade:
@@ -89,7 +95,13 @@ impl ClassColours {
     /// blue.
     pub const FIVE_CLASSES: Self = Self {
         unknown: [0, 0, 0],
-        classes: [[0, 190, 0], [20, 30, 150], [40, 100, 255], [140, 200, 255], [230, 0, 0]],
+        classes: [
+            [0, 190, 0],
+            [20, 30, 150],
+            [40, 100, 255],
+            [140, 200, 255],
+            [230, 0, 0],
+        ],
     };
 
     /// The colour of a decision.
@@ -247,12 +259,18 @@ pub fn trace_image(
 /// # Errors
 ///
 /// [`RenderError::Io`] naming `path`.
-pub fn write_atomic(path: &Path, write: impl FnOnce(&mut fs::File) -> std::io::Result<()>) -> Result<(), RenderError> {
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut fs::File) -> std::io::Result<()>,
+) -> Result<(), RenderError> {
     let io = |source| RenderError::Io {
         path: path.to_path_buf(),
         source,
     };
-    let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
+    let mut name = path
+        .file_name()
+        .map(|n| n.to_os_string())
+        .unwrap_or_default();
     name.push(format!(".tmp-{}", std::process::id()));
     let temporary = path.with_file_name(name);
     let result = (|| {
@@ -276,7 +294,10 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut fs::File) -> std::io::R
 pub fn write_png(image: &RgbImage, path: &Path) -> Result<(), RenderError> {
     let mut encoded = Vec::new();
     image
-        .write_to(&mut std::io::Cursor::new(&mut encoded), image::ImageFormat::Png)
+        .write_to(
+            &mut std::io::Cursor::new(&mut encoded),
+            image::ImageFormat::Png,
+        )
         .map_err(|source| RenderError::Image {
             path: path.to_path_buf(),
             source,
@@ -333,7 +354,11 @@ fn grid_info(window: &Window) -> GridInfo {
         width: window.width(),
         height: window.height(),
         origin: GridOrigin {
-            position: [window.first_col() as f64 * s, window.first_row() as f64 * s, 0.0],
+            position: [
+                window.first_col() as f64 * s,
+                window.first_row() as f64 * s,
+                0.0,
+            ],
             orientation: [0.0, 0.0, 0.0, 1.0],
         },
     }
@@ -345,7 +370,11 @@ impl OccupancyGridExport {
     /// # Errors
     ///
     /// [`RenderError::Size`] if `decisions` does not have the window's size.
-    pub fn new(window: &Window, decisions: &[Decision], frame_id: &str) -> Result<Self, RenderError> {
+    pub fn new(
+        window: &Window,
+        decisions: &[Decision],
+        frame_id: &str,
+    ) -> Result<Self, RenderError> {
         check_len("decisions", decisions.len(), window)?;
         let mut data = Vec::with_capacity(window.len());
         let mut classes = Vec::with_capacity(window.len());
@@ -453,7 +482,10 @@ pub fn write_masses(
             kind: "FLOAT32",
         })
         .collect();
-    for (k, name) in ["zeta", "conflict_fo", "conflict_of"].into_iter().enumerate() {
+    for (k, name) in ["zeta", "conflict_fo", "conflict_of"]
+        .into_iter()
+        .enumerate()
+    {
         fields.push(GridField {
             name: name.to_string(),
             offset: 4 * (N_SETS + k),
@@ -555,7 +587,13 @@ mod tests {
         let mut pg = PerceptionGrid::new(1, 1);
         let colours = ClassColours::FIVE_CLASSES;
         // Never observed: black.
-        assert_eq!(pignistic_image(&w, &pg, &colours).unwrap().get_pixel(0, 0).0, [0, 0, 0]);
+        assert_eq!(
+            pignistic_image(&w, &pg, &colours)
+                .unwrap()
+                .get_pixel(0, 0)
+                .0,
+            [0, 0, 0]
+        );
         // One step with the sensor seeing the cell free, no map: m(F) = 0.7, m(Ω) = 0.3, so
         // betP = F 0.76, and 0.06 for each of I, U, S, M.
         let mut sg = crate::grids::SensorGrid::new(1, 1);
@@ -564,7 +602,10 @@ mod tests {
         crate::step::step(&mut pg, &sg, &gg, &crate::Params::default(), 0.1);
         // R = 0.06·(20 + 40 + 140 + 230) = 25.8; G = 0.76·190 + 0.06·(30 + 100 + 200) = 164.2;
         // B = 0.06·(150 + 255 + 255) = 39.6.
-        let pixel = pignistic_image(&w, &pg, &colours).unwrap().get_pixel(0, 0).0;
+        let pixel = pignistic_image(&w, &pg, &colours)
+            .unwrap()
+            .get_pixel(0, 0)
+            .0;
         assert_eq!(pixel, [26, 164, 40]);
     }
 
@@ -572,7 +613,10 @@ mod tests {
     fn trace_keeps_moving_cells_and_forgets_cells_that_leave() {
         let mut w = window();
         let mut trace = MovingTrace::new(w.len());
-        let d = decisions(&w, |col, _| if col == 10 { Decision::M } else { Decision::F });
+        let d = decisions(
+            &w,
+            |col, _| if col == 10 { Decision::M } else { Decision::F },
+        );
         trace.record(&d);
         let later = decisions(&w, |_, _| Decision::F);
         trace.record(&later);
@@ -623,7 +667,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("masses.json");
         write_masses(&w, &pg, "map", &path).unwrap();
-        let description: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+        let description: serde_json::Value =
+            serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
         assert_eq!(description["fields"][31]["name"], "FIUSM");
         assert_eq!(description["fields"][3]["name"], "FI");
         assert_eq!(description["cell_stride"], 35 * 4);
@@ -643,12 +688,19 @@ mod tests {
         let d = vec![Decision::F; w.len()];
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("d.png");
-        write_png(&decision_image(&w, &d, &ClassColours::THREE_CLASSES).unwrap(), &path).unwrap();
+        write_png(
+            &decision_image(&w, &d, &ClassColours::THREE_CLASSES).unwrap(),
+            &path,
+        )
+        .unwrap();
         let back = image::open(&path).unwrap().to_rgb8();
         assert_eq!(back.get_pixel(2, 1).0, [0, 190, 0]);
         let bad = dir.path().join("missing-dir/d.png");
         assert!(matches!(
-            write_png(&decision_image(&w, &d, &ClassColours::THREE_CLASSES).unwrap(), &bad),
+            write_png(
+                &decision_image(&w, &d, &ClassColours::THREE_CLASSES).unwrap(),
+                &bad
+            ),
             Err(RenderError::Io { .. })
         ));
     }

@@ -83,7 +83,9 @@ pub enum ScanError {
         message: String,
     },
     /// A KITTI `.bin` file's length is not a whole number of 16-byte records.
-    #[error("{path}: {len} bytes is not a whole number of 16-byte KITTI records (x y z intensity f32)")]
+    #[error(
+        "{path}: {len} bytes is not a whole number of 16-byte KITTI records (x y z intensity f32)"
+    )]
     KittiLength {
         /// The file.
         path: PathBuf,
@@ -125,7 +127,11 @@ impl Scan {
 ///
 /// Any [`ScanError`], naming the file.
 pub fn read_scan(path: &Path) -> Result<Scan, ScanError> {
-    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase) {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+    {
         Some(ext) if ext == "pcd" => read_pcd(path),
         Some(ext) if ext == "bin" => read_kitti_bin(path),
         _ => Err(ScanError::UnknownFormat {
@@ -147,7 +153,10 @@ pub fn list_scans(dir: &Path) -> Result<Vec<PathBuf>, ScanError> {
     let mut paths = Vec::new();
     for entry in fs::read_dir(dir).map_err(io)? {
         let path = entry.map_err(io)?.path();
-        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
         if path.is_file() && matches!(ext.as_deref(), Some("pcd" | "bin")) {
             paths.push(path);
         }
@@ -175,7 +184,7 @@ pub fn read_kitti_bin(path: &Path) -> Result<Scan, ScanError> {
 ///
 /// [`ScanError::KittiLength`] if the length is not a multiple of 16.
 pub fn parse_kitti_bin(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
-    if bytes.len() % 16 != 0 {
+    if !bytes.len().is_multiple_of(16) {
         return Err(ScanError::KittiLength {
             path: path.to_path_buf(),
             len: bytes.len(),
@@ -187,7 +196,8 @@ pub fn parse_kitti_bin(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
         intensity: Vec::with_capacity(n),
     };
     for record in bytes.chunks_exact(16) {
-        let f = |i: usize| f32::from_le_bytes([record[i], record[i + 1], record[i + 2], record[i + 3]]);
+        let f =
+            |i: usize| f32::from_le_bytes([record[i], record[i + 1], record[i + 2], record[i + 3]]);
         scan.points_in_sensor.push([f(0), f(4), f(8)]);
         scan.intensity.push(f(12));
     }
@@ -283,7 +293,9 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
         let parse_one = |what: &str| -> Result<usize, ScanError> {
             match parse_all(what)?.as_slice() {
                 [v] => Ok(*v),
-                _ => Err(header_error(format!("line {line_number}: {what} needs one value"))),
+                _ => Err(header_error(format!(
+                    "line {line_number}: {what} needs one value"
+                ))),
             }
         };
         match key.as_str() {
@@ -303,14 +315,27 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
             "WIDTH" => width = Some(parse_one("WIDTH")?),
             "HEIGHT" => height = parse_one("HEIGHT")?,
             "POINTS" => points = Some(parse_one("POINTS")?),
-            "DATA" => break values.first().map(|s| s.to_ascii_lowercase()).unwrap_or_default(),
-            other => return Err(header_error(format!("line {line_number}: unknown key `{other}`"))),
+            "DATA" => {
+                break values
+                    .first()
+                    .map(|s| s.to_ascii_lowercase())
+                    .unwrap_or_default();
+            }
+            other => {
+                return Err(header_error(format!(
+                    "line {line_number}: unknown key `{other}`"
+                )));
+            }
         }
     };
     if counts.is_empty() {
         counts = vec![1; names.len()];
     }
-    if names.is_empty() || sizes.len() != names.len() || kinds.len() != names.len() || counts.len() != names.len() {
+    if names.is_empty()
+        || sizes.len() != names.len()
+        || kinds.len() != names.len()
+        || counts.len() != names.len()
+    {
         return Err(header_error(format!(
             "FIELDS ({}), SIZE ({}), TYPE ({}) and COUNT ({}) disagree",
             names.len(),
@@ -368,7 +393,8 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
         }
         Ok(Some(field.clone()))
     };
-    let (Some(fx), Some(fy), Some(fz)) = (find("x", true)?, find("y", true)?, find("z", true)?) else {
+    let (Some(fx), Some(fy), Some(fz)) = (find("x", true)?, find("y", true)?, find("z", true)?)
+    else {
         // `find` with `required` never returns Ok(None).
         return Err(ScanError::MissingField {
             path: path.to_path_buf(),
@@ -392,8 +418,11 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
                 });
             }
             for record in data.chunks_exact(record_len).take(expected) {
-                scan.points_in_sensor
-                    .push([fx.decode(record), fy.decode(record), fz.decode(record)]);
+                scan.points_in_sensor.push([
+                    fx.decode(record),
+                    fy.decode(record),
+                    fz.decode(record),
+                ]);
                 if let Some(fi) = &fi {
                     scan.intensity.push(fi.decode(record));
                 }
@@ -428,8 +457,11 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
                         message: format!("{} values, header declares {column}", values.len()),
                     });
                 }
-                scan.points_in_sensor
-                    .push([values[fx.column], values[fy.column], values[fz.column]]);
+                scan.points_in_sensor.push([
+                    values[fx.column],
+                    values[fy.column],
+                    values[fz.column],
+                ]);
                 if let Some(fi) = &fi {
                     scan.intensity.push(values[fi.column]);
                 }
@@ -458,9 +490,9 @@ mod tests {
     use super::*;
 
     fn shared_scans() -> Option<Vec<PathBuf>> {
-        let root = std::env::var("EVIGRID_SHARED").map(PathBuf::from).unwrap_or_else(|_| {
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared")
-        });
+        let root = std::env::var("EVIGRID_SHARED")
+            .map(PathBuf::from)
+            .unwrap_or_else(|_| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared"));
         let dir = root.join("data/lidar/kitti-city-22");
         match list_scans(&dir) {
             Ok(paths) if !paths.is_empty() => Some(paths),
@@ -490,9 +522,10 @@ mod tests {
 
     #[test]
     fn binary_pcd_with_extra_field_and_f8() {
-        let mut bytes = b"VERSION 0.7\nFIELDS x ring y z\nSIZE 8 2 4 4\nTYPE F U F F\nCOUNT 1 1 1 1\n\
+        let mut bytes =
+            b"VERSION 0.7\nFIELDS x ring y z\nSIZE 8 2 4 4\nTYPE F U F F\nCOUNT 1 1 1 1\n\
                           WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary\n"
-            .to_vec();
+                .to_vec();
         bytes.extend_from_slice(&(-2.25f64).to_le_bytes());
         bytes.extend_from_slice(&5u16.to_le_bytes());
         bytes.extend_from_slice(&0.5f32.to_le_bytes());
@@ -517,7 +550,11 @@ mod tests {
         let short = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 2\nDATA binary\n0123456789ab";
         assert!(matches!(
             parse_pcd(short.as_bytes(), Path::new("s.pcd")),
-            Err(ScanError::Truncated { expected: 2, found: 1, .. })
+            Err(ScanError::Truncated {
+                expected: 2,
+                found: 1,
+                ..
+            })
         ));
         let int_x = "FIELDS x y z\nSIZE 4 4 4\nTYPE I F F\nPOINTS 0\nDATA ascii\n";
         assert!(matches!(
@@ -532,7 +569,10 @@ mod tests {
             read_scan(Path::new("x.las")),
             Err(ScanError::UnknownFormat { .. })
         ));
-        assert!(matches!(read_scan(Path::new("/nonexistent/a.pcd")), Err(ScanError::Io { .. })));
+        assert!(matches!(
+            read_scan(Path::new("/nonexistent/a.pcd")),
+            Err(ScanError::Io { .. })
+        ));
     }
 
     #[test]
@@ -542,7 +582,10 @@ mod tests {
             bytes.extend_from_slice(&v.to_le_bytes());
         }
         let scan = parse_kitti_bin(&bytes, Path::new("k.bin")).unwrap();
-        assert_eq!(scan.points_in_sensor, vec![[1.0, 2.0, 3.0], [-4.0, 5.5, -1.0]]);
+        assert_eq!(
+            scan.points_in_sensor,
+            vec![[1.0, 2.0, 3.0], [-4.0, 5.5, -1.0]]
+        );
         assert_eq!(scan.intensity, vec![0.5, 0.25]);
     }
 
@@ -559,7 +602,13 @@ mod tests {
         let plausible = scan
             .points_in_sensor
             .iter()
-            .filter(|p| p.iter().all(|v| v.is_finite()) && p[0].abs() < 130.0 && p[1].abs() < 130.0 && p[2] > -4.0 && p[2] < 10.0)
+            .filter(|p| {
+                p.iter().all(|v| v.is_finite())
+                    && p[0].abs() < 130.0
+                    && p[1].abs() < 130.0
+                    && p[2] > -4.0
+                    && p[2] < 10.0
+            })
             .count();
         assert!(plausible as f64 > 0.99 * scan.len() as f64, "{plausible}");
         // The same scan written as a KITTI record stream reads back identically.

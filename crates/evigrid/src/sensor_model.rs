@@ -97,7 +97,11 @@ impl Isometry3 {
 
     /// True if every entry is finite.
     pub fn is_finite(&self) -> bool {
-        self.rotation.iter().flatten().chain(&self.translation).all(|v| v.is_finite())
+        self.rotation
+            .iter()
+            .flatten()
+            .chain(&self.translation)
+            .all(|v| v.is_finite())
     }
 }
 
@@ -128,8 +132,9 @@ pub struct SensorStats {
     pub points: usize,
     /// Points dropped because a coordinate was NaN or infinite.
     pub dropped_non_finite: usize,
-    /// Points dropped because they lie beyond `max_range_m` (horizontal distance).
-    pub dropped_beyond_range: usize,
+    /// Points dropped because their horizontal distance from the sensor is below `min_range_m`
+    /// (the vehicle's own body, invalid zero returns) or beyond `max_range_m`.
+    pub dropped_out_of_range: usize,
     /// Obstacle points whose cell lies outside the window.
     pub dropped_outside_window: usize,
     /// Points used as obstacle returns.
@@ -160,15 +165,17 @@ pub struct SensorModel {
     ground_range: Vec<f64>,
     /// Storage index of every obstacle cell of the current scan.
     obstacle_cells: Vec<usize>,
+    /// Storage index, sector and range of every ground return of the current scan.
+    ground_cells: Vec<(usize, u32, f64)>,
 }
 
 /// Fixed RANSAC seed: the same scan always gives the same plane.
-const RANSAC_SEED: u64 = 0x5EED_0F_6120_0000;
+const RANSAC_SEED: u64 = 0x5EED_0F61_2000_0000;
 /// RANSAC hypotheses per scan. With half the sample on the road, a hypothesis is all-ground with
-/// probability 1/8, so 200 of them miss with probability (7/8)^200 ≈ 3e-12.
-const RANSAC_ITERATIONS: usize = 200;
+/// probability 1/8, so 100 of them all miss with probability (7/8)^100 ≈ 2e-6.
+const RANSAC_ITERATIONS: usize = 100;
 /// Points drawn (evenly, by stride) from the scan to score hypotheses.
-const RANSAC_SAMPLE: usize = 4096;
+const RANSAC_SAMPLE: usize = 2048;
 /// Ground candidates lie within this horizontal range: the road near the vehicle is the plane
 /// we want, far points are sparse and curve with the terrain.
 const GROUND_FIT_RANGE_M: f64 = 30.0;
@@ -186,6 +193,7 @@ impl SensorModel {
             obstacle_range: Vec::new(),
             ground_range: Vec::new(),
             obstacle_cells: Vec::new(),
+            ground_cells: Vec::new(),
         }
     }
 
@@ -229,7 +237,7 @@ impl SensorModel {
             stats.dropped_non_finite = points_in_sensor.len();
             return stats;
         }
-        let max_range_m = self.params.max_range_m;
+        let (min_range_m, max_range_m) = (self.params.min_range_m, self.params.max_range_m);
         // Levelled frame: rotate only, so that heights and ranges are metric and small numbers
         // keep full precision whatever the map's origin.
         self.levelled.clear();
@@ -239,8 +247,9 @@ impl SensorModel {
                 continue;
             }
             let q = world_from_sensor.rotate([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]);
-            if q[0].hypot(q[1]) > max_range_m {
-                stats.dropped_beyond_range += 1;
+            let range_m = horizontal_range(q);
+            if !(min_range_m..=max_range_m).contains(&range_m) {
+                stats.dropped_out_of_range += 1;
                 continue;
             }
             self.levelled.push(q);
@@ -260,11 +269,13 @@ impl SensorModel {
 
         let sectors = self.sector_count();
         let sector_width = std::f64::consts::TAU / sectors as f64;
+        let sectors_per_radian = sectors as f64 / std::f64::consts::TAU;
         self.obstacle_range.clear();
         self.obstacle_range.resize(sectors, f64::INFINITY);
         self.ground_range.clear();
         self.ground_range.resize(sectors, 0.0);
         self.obstacle_cells.clear();
+        self.ground_cells.clear();
         let [sensor_x, sensor_y, _] = world_from_sensor.translation;
         for &q in &self.levelled {
             let is_obstacle = match &plane {
@@ -273,8 +284,14 @@ impl SensorModel {
                     let h = plane.height_of(q);
                     if h.abs() <= self.params.ground_band_m {
                         stats.ground_points += 1;
-                        let s = sector_of(q, sector_width, sectors);
-                        self.ground_range[s] = self.ground_range[s].max(q[0].hypot(q[1]));
+                        let s = sector_of(q, sectors_per_radian, sectors);
+                        let range_m = horizontal_range(q);
+                        self.ground_range[s] = self.ground_range[s].max(range_m);
+                        if let Some(idx) =
+                            window.storage_index_of_point(sensor_x + q[0], sensor_y + q[1])
+                        {
+                            self.ground_cells.push((idx, s as u32, range_m));
+                        }
                         continue;
                     }
                     (self.params.min_obstacle_height_m..=self.params.max_obstacle_height_m)
@@ -289,8 +306,8 @@ impl SensorModel {
                 Some(idx) => {
                     stats.obstacle_points += 1;
                     self.obstacle_cells.push(idx);
-                    let s = sector_of(q, sector_width, sectors);
-                    self.obstacle_range[s] = self.obstacle_range[s].min(q[0].hypot(q[1]));
+                    let s = sector_of(q, sectors_per_radian, sectors);
+                    self.obstacle_range[s] = self.obstacle_range[s].min(horizontal_range(q));
                 }
                 None => stats.dropped_outside_window += 1,
             }
@@ -300,6 +317,7 @@ impl SensorModel {
         let mu_occupied = self.params.mu_occupied as f32;
         let cell_size_m = window.cell_size_m();
         let origin = (sensor_x / cell_size_m, sensor_y / cell_size_m);
+        let mut free_cells = 0usize;
         for s in 0..sectors {
             let (limit_m, whole_cells) = if self.obstacle_range[s].is_finite() {
                 (self.obstacle_range[s], true)
@@ -321,27 +339,89 @@ impl SensorModel {
                     limit_m / cell_size_m,
                     whole_cells,
                     |idx| {
+                        // Counted on the first visit: rays of a sector overlap near the sensor.
+                        free_cells += usize::from(out.m_free[idx] != mu_free);
                         out.m_free[idx] = mu_free;
                     },
                 );
             }
         }
+        // A ground return's own cell was seen free, if it lies within its sector's free range
+        // (a ray may enter that cell just after the return's range, or miss its corner).
+        for &(idx, s, range_m) in &self.ground_cells {
+            let s = s as usize;
+            if range_m < self.obstacle_range[s] {
+                free_cells += usize::from(out.m_free[idx] != mu_free);
+                out.m_free[idx] = mu_free;
+            }
+        }
+        let mut occupied_cells = 0;
         for &idx in &self.obstacle_cells {
+            if out.m_occupied[idx] != mu_occupied {
+                occupied_cells += 1;
+                free_cells -= usize::from(out.m_free[idx] == mu_free && mu_free != 0.0);
+            }
             out.m_free[idx] = 0.0;
             out.m_occupied[idx] = mu_occupied;
         }
-        // Counted from the grid so that a cell reached by several rays counts once.
-        stats.occupied_cells = out.m_occupied.iter().filter(|&&m| m > 0.0).count();
-        stats.free_cells = out.m_free.iter().filter(|&&m| m > 0.0).count();
+        stats.free_cells = free_cells;
+        stats.occupied_cells = occupied_cells;
         stats
     }
 }
 
+/// Horizontal distance from the sensor. (`f64::hypot` guards against overflow we cannot have
+/// here, at several times the cost.)
+#[inline]
+fn horizontal_range(q: [f64; 3]) -> f64 {
+    (q[0] * q[0] + q[1] * q[1]).sqrt()
+}
+
 /// Sector of a levelled point by its bearing, `atan2(y, x)` measured from −π.
 #[inline]
-fn sector_of(q: [f64; 3], sector_width: f64, sectors: usize) -> usize {
-    let angle = q[1].atan2(q[0]) + std::f64::consts::PI;
-    ((angle / sector_width) as usize).min(sectors - 1)
+fn sector_of(q: [f64; 3], sectors_per_radian: f64, sectors: usize) -> usize {
+    let angle = fast_atan2(q[1], q[0]) + std::f64::consts::PI;
+    // `as usize` saturates: a tiny negative angle gives sector 0.
+    ((angle * sectors_per_radian) as usize).min(sectors - 1)
+}
+
+/// `atan2(y, x)` within 1e-7 rad: octant reduction and a fitted polynomial for atan on
+/// [0, 1]. Sector assignment only needs a small fraction of a sector's width, and this is
+/// several times faster than the libm call on 100k points per scan.
+#[inline]
+fn fast_atan2(y: f64, x: f64) -> f64 {
+    use std::f64::consts::{FRAC_PI_2, PI};
+    let (ax, ay) = (x.abs(), y.abs());
+    let (num, den) = if ay > ax { (ax, ay) } else { (ay, ax) };
+    if den == 0.0 {
+        return 0.0;
+    }
+    let z = num / den;
+    let z2 = z * z;
+    // atan(z) ≈ z·P(z²) on [0, 1]: a degree-15 odd polynomial, least-squares fitted on
+    // Chebyshev nodes (maximum error 4e-8 rad).
+    const C: [f64; 8] = [
+        0.999_999_438_324_601_7,
+        -0.333_301_127_400_456_2,
+        0.199_485_768_955_586_34,
+        -0.139_161_315_520_430_1,
+        0.096_570_694_736_276_69,
+        -0.056_073_881_742_006_86,
+        0.021_953_772_647_316_73,
+        -0.004_075_223_254_295_879,
+    ];
+    let mut poly = C[7];
+    for c in C[..7].iter().rev() {
+        poly = poly * z2 + c;
+    }
+    let mut a = z * poly;
+    if ay > ax {
+        a = FRAC_PI_2 - a;
+    }
+    if x < 0.0 {
+        a = PI - a;
+    }
+    if y < 0.0 { -a } else { a }
 }
 
 /// Walks the cells a ray crosses (Amanatides & Woo 1987), in cell units, from `origin` along
@@ -373,22 +453,44 @@ fn walk_ray(
     } else {
         f64::INFINITY
     };
-    let dt_col = if cos != 0.0 { 1.0 / cos.abs() } else { f64::INFINITY };
-    let dt_row = if sin != 0.0 { 1.0 / sin.abs() } else { f64::INFINITY };
+    let dt_col = if cos != 0.0 {
+        1.0 / cos.abs()
+    } else {
+        f64::INFINITY
+    };
+    let dt_row = if sin != 0.0 {
+        1.0 / sin.abs()
+    } else {
+        f64::INFINITY
+    };
     let mut t_enter = 0.0;
     let (w, h) = (window.width() as i64, window.height() as i64);
     let (c0, r0) = (window.first_col(), window.first_row());
+    // Storage column and row, stepped with the global ones: no division per cell.
+    let mut storage_col = col.rem_euclid(w);
+    let mut storage_row = row.rem_euclid(h);
+    let wrap = |v: i64, n: i64| {
+        if v == n {
+            0
+        } else if v < 0 {
+            n - 1
+        } else {
+            v
+        }
+    };
     loop {
         let t_exit = t_col.min(t_row);
-        let marked = if whole_cells { t_exit <= limit } else { t_enter < limit };
+        let marked = if whole_cells {
+            t_exit <= limit
+        } else {
+            t_enter < limit
+        };
         if !marked {
             return;
         }
         let (dc, dr) = (col - c0, row - r0);
         if (0..w).contains(&dc) && (0..h).contains(&dr) {
-            if let Some(idx) = window.storage_index(col, row) {
-                visit(idx);
-            }
+            visit((storage_row * w + storage_col) as usize);
         } else if (dc < 0 && step_col < 0)
             || (dc >= w && step_col > 0)
             || (dr < 0 && step_row < 0)
@@ -400,9 +502,11 @@ fn walk_ray(
         t_enter = t_exit;
         if t_col < t_row {
             col += step_col;
+            storage_col = wrap(storage_col + step_col, w);
             t_col += dt_col;
         } else {
             row += step_row;
+            storage_row = wrap(storage_row + step_row, h);
             t_row += dt_row;
         }
     }
@@ -433,7 +537,7 @@ pub fn fit_ground_plane(levelled: &[[f64; 3]], band_m: f64) -> Option<GroundPlan
         let near: Vec<[f64; 3]> = levelled
             .iter()
             .copied()
-            .filter(|q| q[0].hypot(q[1]) <= GROUND_FIT_RANGE_M)
+            .filter(|q| horizontal_range(*q) <= GROUND_FIT_RANGE_M)
             .collect();
         let stride = near.len().div_ceil(RANSAC_SAMPLE).max(1);
         near.into_iter().step_by(stride).collect()
@@ -452,7 +556,7 @@ pub fn fit_ground_plane(levelled: &[[f64; 3]], band_m: f64) -> Option<GroundPlan
         let v = sub(p2, p0);
         let n = cross(u, v);
         let norm = dot(n, n).sqrt();
-        if !(norm > 1e-9) {
+        if norm.is_nan() || norm <= 1e-9 {
             continue;
         }
         let sign = if n[2] < 0.0 { -1.0 } else { 1.0 };
@@ -521,7 +625,7 @@ fn least_squares_plane(
         syz += y * z;
     }
     let det = sxx * syy - sxy * sxy;
-    if !(det.abs() > 1e-9) {
+    if det.is_nan() || det.abs() <= 1e-9 {
         return None;
     }
     let a = (sxz * syy - syz * sxy) / det;
@@ -576,11 +680,27 @@ mod tests {
     }
 
     #[test]
+    fn fast_atan2_is_within_a_tenth_of_a_microradian() {
+        let mut worst = 0.0f64;
+        for k in 0..100_000 {
+            let angle = -std::f64::consts::PI + k as f64 * std::f64::consts::TAU / 100_000.0;
+            let (y, x) = (3.7 * angle.sin(), 3.7 * angle.cos());
+            let d = (fast_atan2(y, x) - y.atan2(x)).abs();
+            // ±π are the same bearing.
+            worst = worst.max(d.min((d - std::f64::consts::TAU).abs()));
+        }
+        assert!(worst < 1e-7, "{worst}");
+        assert_eq!(fast_atan2(0.0, 0.0), 0.0);
+    }
+
+    #[test]
     fn rpy_follows_the_ros_convention() {
         // Yaw 90°: the sensor's x axis points north. Pitch 90°: x points down.
         let yaw = Isometry3::from_xyz_rpy(1.0, 2.0, 3.0, 0.0, 0.0, std::f64::consts::FRAC_PI_2);
         let p = yaw.transform_point([1.0, 0.0, 0.0]);
-        assert!((p[0] - 1.0).abs() < 1e-12 && (p[1] - 3.0).abs() < 1e-12 && (p[2] - 3.0).abs() < 1e-12);
+        assert!(
+            (p[0] - 1.0).abs() < 1e-12 && (p[1] - 3.0).abs() < 1e-12 && (p[2] - 3.0).abs() < 1e-12
+        );
         let pitch = Isometry3::from_xyz_rpy(0.0, 0.0, 0.0, 0.0, std::f64::consts::FRAC_PI_2, 0.0);
         let p = pitch.rotate([1.0, 0.0, 0.0]);
         assert!((p[2] + 1.0).abs() < 1e-12 && p[0].abs() < 1e-12);
@@ -608,7 +728,11 @@ mod tests {
         }
         // Cells 0..=5 along the row of the sensor are free; beyond the wall nothing is known.
         for col in 0..=5 {
-            assert_eq!(at(&window, &grid.m_free, col as f64 + 0.5, 0.5), 0.7, "col {col}");
+            assert_eq!(
+                at(&window, &grid.m_free, col as f64 + 0.5, 0.5),
+                0.7,
+                "col {col}"
+            );
         }
         assert_eq!(at(&window, &grid.m_free, 7.5, 0.5), 0.0);
         assert_eq!(at(&window, &grid.m_occupied, 7.5, 0.5), 0.0);
@@ -628,17 +752,22 @@ mod tests {
         let points = [
             [f32::NAN, 0.0, 0.0],
             [f32::INFINITY, 1.0, 0.0],
-            [40.0, 0.0, 0.0],   // beyond 30 m
-            [15.0, 0.0, 0.0],   // in range, outside the 21-cell window
-            [3.0, 0.0, 0.0],    // kept
+            [40.0, 0.0, 0.0], // beyond 30 m
+            [15.0, 0.0, 0.0], // in range, outside the 21-cell window
+            [3.0, 0.0, 0.0],  // kept
         ];
         let stats = model.build(&points, &Isometry3::IDENTITY, &window, &mut grid);
         assert_eq!(stats.points, 5);
         assert_eq!(stats.dropped_non_finite, 2);
-        assert_eq!(stats.dropped_beyond_range, 1);
+        assert_eq!(stats.dropped_out_of_range, 1);
         assert_eq!(stats.dropped_outside_window, 1);
         assert_eq!(stats.obstacle_points, 1);
-        assert!(grid.m_occupied.iter().chain(&grid.m_free).all(|v| v.is_finite()));
+        assert!(
+            grid.m_occupied
+                .iter()
+                .chain(&grid.m_free)
+                .all(|v| v.is_finite())
+        );
         // A non-finite pose: nothing at all.
         let pose = Isometry3::from_xyz_rpy(f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0);
         let stats = model.build(&points, &pose, &window, &mut grid);
@@ -660,25 +789,31 @@ mod tests {
         let mut points = Vec::new();
         for i in 0..400 {
             let angle = i as f32 * std::f32::consts::TAU / 400.0;
-            for r in [2.0f32, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0] {
+            for r in [3.0f32, 4.0, 5.0, 6.0, 7.0, 8.0] {
                 points.push([r * angle.cos(), r * angle.sin(), -1.5]);
             }
         }
-        for dz in 0..5 {
-            points.push([-4.0, 0.0, -1.0 + dz as f32 * 0.2]);
+        // The box's face: x = −3.8 m, y from −1 to 1.5 m, heights 0.5 to 1.3 m above ground.
+        // 2 cm apart, so that every 1° sector across the face holds some of its points.
+        for dy in 0..=125 {
+            for dz in 0..5 {
+                points.push([-3.8, -1.0 + dy as f32 * 0.02, -1.0 + dz as f32 * 0.2]);
+            }
         }
         let stats = model.build(&points, &Isometry3::IDENTITY, &window, &mut grid);
         let plane = stats.ground_plane.unwrap();
         assert!((plane.offset_m + 1.5).abs() < 1e-6 && (plane.normal[2] - 1.0).abs() < 1e-9);
-        assert_eq!(stats.ground_points, 2800);
+        assert_eq!(stats.ground_points, 2400);
         // Heights 0.5, 0.7, …, 1.3 m: all within the default 0.3 – 2.5 m obstacle band.
-        assert_eq!(stats.obstacle_points, 5);
+        assert_eq!(stats.obstacle_points, 126 * 5);
         assert_eq!(at(&window, &grid.m_occupied, -3.5, 0.5), 0.8);
+        assert_eq!(at(&window, &grid.m_occupied, -2.5, 0.5), 0.0);
         // Free to 8 m east (the cell at 8 m holds a ground return), not beyond.
         assert_eq!(at(&window, &grid.m_free, 8.5, 0.5), 0.7);
         assert_eq!(at(&window, &grid.m_free, 9.5, 0.5), 0.0);
-        // West: free before the box only.
+        // West: free before the box only; the ground seen beyond it does not count.
         assert_eq!(at(&window, &grid.m_free, -2.5, 0.5), 0.7);
+        assert_eq!(at(&window, &grid.m_free, -4.5, 0.5), 0.0);
         assert_eq!(at(&window, &grid.m_free, -5.5, 0.5), 0.0);
     }
 
@@ -687,9 +822,19 @@ mod tests {
         let window = small_window();
         let mut grid = SensorGrid::new(21, 21);
         grid.m_free.fill(0.3);
-        let stats = SensorModel::new(SensorParams::default()).build(&[], &Isometry3::IDENTITY, &window, &mut grid);
+        let stats = SensorModel::new(SensorParams::default()).build(
+            &[],
+            &Isometry3::IDENTITY,
+            &window,
+            &mut grid,
+        );
         assert_eq!(stats.free_cells + stats.occupied_cells, 0);
-        assert!(grid.m_free.iter().chain(&grid.m_occupied).all(|&v| v == 0.0));
+        assert!(
+            grid.m_free
+                .iter()
+                .chain(&grid.m_occupied)
+                .all(|&v| v == 0.0)
+        );
     }
 
     #[test]
@@ -707,13 +852,22 @@ mod tests {
                 [9.7 * a.cos(), 9.7 * a.sin(), 0.0]
             })
             .collect();
-        model.build(&points, &Isometry3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0), &window, &mut grid);
+        model.build(
+            &points,
+            &Isometry3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0),
+            &window,
+            &mut grid,
+        );
         for col in -10..=10i64 {
             for row in -10..=10i64 {
                 let (cx, cy) = window.cell_centre(col, row);
                 let far_corner = ((cx - 0.5).abs() + 0.5).hypot((cy - 0.5).abs() + 0.5);
                 if far_corner < 8.5 {
-                    assert_eq!(at(&window, &grid.m_free, cx, cy), 0.7, "cell ({col}, {row})");
+                    assert_eq!(
+                        at(&window, &grid.m_free, cx, cy),
+                        0.7,
+                        "cell ({col}, {row})"
+                    );
                 }
             }
         }
@@ -738,7 +892,9 @@ mod tests {
 
     #[test]
     fn finds_the_road_under_the_kitti_lidar() {
-        let Some(scan) = shared_scan("0000000000.pcd") else { return };
+        let Some(scan) = shared_scan("0000000000.pcd") else {
+            return;
+        };
         let levelled: Vec<[f64; 3]> = scan
             .points_in_sensor
             .iter()
@@ -753,26 +909,55 @@ mod tests {
 
     #[test]
     fn a_real_scan_into_a_large_window() {
-        let Some(scan) = shared_scan("0000000000.pcd") else { return };
+        let Some(scan) = shared_scan("0000000000.pcd") else {
+            return;
+        };
         let mut window = Window::new(1000, 1000, 0.2).unwrap();
         window.recentre(0.0, 0.0).unwrap();
         let mut grid = SensorGrid::new(1000, 1000);
         let mut model = SensorModel::new(SensorParams::default());
-        let start = std::time::Instant::now();
-        let stats = model.build(&scan.points_in_sensor, &Isometry3::IDENTITY, &window, &mut grid);
-        eprintln!("sensor grid 1000×1000 @0.2 m: {:?}, {stats:?}", start.elapsed());
+        // On-CPU time of this thread (Linux schedstat, ns), so that a loaded machine does not
+        // inflate the measurement; wall time beside it.
+        let cpu_ns = || -> Option<u64> {
+            std::fs::read_to_string("/proc/thread-self/schedstat")
+                .ok()?
+                .split_whitespace()
+                .next()?
+                .parse()
+                .ok()
+        };
+        let mut fastest = (u64::MAX, std::time::Duration::MAX);
+        let mut stats = SensorStats::default();
+        for _ in 0..5 {
+            let (cpu0, start) = (cpu_ns(), std::time::Instant::now());
+            stats = model.build(&scan.points_in_sensor, &Isometry3::IDENTITY, &window, &mut grid);
+            let wall = start.elapsed();
+            let cpu = cpu_ns().zip(cpu0).map_or(u64::MAX, |(b, a)| b - a);
+            fastest = (fastest.0.min(cpu), fastest.1.min(wall));
+        }
+        eprintln!(
+            "sensor grid 1000×1000 @0.2 m, fastest of 5: {:.2} ms on CPU, {:?} wall; {stats:?}",
+            fastest.0 as f64 / 1e6,
+            fastest.1
+        );
         assert_eq!(stats.points, 119_978);
         assert_eq!(
             stats.points,
             stats.dropped_non_finite
-                + stats.dropped_beyond_range
+                + stats.dropped_out_of_range
                 + stats.dropped_outside_window
                 + stats.obstacle_points
                 + stats.ground_points
                 + stats.unclassified_points
         );
-        assert!(stats.obstacle_points > 1000 && stats.ground_points > 30_000, "{stats:?}");
-        assert!(stats.free_cells > 10_000 && stats.occupied_cells > 500, "{stats:?}");
+        assert!(
+            stats.obstacle_points > 1000 && stats.ground_points > 30_000,
+            "{stats:?}"
+        );
+        assert!(
+            stats.free_cells > 10_000 && stats.occupied_cells > 500,
+            "{stats:?}"
+        );
         // The sensor's own cell is seen free (the road under the car), not occupied.
         let own = window.storage_index_of_point(0.0, 0.0).unwrap();
         assert_eq!(grid.m_occupied[own], 0.0);

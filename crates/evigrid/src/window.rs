@@ -104,6 +104,10 @@ pub struct Window {
     cell_size_m: f64,
     first_col: i64,
     first_row: i64,
+    /// Storage column and row of the first cell, `first_col mod W` and `first_row mod H`, kept
+    /// so that indexing needs no division.
+    first_storage_col: usize,
+    first_storage_row: usize,
 }
 
 /// Beyond this many cells from the origin, `f64` cannot tell neighbouring cell edges apart at
@@ -131,6 +135,8 @@ impl Window {
             cell_size_m,
             first_col: 0,
             first_row: 0,
+            first_storage_col: 0,
+            first_storage_row: 0,
         })
     }
 
@@ -217,8 +223,17 @@ impl Window {
     /// window.
     #[inline]
     pub fn storage_index(&self, col: i64, row: i64) -> Option<usize> {
-        self.contains(col, row)
-            .then(|| self.storage_row(row) * self.width + self.storage_col(col))
+        // Offsets inside the window, then a conditional wrap: the same as `rem_euclid` for
+        // cells inside, without its integer divisions (this runs for every point of a scan).
+        let dc = usize::try_from(col.wrapping_sub(self.first_col)).ok()?;
+        let dr = usize::try_from(row.wrapping_sub(self.first_row)).ok()?;
+        if dc >= self.width || dr >= self.height {
+            return None;
+        }
+        let wrap = |v: usize, n: usize| if v >= n { v - n } else { v };
+        let storage_col = wrap(self.first_storage_col + dc, self.width);
+        let storage_row = wrap(self.first_storage_row + dr, self.height);
+        Some(storage_row * self.width + storage_col)
     }
 
     /// Storage index of the cell containing a point, or `None` outside the window (or for a
@@ -238,10 +253,10 @@ impl Window {
         let storage_row = (index / self.width) as i64;
         let storage_col = (index % self.width) as i64;
         // The window's first cell sits at storage (first mod size); count forward from there.
-        let col_offset = (storage_col - self.storage_col(self.first_col) as i64)
-            .rem_euclid(self.width as i64);
-        let row_offset = (storage_row - self.storage_row(self.first_row) as i64)
-            .rem_euclid(self.height as i64);
+        let col_offset =
+            (storage_col - self.storage_col(self.first_col) as i64).rem_euclid(self.width as i64);
+        let row_offset =
+            (storage_row - self.storage_row(self.first_row) as i64).rem_euclid(self.height as i64);
         Some(GlobalCell {
             col: self.first_col + col_offset,
             row: self.first_row + row_offset,
@@ -310,6 +325,8 @@ impl Window {
         let (w, h) = (self.width as i64, self.height as i64);
         self.first_col = first_col;
         self.first_row = first_row;
+        self.first_storage_col = self.storage_col(first_col);
+        self.first_storage_row = self.storage_row(first_row);
         let block = |first_col: i64, first_row: i64, width: i64, height: i64| {
             (width > 0 && height > 0).then_some(CellWindow {
                 first_col,
@@ -371,9 +388,18 @@ mod tests {
     fn cell_of_point_uses_floor_and_half_open_cells() {
         let w = Window::new(10, 10, 0.5).unwrap();
         // 0.5 m cells: x = 1.0 is the west edge of column 2; -0.01 is in column -1.
-        assert_eq!(w.cell_of_point(1.0, 0.0), Some(GlobalCell { col: 2, row: 0 }));
-        assert_eq!(w.cell_of_point(0.999, -0.01), Some(GlobalCell { col: 1, row: -1 }));
-        assert_eq!(w.cell_of_point(-0.5, -1.0), Some(GlobalCell { col: -1, row: -2 }));
+        assert_eq!(
+            w.cell_of_point(1.0, 0.0),
+            Some(GlobalCell { col: 2, row: 0 })
+        );
+        assert_eq!(
+            w.cell_of_point(0.999, -0.01),
+            Some(GlobalCell { col: 1, row: -1 })
+        );
+        assert_eq!(
+            w.cell_of_point(-0.5, -1.0),
+            Some(GlobalCell { col: -1, row: -2 })
+        );
         assert_eq!(w.cell_of_point(f64::NAN, 0.0), None);
         assert_eq!(w.cell_of_point(0.0, f64::INFINITY), None);
         assert_eq!(w.cell_of_point(1e300, 0.0), None);
@@ -382,9 +408,18 @@ mod tests {
 
     #[test]
     fn rejects_bad_geometry() {
-        assert!(matches!(Window::new(0, 3, 1.0), Err(WindowError::Empty { .. })));
-        assert!(matches!(Window::new(3, 3, 0.0), Err(WindowError::CellSize { .. })));
-        assert!(matches!(Window::new(3, 3, f64::NAN), Err(WindowError::CellSize { .. })));
+        assert!(matches!(
+            Window::new(0, 3, 1.0),
+            Err(WindowError::Empty { .. })
+        ));
+        assert!(matches!(
+            Window::new(3, 3, 0.0),
+            Err(WindowError::CellSize { .. })
+        ));
+        assert!(matches!(
+            Window::new(3, 3, f64::NAN),
+            Err(WindowError::CellSize { .. })
+        ));
         let mut w = Window::new(3, 3, 1.0).unwrap();
         assert!(w.recentre(f64::NAN, 0.0).is_err());
         assert_eq!(w.first_col(), 0);
@@ -502,7 +537,11 @@ mod tests {
 
     #[test]
     fn scrolling_keeps_world_fixed_content_exact() {
-        scroll_and_check(7, 5, &[(1, 0), (0, 1), (-3, 2), (2, -4), (6, 0), (-7, 0), (0, 9)]);
+        scroll_and_check(
+            7,
+            5,
+            &[(1, 0), (0, 1), (-3, 2), (2, -4), (6, 0), (-7, 0), (0, 9)],
+        );
     }
 
     proptest! {
@@ -520,6 +559,8 @@ mod tests {
             let mut w = Window::new(6, 5, 0.2).unwrap();
             w.move_to(col - 3, row - 2);
             let idx = w.storage_index(col, row).unwrap();
+            // The SPEC §2 formula: (row mod H)·W + (col mod W).
+            prop_assert_eq!(idx, row.rem_euclid(5) as usize * 6 + col.rem_euclid(6) as usize);
             prop_assert_eq!(w.cell_of_storage(idx), Some(GlobalCell { col, row }));
             let (x, y) = w.cell_centre(col, row);
             prop_assert_eq!(w.cell_of_point(x, y), Some(GlobalCell { col, row }));

@@ -32,6 +32,15 @@ impl RoadCentreline {
     }
 }
 
+/// A road-surface polygon (`area:highway`, or a vehicle `highway` with `area=yes`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RoadArea {
+    /// The surface, in the coordinates of the [`MapFeatures`] holding it.
+    pub polygon: Polygon<f64>,
+    /// Its vehicle class (the `area:highway` or `highway` value).
+    pub highway: String,
+}
+
 /// Why an item of the input was left out of the map.
 ///
 /// Real OSM extracts are incomplete at their border; these are counted, not errors.
@@ -99,6 +108,12 @@ pub struct SourceCounts {
     pub highway_ways: usize,
     /// Of those, the ones of a vehicle class.
     pub vehicle_road_ways: usize,
+    /// Building ways that became a building polygon.
+    pub building_ways_used: usize,
+    /// Building relations that gave at least one building polygon.
+    pub building_relations_used: usize,
+    /// Vehicle-road ways of which at least one piece of centreline was kept.
+    pub vehicle_road_ways_used: usize,
 }
 
 /// Everything a reader extracted from a map, in the file's coordinates (x = longitude,
@@ -108,7 +123,7 @@ pub struct MapFeatures {
     /// Building footprints (outer ring, holes).
     pub buildings: Vec<Polygon<f64>>,
     /// `area:highway` surfaces and vehicle `highway` ways tagged `area=yes`.
-    pub road_areas: Vec<Polygon<f64>>,
+    pub road_areas: Vec<RoadArea>,
     /// `amenity=parking` areas.
     pub parking: Vec<Polygon<f64>>,
     /// Vehicle-road centrelines, to be buffered.
@@ -141,10 +156,41 @@ impl MapFeatures {
         });
     }
 
-    /// The map's extent in source coordinates: the declared bounds if any, else the bounding box
-    /// of all coordinates.
+    /// The map's extent in source coordinates: the declared bounds if any; else the bounding box
+    /// of the features kept (buildings, road surfaces, centrelines); else, for a map without
+    /// features, the bounding box of all coordinates.
+    ///
+    /// Extracts without declared bounds (e.g. `monaco.osm.gz`) hold a few far-away nodes of
+    /// boundary relations; bounding the features keeps the extent to where the map says
+    /// something (Monaco: 3 km instead of 27 km).
     pub fn extent(&self) -> Option<Rect<f64>> {
-        self.declared_bounds.or(self.coordinate_bounds)
+        self.declared_bounds
+            .or_else(|| self.feature_bounds())
+            .or(self.coordinate_bounds)
+    }
+
+    /// Bounding box of every kept feature's coordinates.
+    pub fn feature_bounds(&self) -> Option<Rect<f64>> {
+        use geo::CoordsIter;
+        let polygons = self
+            .buildings
+            .iter()
+            .chain(self.road_areas.iter().map(|a| &a.polygon))
+            .chain(&self.parking);
+        let coords = polygons
+            .flat_map(|p| p.exterior().coords_iter())
+            .chain(self.roads.iter().flat_map(|r| r.line.coords_iter()));
+        let mut bounds: Option<Rect<f64>> = None;
+        for c in coords {
+            bounds = Some(match bounds {
+                None => Rect::new(c, c),
+                Some(rect) => Rect::new(
+                    geo::coord! { x: rect.min().x.min(c.x), y: rect.min().y.min(c.y) },
+                    geo::coord! { x: rect.max().x.max(c.x), y: rect.max().y.max(c.y) },
+                ),
+            });
+        }
+        bounds
     }
 
     /// Converts the features to road-surface and building polygons in local metres, with
@@ -163,6 +209,7 @@ impl MapFeatures {
         let mut roads: Vec<Polygon<f64>> = self
             .road_areas
             .iter()
+            .map(|a| &a.polygon)
             .chain(&self.parking)
             .map(|p| p.map_coords(&to_local))
             .collect();

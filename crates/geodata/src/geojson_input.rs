@@ -9,7 +9,7 @@ use geo::{Coord, LineString, Rect};
 use serde_json::Value;
 
 use crate::error::MapError;
-use crate::features::{MapFeatures, RoadCentreline, SkipReason};
+use crate::features::{MapFeatures, RoadArea, RoadCentreline, SkipReason};
 use crate::rings::clean_ring;
 use crate::tags::Roles;
 
@@ -177,6 +177,7 @@ fn read_feature(
             if !wants_area {
                 return Ok(());
             }
+            let mut used_as_building = false;
             for rings in polygons {
                 let Some((outer, inner)) = rings.split_first() else {
                     continue;
@@ -197,19 +198,25 @@ fn read_feature(
                 }
                 let polygon = geo::Polygon::new(outer, holes);
                 if roles.building {
+                    used_as_building = true;
                     features.buildings.push(polygon.clone());
                 }
                 if roles.parking {
                     features.parking.push(polygon.clone());
                 }
                 // A polygon tagged with a vehicle `highway` is a surface, like area=yes in OSM.
-                if roles.road_area || roles.vehicle_road.is_some() {
-                    features.road_areas.push(polygon);
+                if let Some(class) = roles.road_area.as_ref().or(roles.vehicle_road.as_ref()) {
+                    features.road_areas.push(RoadArea {
+                        polygon,
+                        highway: class.clone(),
+                    });
                 }
             }
+            features.source_counts.building_ways_used += usize::from(used_as_building);
         }
         Shape::Lines(lines) => match &roles.vehicle_road {
             Some(class) => {
+                let mut used = false;
                 for line in lines {
                     if line.len() < 2 {
                         features.skip(SkipReason::RoadWayTooShort);
@@ -221,7 +228,9 @@ fn read_feature(
                         width_tag: roles.width.clone(),
                         lanes_tag: roles.lanes.clone(),
                     });
+                    used = true;
                 }
+                features.source_counts.vehicle_road_ways_used += usize::from(used);
             }
             None if wants_area => features.skip(SkipReason::UnsupportedGeometry),
             None => {}

@@ -33,16 +33,28 @@
 
 pub mod buffer;
 mod context;
+mod crop;
 mod error;
 mod features;
 mod geojson_input;
+mod load;
 mod local_map;
+mod osm;
+mod osm_pbf;
+mod osm_xml;
+mod projection;
 mod raster;
 mod rings;
 pub mod tags;
+#[doc(hidden)]
+pub mod testdata;
 
 pub use context::{CellWindow, MapContext};
 pub use error::MapError;
-pub use features::{MapFeatures, RoadCentreline, SkipCounts, SkipReason, SourceCounts};
+pub use features::{MapFeatures, RoadArea, RoadCentreline, SkipCounts, SkipReason, SourceCounts};
+pub use load::{
+    GeoBox, LoadOptions, LoadedMap, MapFormat, MapStats, MetricBox, load_map, load_map_from_bytes,
+};
 pub use local_map::LocalMap;
+pub use projection::TransverseMercator;
 pub use raster::ContextRaster;

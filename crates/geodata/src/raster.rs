@@ -46,8 +46,9 @@ impl Edge {
     /// x where the edge crosses `y = yc`, if it does by the half-open rule.
     #[inline]
     fn crossing(&self, yc: f64) -> Option<f64> {
+        // Cheap arithmetic: computing it eagerly keeps the test branch-light.
         (self.y_low <= yc && yc < self.y_high)
-            .then(|| self.x_at_low + (yc - self.y_low) * self.dx_per_dy)
+            .then_some(self.x_at_low + (yc - self.y_low) * self.dx_per_dy)
     }
 }
 
@@ -149,8 +150,7 @@ impl ContextRaster {
         }
         let rows_available = (out.len() / window.width).min(window.height);
         let out = &mut out[..rows_available * window.width];
-        if !(window.cell_size_m.is_finite() && window.cell_size_m > 0.0)
-            || !indices_in_range(window)
+        if !(window.cell_size_m.is_finite() && window.cell_size_m > 0.0 && indices_in_range(window))
         {
             out.fill(MapContext::Unknown);
             return;

@@ -108,8 +108,8 @@ pub(crate) struct Roles {
     pub vehicle_road: Option<String>,
     /// Any `highway=*` (for counting).
     pub highway: bool,
-    /// `area:highway=*` with a vehicle class (footway, pedestrian … areas are not road).
-    pub road_area: bool,
+    /// `area:highway=*` with a vehicle class (footway, pedestrian … areas are not road): the class.
+    pub road_area: Option<String>,
     /// `area=yes`: a closed `highway` way is a surface, not a loop of centreline.
     pub area_yes: bool,
     /// `amenity=parking` that is not underground.
@@ -130,7 +130,9 @@ impl Roles {
                 .filter(|class| is_vehicle_road(class))
                 .map(str::to_owned),
             highway: highway.is_some(),
-            road_area: tag("area:highway").is_some_and(is_vehicle_road),
+            road_area: tag("area:highway")
+                .filter(|class| is_vehicle_road(class))
+                .map(str::to_owned),
             area_yes: tag("area") == Some("yes"),
             // Underground parking is not surface a vehicle on the street can see or drive on.
             parking: tag("amenity") == Some("parking") && tag("parking") != Some("underground"),
@@ -142,7 +144,15 @@ impl Roles {
     /// True when the element is an area of road surface (area:highway, parking, or a vehicle
     /// `highway` explicitly tagged `area=yes`).
     pub fn is_road_surface_area(&self) -> bool {
-        self.road_area || self.parking || (self.area_yes && self.vehicle_road.is_some())
+        self.road_area_class().is_some() || self.parking
+    }
+
+    /// The vehicle class of a road-surface area: the `area:highway` value, else the `highway`
+    /// value of a way tagged `area=yes`.
+    pub fn road_area_class(&self) -> Option<&str> {
+        self.road_area
+            .as_deref()
+            .or(self.vehicle_road.as_deref().filter(|_| self.area_yes))
     }
 }
 

@@ -7,7 +7,7 @@
 //! are updated from a snapshot of the previous instant, in id order, so the result depends only
 //! on the seed.
 
-use crate::geometry::{Footprint, Pose2, Polyline, Vec2, wrap_angle};
+use crate::geometry::{Footprint, Polyline, Pose2, Vec2, wrap_angle};
 use crate::roadnet::{RoadNetwork, Route};
 use crate::scenario::TrafficConfig;
 use rand::Rng;
@@ -33,7 +33,10 @@ pub enum ActorKind {
 impl ActorKind {
     /// Whether this is street furniture (truth class U) rather than a road user.
     pub fn is_infrastructure(self) -> bool {
-        matches!(self, ActorKind::Pole | ActorKind::Tree | ActorKind::Bin | ActorKind::Bollard)
+        matches!(
+            self,
+            ActorKind::Pole | ActorKind::Tree | ActorKind::Bin | ActorKind::Bollard
+        )
     }
     /// Footprint of this kind.
     pub fn footprint(self) -> Footprint {
@@ -121,7 +124,11 @@ pub struct Actor {
 }
 
 fn uniform(rng: &mut impl Rng, range: [f64; 2]) -> f64 {
-    if range[1] > range[0] { rng.random_range(range[0]..=range[1]) } else { range[0] }
+    if range[1] > range[0] {
+        rng.random_range(range[0]..=range[1])
+    } else {
+        range[0]
+    }
 }
 
 /// Lateral offset of a lane from the road's middle, metres: a 3.5 m lane on roads 7 m or wider,
@@ -134,7 +141,11 @@ impl Actor {
     /// A car on `route`, driving on the right, starting `start_m` along it.
     pub fn driving_car(id: u32, route: &Route, start_m: f64, cruise_mps: f64, stops: bool) -> Self {
         let lane = route.path.offset(-lane_offset_m(route.half_width_m));
-        let ratio = if route.path.length_m() > 0.0 { lane.length_m() / route.path.length_m() } else { 1.0 };
+        let ratio = if route.path.length_m() > 0.0 {
+            lane.length_m() / route.path.length_m()
+        } else {
+            1.0
+        };
         let junctions_m = route.junctions_m.iter().map(|s| s * ratio).collect();
         let s_m = start_m.clamp(0.0, lane.length_m());
         let (p, t) = lane.at(s_m);
@@ -173,7 +184,14 @@ impl Actor {
     pub fn pedestrian(id: u32, path: Polyline, rng: &mut impl Rng, cfg: &TrafficConfig) -> Self {
         let s_m = rng.random_range(0.0..=path.length_m());
         let standing = rng.random_bool(0.3);
-        let phase_left_s = uniform(rng, if standing { cfg.stand_duration_s } else { cfg.walk_duration_s });
+        let phase_left_s = uniform(
+            rng,
+            if standing {
+                cfg.stand_duration_s
+            } else {
+                cfg.walk_duration_s
+            },
+        );
         let cruise_mps = uniform(rng, cfg.walking_speed_mps);
         let forward = rng.random_bool(0.5);
         let (p, t) = path.at(s_m);
@@ -242,7 +260,14 @@ pub fn obstacles(actors: &[Actor], extra: &[Obstacle]) -> Vec<Obstacle> {
 
 /// Advances one actor by `dt_s` given the snapshot `others`. When a car reaches the end of its
 /// lane it gets a new route from `net` starting where it is.
-pub fn advance(actor: &mut Actor, others: &[Obstacle], dt_s: f64, cfg: &TrafficConfig, net: &RoadNetwork, rng: &mut impl Rng) {
+pub fn advance(
+    actor: &mut Actor,
+    others: &[Obstacle],
+    dt_s: f64,
+    cfg: &TrafficConfig,
+    net: &RoadNetwork,
+    rng: &mut impl Rng,
+) {
     let gap = match &actor.motion {
         Motion::Driving(_) => actor.gap_ahead(others, 40.0),
         _ => f64::INFINITY,
@@ -317,7 +342,14 @@ pub fn advance(actor: &mut Actor, others: &[Obstacle], dt_s: f64, cfg: &TrafficC
             w.phase_left_s -= dt_s;
             if w.phase_left_s <= 0.0 {
                 w.standing = !w.standing;
-                w.phase_left_s = uniform(rng, if w.standing { cfg.stand_duration_s } else { cfg.walk_duration_s });
+                w.phase_left_s = uniform(
+                    rng,
+                    if w.standing {
+                        cfg.stand_duration_s
+                    } else {
+                        cfg.walk_duration_s
+                    },
+                );
             }
             let v = if w.standing { 0.0 } else { w.cruise_mps };
             let len = w.path.length_m();
@@ -350,12 +382,14 @@ pub fn populate(net: &RoadNetwork, cfg: &TrafficConfig, rng: &mut impl Rng) -> V
         actors
             .iter()
             .filter(|a| a.kind == ActorKind::Car)
-            .all(|a| a.pose.position_m.sub(p).norm() >= min_m)
+            .all(|a| a.pose.position_m.minus(p).norm() >= min_m)
     };
     // Moving cars.
     for _ in 0..cfg.moving_cars {
         for _attempt in 0..20 {
-            let Some(route) = net.random_route(150.0, 600.0, rng) else { break };
+            let Some(route) = net.random_route(150.0, 600.0, rng) else {
+                break;
+            };
             let start = rng.random_range(0.0..=route.path.length_m() * 0.5);
             let cruise = uniform(rng, cfg.car_speed_mps);
             let car = Actor::driving_car(actors.len() as u32, &route, start, cruise, true);
@@ -368,7 +402,9 @@ pub fn populate(net: &RoadNetwork, cfg: &TrafficConfig, rng: &mut impl Rng) -> V
     // Parked cars along kerbs of roads wide enough to keep a lane free (half-width ≥ 4 m).
     for _ in 0..cfg.parked_cars {
         for _attempt in 0..40 {
-            let Some(route) = net.random_route(10.0, 200.0, rng) else { break };
+            let Some(route) = net.random_route(10.0, 200.0, rng) else {
+                break;
+            };
             let s = rng.random_range(0.0..=route.path.length_m());
             let (p, t) = route.path.at(s);
             let hw = net.half_width_at(p);
@@ -376,8 +412,13 @@ pub fn populate(net: &RoadNetwork, cfg: &TrafficConfig, rng: &mut impl Rng) -> V
                 continue;
             }
             let side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-            let centre = p.add(t.perp_left().scale(side * (hw - 1.2)));
-            let heading = t.y.atan2(t.x) + if rng.random_bool(0.5) { 0.0 } else { std::f64::consts::PI };
+            let centre = p.plus(t.perp_left().scale(side * (hw - 1.2)));
+            let heading = t.y.atan2(t.x)
+                + if rng.random_bool(0.5) {
+                    0.0
+                } else {
+                    std::f64::consts::PI
+                };
             let pose = Pose2::new(centre, wrap_angle(heading));
             let corners = [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
                 .map(|(a, b)| pose.world_from_body(Vec2::new(a * CAR_HALF_LENGTH_M, b * 0.9)));
@@ -390,7 +431,9 @@ pub fn populate(net: &RoadNetwork, cfg: &TrafficConfig, rng: &mut impl Rng) -> V
     // Pedestrians on a pavement 1.5 m beyond the kerb, where it is neither road nor building.
     for _ in 0..cfg.pedestrians {
         for _attempt in 0..30 {
-            let Some(route) = net.random_route(30.0, 150.0, rng) else { break };
+            let Some(route) = net.random_route(30.0, 150.0, rng) else {
+                break;
+            };
             let side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
             let path = route.path.offset(side * (route.half_width_m + 1.5));
             if pavement_fraction(net, &path) >= 0.9 {
@@ -402,15 +445,26 @@ pub fn populate(net: &RoadNetwork, cfg: &TrafficConfig, rng: &mut impl Rng) -> V
     // Street furniture 0.6 m beyond the kerb.
     for _ in 0..cfg.infrastructure {
         for _attempt in 0..30 {
-            let Some(route) = net.random_route(10.0, 200.0, rng) else { break };
+            let Some(route) = net.random_route(10.0, 200.0, rng) else {
+                break;
+            };
             let s = rng.random_range(0.0..=route.path.length_m());
             let (p, t) = route.path.at(s);
             let side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-            let q = p.add(t.perp_left().scale(side * (net.half_width_at(p) + 0.6)));
+            let q = p.plus(t.perp_left().scale(side * (net.half_width_at(p) + 0.6)));
             if !net.is_road(q) && !net.is_building(q) {
-                let kind = [ActorKind::Pole, ActorKind::Tree, ActorKind::Bin, ActorKind::Bollard][rng.random_range(0..4)];
+                let kind = [
+                    ActorKind::Pole,
+                    ActorKind::Tree,
+                    ActorKind::Bin,
+                    ActorKind::Bollard,
+                ][rng.random_range(0..4)];
                 let heading = t.y.atan2(t.x);
-                actors.push(Actor::fixed(actors.len() as u32, kind, Pose2::new(q, heading)));
+                actors.push(Actor::fixed(
+                    actors.len() as u32,
+                    kind,
+                    Pose2::new(q, heading),
+                ));
                 break;
             }
         }
@@ -445,7 +499,11 @@ mod tests {
     }
 
     fn net() -> RoadNetwork {
-        RoadNetwork::new(&crate::world::World::new(vec![], vec![], (Vec2::new(0.0, -10.0), Vec2::new(10.0, 10.0))))
+        RoadNetwork::new(&crate::world::World::new(
+            vec![],
+            vec![],
+            (Vec2::new(0.0, -10.0), Vec2::new(10.0, 10.0)),
+        ))
     }
 
     #[test]
@@ -472,7 +530,10 @@ mod tests {
         }
         // It waited about 3 s just before the 91 m stop line, then drove on.
         assert!((2.9..=3.6).contains(&stopped_for), "{stopped_for}");
-        assert!((89.0..=91.1).contains(&max_x_while_stopped), "{max_x_while_stopped}");
+        assert!(
+            (89.0..=91.1).contains(&max_x_while_stopped),
+            "{max_x_while_stopped}"
+        );
         assert!(car.pose.position_m.x > 200.0);
     }
 
@@ -485,7 +546,11 @@ mod tests {
         let route = straight_route(500.0, None);
         let mut car = Actor::driving_car(0, &route, 0.0, 10.0, true);
         // A stopped leader at x = 60 in the same lane.
-        let leader = Obstacle { id: 9, position: Vec2::new(60.0, -1.75), half_length_m: CAR_HALF_LENGTH_M };
+        let leader = Obstacle {
+            id: 9,
+            position: Vec2::new(60.0, -1.75),
+            half_length_m: CAR_HALF_LENGTH_M,
+        };
         for _ in 0..200 {
             advance(&mut car, &[leader], 0.1, &cfg, &net, &mut rng);
         }

@@ -67,12 +67,22 @@ impl Drive {
         let ego_route = ego_route(&net, scenario, &mut traffic_rng)?;
         let mut actors = actors::populate(&net, &scenario.traffic, &mut traffic_rng);
         let ego_id = actors.len() as u32;
-        actors.push(Actor::driving_car(ego_id, &ego_route, 0.0, scenario.ego.speed_mps, false));
+        actors.push(Actor::driving_car(
+            ego_id,
+            &ego_route,
+            0.0,
+            scenario.ego.speed_mps,
+            false,
+        ));
 
         // Map errors, on the buildings nearest the ego route.
         let errors = &scenario.errors;
         let near = buildings_near_route(&world, &ego_route.path, ERROR_BUILDING_REACH_M);
-        let missing: Vec<usize> = near.iter().copied().take(errors.missing_buildings).collect();
+        let missing: Vec<usize> = near
+            .iter()
+            .copied()
+            .take(errors.missing_buildings)
+            .collect();
         let phantom: Vec<usize> = near
             .iter()
             .copied()
@@ -131,7 +141,10 @@ impl Drive {
     }
     /// `world_from_ego` now.
     pub fn ego_pose(&self) -> Pose2 {
-        self.actors.get(self.ego_id as usize).map(|a| a.pose).unwrap_or_default()
+        self.actors
+            .get(self.ego_id as usize)
+            .map(|a| a.pose)
+            .unwrap_or_default()
     }
     /// Scan period, seconds.
     pub fn dt_s(&self) -> f64 {
@@ -156,7 +169,14 @@ impl Drive {
         let config = &self.scenario.sensor;
         let mount = Pose2::new(Vec2::new(config.mount_forward(), 0.0), 0.0);
         let world_from_sensor = self.ego_pose().compose(&mount);
-        let mut scan = sensor::scan(config, &self.world, &self.actors, Some(self.ego_id), world_from_sensor, &mut self.sensor_rng);
+        let mut scan = sensor::scan(
+            config,
+            &self.world,
+            &self.actors,
+            Some(self.ego_id),
+            world_from_sensor,
+            &mut self.sensor_rng,
+        );
         scan.time_s = index as f64 * self.dt_s();
         scan.world_from_sensor_estimated = self.noisy(world_from_sensor);
         Some(Frame { index, scan })
@@ -178,26 +198,42 @@ impl Drive {
         let dt = self.dt_s();
         let snapshot = actors::obstacles(&self.actors, &[] as &[Obstacle]);
         for actor in &mut self.actors {
-            actors::advance(actor, &snapshot, dt, &self.scenario.traffic, &self.net, &mut self.traffic_rng);
+            actors::advance(
+                actor,
+                &snapshot,
+                dt,
+                &self.scenario.traffic,
+                &self.net,
+                &mut self.traffic_rng,
+            );
         }
     }
 
     fn noisy(&mut self, pose: Pose2) -> Pose2 {
         let e = &self.scenario.errors;
-        let draw = |sigma: f64, rng: &mut StdRng| Normal::new(0.0, sigma).map_or(0.0, |n| n.sample(rng));
+        let draw =
+            |sigma: f64, rng: &mut StdRng| Normal::new(0.0, sigma).map_or(0.0, |n| n.sample(rng));
         if e.pose_sigma_m == 0.0 && e.pose_sigma_heading_deg == 0.0 {
             return pose;
         }
         let dx = draw(e.pose_sigma_m, &mut self.sensor_rng);
         let dy = draw(e.pose_sigma_m, &mut self.sensor_rng);
         let dh = draw(e.pose_sigma_heading_deg.to_radians(), &mut self.sensor_rng);
-        Pose2::new(pose.position_m.add(Vec2::new(dx, dy)), pose.heading_rad + dh)
+        Pose2::new(
+            pose.position_m.plus(Vec2::new(dx, dy)),
+            pose.heading_rad + dh,
+        )
     }
 }
 
 /// The ego's route: through the waypoints, or a random one long enough for the drive.
 fn ego_route(net: &RoadNetwork, scenario: &Scenario, rng: &mut StdRng) -> Result<Route, SimError> {
-    let wps: Vec<Vec2> = scenario.ego.waypoints.iter().map(|w| Vec2::new(w[0], w[1])).collect();
+    let wps: Vec<Vec2> = scenario
+        .ego
+        .waypoints
+        .iter()
+        .map(|w| Vec2::new(w[0], w[1]))
+        .collect();
     if wps.len() < 2 {
         let need = scenario.ego.speed_mps * scenario.duration_s + 50.0;
         let start_near = wps.first().copied();
@@ -211,14 +247,18 @@ fn ego_route(net: &RoadNetwork, scenario: &Scenario, rng: &mut StdRng) -> Result
     let mut junctions = Vec::new();
     let mut half_width = f64::INFINITY;
     for (k, pair) in wps.windows(2).enumerate() {
-        let leg = net.route_between(pair[0], pair[1]).ok_or(SimError::NoEgoRoute { waypoint: k + 1 })?;
+        let leg = net
+            .route_between(pair[0], pair[1])
+            .ok_or(SimError::NoEgoRoute { waypoint: k + 1 })?;
         let base = Polyline::new(points.clone()).map_or(0.0, |p| p.length_m());
         junctions.extend(leg.junctions_m.iter().map(|s| s + base));
         half_width = half_width.min(leg.half_width_m);
         let skip = usize::from(!points.is_empty());
         points.extend(leg.path.points().iter().skip(skip));
     }
-    let path = Polyline::new(points).ok_or(SimError::NoEgoRoute { waypoint: wps.len() - 1 })?;
+    let path = Polyline::new(points).ok_or(SimError::NoEgoRoute {
+        waypoint: wps.len() - 1,
+    })?;
     Ok(Route {
         path,
         junctions_m: junctions,
@@ -261,7 +301,11 @@ fn pipeline_map(world: &World, map: &LocalMap, offset: Vec2) -> LocalMap {
         .filter(|b| b.mapped)
         .map(|b| b.to_polygon(offset))
         .collect();
-    let roads = map.roads.iter().map(|p| p.translate(offset.x, offset.y)).collect();
+    let roads = map
+        .roads
+        .iter()
+        .map(|p| p.translate(offset.x, offset.y))
+        .collect();
     LocalMap::new(buildings, roads, map.extent.translate(offset.x, offset.y))
 }
 
@@ -353,7 +397,10 @@ pub(crate) mod tests {
         // Eastward along y ≈ 100 − 1.75 (right lane), about 8 m/s × 4.9 s.
         assert!((end.x - start.x - 39.2).abs() < 2.0, "{start:?} → {end:?}");
         assert!((end.y - 98.25).abs() < 1.5, "{end:?}");
-        assert!(building_hits > 0 && actor_hits > 0, "{building_hits} {actor_hits}");
+        assert!(
+            building_hits > 0 && actor_hits > 0,
+            "{building_hits} {actor_hits}"
+        );
     }
 
     #[test]
@@ -365,7 +412,15 @@ pub(crate) mod tests {
         let drive = Drive::new(&town(), &s).unwrap();
         // World: 4 − 1 phantom = 3 buildings, one of them unmapped.
         assert_eq!(drive.world().buildings().len(), 3);
-        assert_eq!(drive.world().buildings().iter().filter(|b| !b.mapped).count(), 1);
+        assert_eq!(
+            drive
+                .world()
+                .buildings()
+                .iter()
+                .filter(|b| !b.mapped)
+                .count(),
+            1
+        );
         // Pipeline map: 4 − 1 missing = 3 buildings, shifted.
         let pm = drive.pipeline_map();
         assert_eq!(pm.buildings.len(), 3);

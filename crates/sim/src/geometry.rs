@@ -25,11 +25,11 @@ impl Vec2 {
         Self::new(angle_rad.cos(), angle_rad.sin())
     }
     /// Sum.
-    pub fn add(self, o: Self) -> Self {
+    pub fn plus(self, o: Self) -> Self {
         Self::new(self.x + o.x, self.y + o.y)
     }
     /// Difference `self − o`.
-    pub fn sub(self, o: Self) -> Self {
+    pub fn minus(self, o: Self) -> Self {
         Self::new(self.x - o.x, self.y - o.y)
     }
     /// Scaled by `k`.
@@ -79,12 +79,14 @@ impl Pose2 {
     }
     /// Maps a point in the body frame to the world frame.
     pub fn world_from_body(&self, point_in_body: Vec2) -> Vec2 {
-        point_in_body.rotated(self.heading_rad).add(self.position_m)
+        point_in_body
+            .rotated(self.heading_rad)
+            .plus(self.position_m)
     }
     /// Maps a point in the world frame to the body frame.
     pub fn body_from_world(&self, point_in_world: Vec2) -> Vec2 {
         point_in_world
-            .sub(self.position_m)
+            .minus(self.position_m)
             .rotated(-self.heading_rad)
     }
     /// Composition `self ∘ other`: the pose of a frame given relative to this body.
@@ -198,12 +200,12 @@ pub fn ray_centred_box(origin: Vec2, direction: Vec2, hx: f64, hy: f64) -> Optio
 /// Ray against the segment `a`–`b`; the distance `t > 0` where they cross. Parallel rays never
 /// hit (a grazing ray along a wall returns from the next wall instead).
 pub fn ray_segment(origin: Vec2, direction: Vec2, a: Vec2, b: Vec2) -> Option<f64> {
-    let e = b.sub(a);
+    let e = b.minus(a);
     let denom = direction.cross(e);
     if denom == 0.0 {
         return None;
     }
-    let ao = a.sub(origin);
+    let ao = a.minus(origin);
     let t = ao.cross(e) / denom;
     let u = ao.cross(direction) / denom;
     (t > 0.0 && (0.0..=1.0).contains(&u)).then_some(t)
@@ -258,7 +260,7 @@ impl Polyline {
             if !(p.x.is_finite() && p.y.is_finite()) {
                 return None;
             }
-            if kept.last().is_none_or(|q| q.sub(p).norm() > 1e-9) {
+            if kept.last().is_none_or(|q| q.minus(p).norm() > 1e-9) {
                 kept.push(p);
             }
         }
@@ -269,7 +271,7 @@ impl Polyline {
         let mut acc = 0.0;
         cumulative_m.push(0.0);
         for w in kept.windows(2) {
-            acc += w[1].sub(w[0]).norm();
+            acc += w[1].minus(w[0]).norm();
             cumulative_m.push(acc);
         }
         Some(Self {
@@ -289,21 +291,26 @@ impl Polyline {
     pub fn at(&self, s_m: f64) -> (Vec2, Vec2) {
         let s = s_m.clamp(0.0, self.length_m());
         // Index of the segment holding s: last i with cumulative[i] <= s.
-        let i = match self
-            .cumulative_m
-            .binary_search_by(|c| c.total_cmp(&s))
-        {
+        let i = match self.cumulative_m.binary_search_by(|c| c.total_cmp(&s)) {
             Ok(i) => i,
             Err(i) => i.saturating_sub(1),
         }
         .min(self.points.len() - 2);
         let a = self.points[i];
         let b = self.points[i + 1];
-        let seg = b.sub(a);
+        let seg = b.minus(a);
         let len = seg.norm();
-        let tangent = if len > 0.0 { seg.scale(1.0 / len) } else { Vec2::new(1.0, 0.0) };
-        let u = if len > 0.0 { (s - self.cumulative_m[i]) / len } else { 0.0 };
-        (a.add(seg.scale(u)), tangent)
+        let tangent = if len > 0.0 {
+            seg.scale(1.0 / len)
+        } else {
+            Vec2::new(1.0, 0.0)
+        };
+        let u = if len > 0.0 {
+            (s - self.cumulative_m[i]) / len
+        } else {
+            0.0
+        };
+        (a.plus(seg.scale(u)), tangent)
     }
     /// The same path walked the other way.
     pub fn reversed(&self) -> Self {
@@ -318,12 +325,24 @@ impl Polyline {
         let n = self.points.len();
         let mut out = Vec::with_capacity(n);
         for i in 0..n {
-            let prev = if i > 0 { self.points[i - 1] } else { self.points[i] };
-            let next = if i + 1 < n { self.points[i + 1] } else { self.points[i] };
-            let t = next.sub(prev);
+            let prev = if i > 0 {
+                self.points[i - 1]
+            } else {
+                self.points[i]
+            };
+            let next = if i + 1 < n {
+                self.points[i + 1]
+            } else {
+                self.points[i]
+            };
+            let t = next.minus(prev);
             let len = t.norm();
-            let normal = if len > 0.0 { t.scale(1.0 / len).perp_left() } else { Vec2::default() };
-            out.push(self.points[i].add(normal.scale(offset_m)));
+            let normal = if len > 0.0 {
+                t.scale(1.0 / len).perp_left()
+            } else {
+                Vec2::default()
+            };
+            out.push(self.points[i].plus(normal.scale(offset_m)));
         }
         Self::new(out).unwrap_or_else(|| self.clone())
     }
@@ -338,23 +357,52 @@ mod tests {
     #[test]
     fn ray_hits_segment_at_exact_distance() {
         // Wall x = 5 from y = −1 to 1, ray from origin along +x: t = 5.
-        let t = ray_segment(Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(5.0, -1.0), Vec2::new(5.0, 1.0));
+        let t = ray_segment(
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(5.0, -1.0),
+            Vec2::new(5.0, 1.0),
+        );
         assert_relative_eq!(t.unwrap(), 5.0);
         // Diagonal ray at 45° hits x = 5 at y = 5, outside the wall.
         let d = Vec2::from_angle(std::f64::consts::FRAC_PI_4);
-        assert!(ray_segment(Vec2::default(), d, Vec2::new(5.0, -1.0), Vec2::new(5.0, 1.0)).is_none());
+        assert!(
+            ray_segment(
+                Vec2::default(),
+                d,
+                Vec2::new(5.0, -1.0),
+                Vec2::new(5.0, 1.0)
+            )
+            .is_none()
+        );
         // Behind the origin: no hit.
-        assert!(ray_segment(Vec2::default(), Vec2::new(-1.0, 0.0), Vec2::new(5.0, -1.0), Vec2::new(5.0, 1.0)).is_none());
+        assert!(
+            ray_segment(
+                Vec2::default(),
+                Vec2::new(-1.0, 0.0),
+                Vec2::new(5.0, -1.0),
+                Vec2::new(5.0, 1.0)
+            )
+            .is_none()
+        );
     }
 
     #[test]
     fn ray_hits_circle_at_entry() {
         // Disc radius 1 centred at (10, 0); ray along +x from origin enters at 9.
         let pose = Pose2::new(Vec2::new(10.0, 0.0), 0.3);
-        let t = Footprint::Circle { radius_m: 1.0 }.ray_hit(&pose, Vec2::default(), Vec2::new(1.0, 0.0));
+        let t = Footprint::Circle { radius_m: 1.0 }.ray_hit(
+            &pose,
+            Vec2::default(),
+            Vec2::new(1.0, 0.0),
+        );
         assert_relative_eq!(t.unwrap(), 9.0, epsilon = 1e-12);
         // Ray offset by y = 0.6: entry at 10 − sqrt(1 − 0.36) = 9.2.
-        let t = Footprint::Circle { radius_m: 1.0 }.ray_hit(&pose, Vec2::new(0.0, 0.6), Vec2::new(1.0, 0.0));
+        let t = Footprint::Circle { radius_m: 1.0 }.ray_hit(
+            &pose,
+            Vec2::new(0.0, 0.6),
+            Vec2::new(1.0, 0.0),
+        );
         assert_relative_eq!(t.unwrap(), 9.2, epsilon = 1e-12);
     }
 
@@ -362,8 +410,13 @@ mod tests {
     fn ray_hits_rotated_rectangle() {
         // 4 × 2 box rotated 90° at (10, 0): along x it spans 10 ± 1, so the entry is at 9.
         let pose = Pose2::new(Vec2::new(10.0, 0.0), std::f64::consts::FRAC_PI_2);
-        let fp = Footprint::Rect { half_length_m: 2.0, half_width_m: 1.0 };
-        let t = fp.ray_hit(&pose, Vec2::default(), Vec2::new(1.0, 0.0)).unwrap();
+        let fp = Footprint::Rect {
+            half_length_m: 2.0,
+            half_width_m: 1.0,
+        };
+        let t = fp
+            .ray_hit(&pose, Vec2::default(), Vec2::new(1.0, 0.0))
+            .unwrap();
         assert_relative_eq!(t, 9.0, epsilon = 1e-12);
         assert!(fp.contains(&pose, Vec2::new(10.0, 1.9)));
         assert!(!fp.contains(&pose, Vec2::new(11.1, 0.0)));
@@ -371,14 +424,24 @@ mod tests {
 
     #[test]
     fn ring_contains_uses_even_odd() {
-        let sq = [Vec2::new(0.0, 0.0), Vec2::new(2.0, 0.0), Vec2::new(2.0, 2.0), Vec2::new(0.0, 2.0)];
+        let sq = [
+            Vec2::new(0.0, 0.0),
+            Vec2::new(2.0, 0.0),
+            Vec2::new(2.0, 2.0),
+            Vec2::new(0.0, 2.0),
+        ];
         assert!(ring_contains(&sq, Vec2::new(1.0, 1.0)));
         assert!(!ring_contains(&sq, Vec2::new(3.0, 1.0)));
     }
 
     #[test]
     fn polyline_walks_by_arc_length() {
-        let pl = Polyline::new(vec![Vec2::new(0.0, 0.0), Vec2::new(3.0, 0.0), Vec2::new(3.0, 4.0)]).unwrap();
+        let pl = Polyline::new(vec![
+            Vec2::new(0.0, 0.0),
+            Vec2::new(3.0, 0.0),
+            Vec2::new(3.0, 4.0),
+        ])
+        .unwrap();
         assert_relative_eq!(pl.length_m(), 7.0);
         let (p, t) = pl.at(5.0);
         assert_relative_eq!(p.x, 3.0);

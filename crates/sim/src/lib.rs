@@ -32,8 +32,11 @@
 //! ```
 
 pub mod actors;
+pub mod baselines;
 pub mod drive;
+pub mod eval;
 pub mod geometry;
+pub mod metrics;
 pub mod roadnet;
 pub mod scenario;
 pub mod sensor;
@@ -41,6 +44,7 @@ pub mod truth;
 pub mod world;
 
 pub use drive::{Drive, Frame};
+pub use eval::{EvalConfig, EvalReport, Variant, evaluate};
 pub use scenario::Scenario;
 pub use truth::TruthClass;
 
@@ -68,6 +72,24 @@ pub enum SimError {
         /// Road polygons in the map.
         road_polygons: usize,
     },
+    /// An evaluation variant name is not one of `full`, `no-map`, `moras2011`, `log-odds`.
+    #[error("unknown variant {name:?} (expected full, no-map, moras2011 or log-odds)")]
+    UnknownVariant {
+        /// The name given.
+        name: String,
+    },
+    /// An evaluation was asked with no seed.
+    #[error("no seed to evaluate")]
+    NoSeeds,
+    /// An evaluation was asked with no variant.
+    #[error("no variant to evaluate")]
+    NoVariants,
+    /// evigrid refused the parameters or a frame.
+    #[error(transparent)]
+    Pipeline(#[from] evigrid::pipeline::PipelineError),
+    /// A pipeline's window ended up elsewhere than the evaluation's (a bug, reported not hidden).
+    #[error("pipeline window and evaluation window disagree")]
+    WindowMismatch,
     /// The ego route cannot reach a waypoint along the roads.
     #[error("no road route to ego waypoint {waypoint}")]
     NoEgoRoute {

@@ -12,7 +12,6 @@
 use crate::geometry::{Polyline, Vec2};
 use crate::world::World;
 use rand::Rng;
-use std::collections::VecDeque;
 
 const ROAD: u8 = 1;
 const BUILDING: u8 = 2;
@@ -41,6 +40,20 @@ pub struct RoadNetwork {
     dist_m: Vec<f32>,
     /// Skeleton pixels wide enough for a car (index into the raster), for drawing route ends.
     anchors: Vec<u32>,
+    /// Raster index → compact skeleton index (u32::MAX off the skeleton).
+    skeleton_index: Vec<u32>,
+    /// Compact skeleton index → raster index.
+    skeleton_pixels: Vec<u32>,
+    /// 8-neighbour adjacency of skeleton pixels (CSR over compact indices).
+    adjacency_start: Vec<u32>,
+    adjacency: Vec<u32>,
+}
+
+/// Result of a breadth-first search over the skeleton (compact indices).
+struct Search {
+    parent: Vec<u32>,
+    hops: Vec<u32>,
+    order: Vec<u32>,
 }
 
 impl RoadNetwork {
@@ -63,6 +76,10 @@ impl RoadNetwork {
             flags: vec![0; cols * rows],
             dist_m: vec![0.0; cols * rows],
             anchors: Vec::new(),
+            skeleton_index: Vec::new(),
+            skeleton_pixels: Vec::new(),
+            adjacency_start: Vec::new(),
+            adjacency: Vec::new(),
         };
         let mut xs = Vec::new();
         for polygon in world.roads() {
@@ -75,10 +92,56 @@ impl RoadNetwork {
         net.thin();
         net.mark_junctions();
         net.anchors = (0..cols * rows)
-            .filter(|&i| net.flags[i] & SKELETON != 0 && net.dist_m[i] >= Self::MIN_ANCHOR_HALF_WIDTH_M)
+            .filter(|&i| {
+                net.flags[i] & SKELETON != 0 && net.dist_m[i] >= Self::MIN_ANCHOR_HALF_WIDTH_M
+            })
             .map(|i| i as u32)
             .collect();
+        net.build_adjacency();
         net
+    }
+
+    /// Compact indices and the neighbour lists of skeleton pixels, so a search costs memory in
+    /// proportion to the skeleton, not to the raster.
+    fn build_adjacency(&mut self) {
+        let n = self.flags.len();
+        self.skeleton_index = vec![u32::MAX; n];
+        self.skeleton_pixels = (0..n)
+            .filter(|&i| self.flags[i] & SKELETON != 0)
+            .map(|i| i as u32)
+            .collect();
+        for (k, &i) in self.skeleton_pixels.iter().enumerate() {
+            self.skeleton_index[i as usize] = k as u32;
+        }
+        let w = self.cols as i64;
+        self.adjacency_start = Vec::with_capacity(self.skeleton_pixels.len() + 1);
+        self.adjacency_start.push(0);
+        for &i in &self.skeleton_pixels {
+            let (c, r) = (
+                (i as usize % self.cols) as i64,
+                (i as usize / self.cols) as i64,
+            );
+            for (dc, dr) in [
+                (0, 1),
+                (1, 0),
+                (0, -1),
+                (-1, 0),
+                (1, 1),
+                (1, -1),
+                (-1, -1),
+                (-1, 1),
+            ] {
+                let (cc, rr) = (c + dc, r + dr);
+                if cc < 0 || rr < 0 || cc >= w || rr as usize >= self.rows {
+                    continue;
+                }
+                let k = self.skeleton_index[(rr * w + cc) as usize];
+                if k != u32::MAX {
+                    self.adjacency.push(k);
+                }
+            }
+            self.adjacency_start.push(self.adjacency.len() as u32);
+        }
     }
 
     /// Number of skeleton pixels usable as route ends (0: no drivable road in the world).
@@ -107,12 +170,15 @@ impl RoadNetwork {
     }
     /// Whether a point is inside a building.
     pub fn is_building(&self, p: Vec2) -> bool {
-        self.index_of(p).is_some_and(|i| self.flags[i] & BUILDING != 0)
+        self.index_of(p)
+            .is_some_and(|i| self.flags[i] & BUILDING != 0)
     }
     /// Local road half-width at a point (largest distance-to-edge in the 3 × 3 pixels around it),
     /// metres; 0 off road.
     pub fn half_width_at(&self, p: Vec2) -> f64 {
-        let Some(i) = self.index_of(p) else { return 0.0 };
+        let Some(i) = self.index_of(p) else {
+            return 0.0;
+        };
         let (c, r) = ((i % self.cols) as i64, (i / self.cols) as i64);
         let mut best = 0.0f32;
         for dr in -1..=1 {
@@ -127,7 +193,12 @@ impl RoadNetwork {
     }
 
     /// Scanline fill of one polygon (rings, even–odd) at pixel centres.
-    fn fill<'a>(&mut self, rings: impl Iterator<Item = &'a [Vec2]> + Clone, flag: u8, xs: &mut Vec<f64>) {
+    fn fill<'a>(
+        &mut self,
+        rings: impl Iterator<Item = &'a [Vec2]> + Clone,
+        flag: u8,
+        xs: &mut Vec<f64>,
+    ) {
         let mut lo_y = f64::INFINITY;
         let mut hi_y = f64::NEG_INFINITY;
         for r in rings.clone() {
@@ -141,7 +212,8 @@ impl RoadNetwork {
         }
         let res = Self::RESOLUTION_M;
         let r0 = (((lo_y - self.origin.y) / res - 0.5).ceil().max(0.0)) as usize;
-        let r1 = ((((hi_y - self.origin.y) / res - 0.5).floor()).min(self.rows as f64 - 1.0)).max(-1.0);
+        let r1 =
+            ((((hi_y - self.origin.y) / res - 0.5).floor()).min(self.rows as f64 - 1.0)).max(-1.0);
         if r1 < 0.0 {
             return;
         }
@@ -165,7 +237,9 @@ impl RoadNetwork {
             xs.sort_by(f64::total_cmp);
             for pair in xs.chunks_exact(2) {
                 let c0 = ((pair[0] - self.origin.x) / res - 0.5).ceil().max(0.0) as usize;
-                let c1 = ((pair[1] - self.origin.x) / res - 0.5).floor().min(self.cols as f64 - 1.0);
+                let c1 = ((pair[1] - self.origin.x) / res - 0.5)
+                    .floor()
+                    .min(self.cols as f64 - 1.0);
                 if c1 < 0.0 {
                     continue;
                 }
@@ -180,7 +254,11 @@ impl RoadNetwork {
     fn distance_transform(&mut self) {
         let (w, h) = (self.cols, self.rows);
         let big = u32::MAX / 2;
-        let mut d: Vec<u32> = self.flags.iter().map(|&f| if f & ROAD != 0 { big } else { 0 }).collect();
+        let mut d: Vec<u32> = self
+            .flags
+            .iter()
+            .map(|&f| if f & ROAD != 0 { big } else { 0 })
+            .collect();
         for r in 0..h {
             for c in 0..w {
                 let i = r * w + c;
@@ -189,7 +267,11 @@ impl RoadNetwork {
                 }
                 // Pixels outside the raster count as off-road.
                 let get = |cc: i64, rr: i64| -> u32 {
-                    if cc < 0 || rr < 0 || cc as usize >= w || rr as usize >= h { 0 } else { d[rr as usize * w + cc as usize] }
+                    if cc < 0 || rr < 0 || cc as usize >= w || rr as usize >= h {
+                        0
+                    } else {
+                        d[rr as usize * w + cc as usize]
+                    }
                 };
                 let (ci, ri) = (c as i64, r as i64);
                 let v = (get(ci - 1, ri) + 3)
@@ -206,7 +288,11 @@ impl RoadNetwork {
                     continue;
                 }
                 let get = |cc: i64, rr: i64| -> u32 {
-                    if cc < 0 || rr < 0 || cc as usize >= w || rr as usize >= h { 0 } else { d[rr as usize * w + cc as usize] }
+                    if cc < 0 || rr < 0 || cc as usize >= w || rr as usize >= h {
+                        0
+                    } else {
+                        d[rr as usize * w + cc as usize]
+                    }
                 };
                 let (ci, ri) = (c as i64, r as i64);
                 let v = (get(ci + 1, ri) + 3)
@@ -226,10 +312,23 @@ impl RoadNetwork {
         let w = self.cols;
         let at = |dc: i64, dr: i64| -> bool {
             let (cc, rr) = (c as i64 + dc, r as i64 + dr);
-            cc >= 0 && rr >= 0 && (cc as usize) < w && (rr as usize) < self.rows && skel[rr as usize * w + cc as usize]
+            cc >= 0
+                && rr >= 0
+                && (cc as usize) < w
+                && (rr as usize) < self.rows
+                && skel[rr as usize * w + cc as usize]
         };
         // Row index grows northwards (y up), so "north" is dr = +1.
-        [at(0, 1), at(1, 1), at(1, 0), at(1, -1), at(0, -1), at(-1, -1), at(-1, 0), at(-1, 1)]
+        [
+            at(0, 1),
+            at(1, 1),
+            at(1, 0),
+            at(1, -1),
+            at(0, -1),
+            at(-1, -1),
+            at(-1, 0),
+            at(-1, 1),
+        ]
     }
 
     /// Zhang–Suen thinning of the road mask into the SKELETON flag.
@@ -256,7 +355,11 @@ impl RoadNetwork {
                     }
                     // p[0]=N, p[2]=E, p[4]=S, p[6]=W.
                     let (n, e, s, w) = (p[0], p[2], p[4], p[6]);
-                    let ok = if sub == 0 { !(n && e && s) && !(e && s && w) } else { !(n && e && w) && !(n && s && w) };
+                    let ok = if sub == 0 {
+                        !(e && s && (n || w))
+                    } else {
+                        !(n && w && (e || s))
+                    };
                     if ok {
                         to_clear.push(i);
                     }
@@ -302,7 +405,8 @@ impl RoadNetwork {
             for dr in -2..=2 {
                 for dc in -2..=2 {
                     let (cc, rr) = (c + dc, r + dr);
-                    if cc >= 0 && rr >= 0 && (cc as usize) < self.cols && (rr as usize) < self.rows {
+                    if cc >= 0 && rr >= 0 && (cc as usize) < self.cols && (rr as usize) < self.rows
+                    {
                         self.flags[rr as usize * self.cols + cc as usize] |= JUNCTION;
                     }
                 }
@@ -310,51 +414,72 @@ impl RoadNetwork {
         }
     }
 
-    /// Breadth-first search over skeleton pixels from `start`: parent per pixel (u32::MAX when
-    /// unreached) and hop count.
-    fn bfs(&self, start: usize) -> (Vec<u32>, Vec<u32>) {
-        let n = self.flags.len();
-        let mut parent = vec![u32::MAX; n];
-        let mut hops = vec![u32::MAX; n];
-        let mut queue = VecDeque::new();
-        parent[start] = start as u32;
-        hops[start] = 0;
-        queue.push_back(start);
-        let w = self.cols as i64;
-        while let Some(i) = queue.pop_front() {
-            let (c, r) = ((i % self.cols) as i64, (i / self.cols) as i64);
-            for (dc, dr) in [(0, 1), (1, 0), (0, -1), (-1, 0), (1, 1), (1, -1), (-1, -1), (-1, 1)] {
-                let (cc, rr) = (c + dc, r + dr);
-                if cc < 0 || rr < 0 || cc >= w || rr as usize >= self.rows {
-                    continue;
-                }
-                let j = (rr * w + cc) as usize;
-                if self.flags[j] & SKELETON != 0 && parent[j] == u32::MAX {
-                    parent[j] = i as u32;
-                    hops[j] = hops[i] + 1;
-                    queue.push_back(j);
+    /// Breadth-first search over skeleton pixels from raster pixel `start`, expanding no pixel
+    /// more than `max_hops` steps away.
+    fn bfs(&self, start: usize, max_hops: u32) -> Search {
+        let n = self.skeleton_pixels.len();
+        let mut search = Search {
+            parent: vec![u32::MAX; n],
+            hops: vec![u32::MAX; n],
+            order: Vec::new(),
+        };
+        let Some(&s) = self.skeleton_index.get(start).filter(|&&k| k != u32::MAX) else {
+            return search;
+        };
+        search.parent[s as usize] = s;
+        search.hops[s as usize] = 0;
+        search.order.push(s);
+        let mut head = 0;
+        while let Some(&k) = search.order.get(head) {
+            head += 1;
+            let h = search.hops[k as usize];
+            if h >= max_hops {
+                continue;
+            }
+            let (a, b) = (
+                self.adjacency_start[k as usize] as usize,
+                self.adjacency_start[k as usize + 1] as usize,
+            );
+            for &j in &self.adjacency[a..b] {
+                if search.parent[j as usize] == u32::MAX {
+                    search.parent[j as usize] = k;
+                    search.hops[j as usize] = h + 1;
+                    search.order.push(j);
                 }
             }
         }
-        (parent, hops)
+        search
     }
 
     fn nearest_anchor(&self, p: Vec2) -> Option<usize> {
-        self.anchors
-            .iter()
-            .map(|&i| i as usize)
-            .min_by(|&a, &b| self.centre(a).sub(p).norm().total_cmp(&self.centre(b).sub(p).norm()))
+        self.anchors.iter().map(|&i| i as usize).min_by(|&a, &b| {
+            self.centre(a)
+                .minus(p)
+                .norm()
+                .total_cmp(&self.centre(b).minus(p).norm())
+        })
     }
 
     /// A route from the skeleton pixel nearest `start` with a length (in skeleton steps ≈ metres)
     /// drawn in `[min_len_m, max_len_m]`; the longest reachable when none is that long.
-    pub fn random_route_from(&self, start: Vec2, min_len_m: f64, max_len_m: f64, rng: &mut impl Rng) -> Option<Route> {
+    pub fn random_route_from(
+        &self,
+        start: Vec2,
+        min_len_m: f64,
+        max_len_m: f64,
+        rng: &mut impl Rng,
+    ) -> Option<Route> {
         let s = self.nearest_anchor(start)?;
         self.route_from_pixel(s, min_len_m, max_len_m, rng)
     }
 
     /// A route starting at a random anchor.
-    pub fn random_route(&self, min_len_m: f64, max_len_m: f64, rng: &mut impl Rng) -> Option<Route> {
+    pub fn random_route(
+        &self,
+        min_len_m: f64,
+        max_len_m: f64,
+        rng: &mut impl Rng,
+    ) -> Option<Route> {
         if self.anchors.is_empty() {
             return None;
         }
@@ -366,55 +491,76 @@ impl RoadNetwork {
     pub fn route_between(&self, from: Vec2, to: Vec2) -> Option<Route> {
         let s = self.nearest_anchor(from)?;
         let g = self.nearest_anchor(to)?;
-        let (parent, _) = self.bfs(s);
-        self.trace(&parent, s, g)
+        let search = self.bfs(s, u32::MAX);
+        self.trace(&search, s, g)
     }
 
-    fn route_from_pixel(&self, s: usize, min_len_m: f64, max_len_m: f64, rng: &mut impl Rng) -> Option<Route> {
-        let (parent, hops) = self.bfs(s);
+    fn route_from_pixel(
+        &self,
+        s: usize,
+        min_len_m: f64,
+        max_len_m: f64,
+        rng: &mut impl Rng,
+    ) -> Option<Route> {
         let lo = (min_len_m / Self::RESOLUTION_M) as u32;
-        let hi = (max_len_m / Self::RESOLUTION_M) as u32;
-        let in_range: Vec<usize> = self
-            .anchors
+        let hi = (max_len_m / Self::RESOLUTION_M).min(f64::from(u32::MAX - 1)) as u32;
+        let search = self.bfs(s, hi);
+        let is_anchor = |k: u32| {
+            self.dist_m[self.skeleton_pixels[k as usize] as usize] >= Self::MIN_ANCHOR_HALF_WIDTH_M
+        };
+        let in_range: Vec<u32> = search
+            .order
             .iter()
-            .map(|&i| i as usize)
-            .filter(|&i| hops[i] != u32::MAX && hops[i] >= lo && hops[i] <= hi)
+            .copied()
+            .filter(|&k| is_anchor(k) && search.hops[k as usize] >= lo)
             .collect();
+        // BFS order is by hop count, so the last anchor visited is the farthest.
         let goal = if in_range.is_empty() {
-            self.anchors
-                .iter()
-                .map(|&i| i as usize)
-                .filter(|&i| hops[i] != u32::MAX)
-                .max_by_key(|&i| (hops[i], std::cmp::Reverse(i)))?
+            search.order.iter().rev().copied().find(|&k| is_anchor(k))?
         } else {
             in_range[rng.random_range(0..in_range.len())]
         };
-        self.trace(&parent, s, goal)
+        self.trace(&search, s, self.skeleton_pixels[goal as usize] as usize)
     }
 
-    fn trace(&self, parent: &[u32], start: usize, goal: usize) -> Option<Route> {
-        if parent[goal] == u32::MAX {
+    fn trace(&self, search: &Search, start: usize, goal: usize) -> Option<Route> {
+        let (s, g) = (
+            *self.skeleton_index.get(start)?,
+            *self.skeleton_index.get(goal)?,
+        );
+        if s == u32::MAX
+            || g == u32::MAX
+            || search.parent.get(g as usize).is_none_or(|&p| p == u32::MAX)
+        {
             return None;
         }
-        let mut pixels = vec![goal];
-        let mut cur = goal;
-        while cur != start {
-            cur = parent[cur] as usize;
-            pixels.push(cur);
+        let mut compact = vec![g];
+        let mut cur = g;
+        while cur != s {
+            cur = search.parent[cur as usize];
+            compact.push(cur);
         }
-        pixels.reverse();
+        compact.reverse();
+        let pixels: Vec<usize> = compact
+            .iter()
+            .map(|&k| self.skeleton_pixels[k as usize] as usize)
+            .collect();
         let points: Vec<Vec2> = pixels.iter().map(|&i| self.centre(i)).collect();
         // Raw pixel path length, to map junction positions onto the simplified polyline.
         let mut raw_s = Vec::with_capacity(points.len());
         let mut acc = 0.0;
         raw_s.push(0.0);
         for w in points.windows(2) {
-            acc += w[1].sub(w[0]).norm();
+            acc += w[1].minus(w[0]).norm();
             raw_s.push(acc);
         }
         let simplified = douglas_peucker(&points, 0.6);
         let path = Polyline::new(simplified)?;
-        let scale = if acc > 0.0 { path.length_m() / acc } else { 1.0 };
+        let scale = if acc > 0.0 {
+            path.length_m() / acc
+        } else {
+            1.0
+        };
         let mut junctions_m: Vec<f64> = Vec::new();
         for (k, &i) in pixels.iter().enumerate() {
             if self.flags[i] & JUNCTION != 0 {
@@ -450,11 +596,15 @@ fn douglas_peucker(points: &[Vec2], eps_m: f64) -> Vec<Vec2> {
             continue;
         }
         let (pa, pb) = (points[a], points[b]);
-        let ab = pb.sub(pa);
+        let ab = pb.minus(pa);
         let len = ab.norm();
         let mut worst = (0.0, a);
         for (k, p) in points.iter().enumerate().take(b).skip(a + 1) {
-            let d = if len > 0.0 { (p.sub(pa).cross(ab) / len).abs() } else { p.sub(pa).norm() };
+            let d = if len > 0.0 {
+                (p.minus(pa).cross(ab) / len).abs()
+            } else {
+                p.minus(pa).norm()
+            };
             if d > worst.0 {
                 worst = (d, k);
             }
@@ -465,7 +615,12 @@ fn douglas_peucker(points: &[Vec2], eps_m: f64) -> Vec<Vec2> {
             stack.push((worst.1, b));
         }
     }
-    points.iter().zip(&keep).filter(|(_, k)| **k).map(|(p, _)| *p).collect()
+    points
+        .iter()
+        .zip(&keep)
+        .filter(|(_, k)| **k)
+        .map(|(p, _)| *p)
+        .collect()
 }
 
 #[cfg(test)]
@@ -477,7 +632,12 @@ mod tests {
     /// A plus-shaped crossing of two 8 m wide streets, 200 m long each, centred at (100, 100).
     pub(crate) fn crossing_world() -> World {
         let rect = |x0: f64, y0: f64, x1: f64, y1: f64| {
-            vec![vec![Vec2::new(x0, y0), Vec2::new(x1, y0), Vec2::new(x1, y1), Vec2::new(x0, y1)]]
+            vec![vec![
+                Vec2::new(x0, y0),
+                Vec2::new(x1, y0),
+                Vec2::new(x1, y1),
+                Vec2::new(x0, y1),
+            ]]
         };
         World::new(
             vec![],
@@ -491,7 +651,9 @@ mod tests {
         let net = RoadNetwork::new(&crossing_world());
         assert!(net.anchor_count() > 200);
         // Route from the west end to the north end passes the crossing.
-        let route = net.route_between(Vec2::new(10.0, 100.0), Vec2::new(100.0, 190.0)).unwrap();
+        let route = net
+            .route_between(Vec2::new(10.0, 100.0), Vec2::new(100.0, 190.0))
+            .unwrap();
         // Every vertex lies within a pixel or so of a street's middle line.
         for p in route.path.points() {
             let off = (p.y - 100.0).abs().min((p.x - 100.0).abs());
@@ -499,9 +661,17 @@ mod tests {
         }
         assert_eq!(route.junctions_m.len(), 1, "{:?}", route.junctions_m);
         // Half the 8 m width, within the chamfer approximation and pixel rounding.
-        assert!((route.half_width_m - 4.0).abs() <= 1.0, "{}", route.half_width_m);
+        assert!(
+            (route.half_width_m - 4.0).abs() <= 1.0,
+            "{}",
+            route.half_width_m
+        );
         // West end to centre ≈ 90 m, centre to north end ≈ 90 m.
-        assert!((route.path.length_m() - 180.0).abs() < 15.0, "{}", route.path.length_m());
+        assert!(
+            (route.path.length_m() - 180.0).abs() < 15.0,
+            "{}",
+            route.path.length_m()
+        );
     }
 
     #[test]

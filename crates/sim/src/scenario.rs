@@ -314,7 +314,9 @@ mod tests {
 
     #[test]
     fn partial_toml_keeps_defaults() -> Result<(), SimError> {
-        let s = Scenario::from_toml("seed = 9\n[traffic]\nmoving_cars = 3\n[sensor]\nkind = \"multibeam\"\n")?;
+        let s = Scenario::from_toml(
+            "seed = 9\n[traffic]\nmoving_cars = 3\n[sensor]\nkind = \"multibeam\"\n",
+        )?;
         assert_eq!(s.seed, 9);
         assert_eq!(s.traffic.moving_cars, 3);
         assert_eq!(s.traffic.parked_cars, 20);
@@ -331,10 +333,16 @@ mod tests {
             err,
             Err(SimError::InvalidScenario { field: "traffic.stop_probability", value }) if value == 1.5
         ));
-        assert!(matches!(Scenario::from_toml("colour = 1\n"), Err(SimError::ScenarioToml { .. })));
+        assert!(matches!(
+            Scenario::from_toml("colour = 1\n"),
+            Err(SimError::ScenarioToml { .. })
+        ));
         assert!(matches!(
             Scenario::from_toml("duration_s = -1.0\n"),
-            Err(SimError::InvalidScenario { field: "duration_s", .. })
+            Err(SimError::InvalidScenario {
+                field: "duration_s",
+                ..
+            })
         ));
     }
 }

@@ -43,7 +43,24 @@ pub struct Scan {
 impl Scan {
     /// The returns as `[x, y, z]` f32 triples in the sensor frame (z = 0: planar scanner).
     pub fn points_xyz_f32(&self) -> Vec<[f32; 3]> {
-        self.points_in_sensor.iter().map(|p| [p.x as f32, p.y as f32, 0.0]).collect()
+        self.points_in_sensor
+            .iter()
+            .map(|p| [p.x as f32, p.y as f32, 0.0])
+            .collect()
+    }
+
+    /// The estimated `world_from_sensor` as evigrid's 3-D transform (z = 0, level), as the
+    /// pipeline takes it.
+    pub fn estimated_isometry(&self) -> evigrid::sensor_model::Isometry3 {
+        let p = &self.world_from_sensor_estimated;
+        evigrid::sensor_model::Isometry3::from_xyz_rpy(
+            p.position_m.x,
+            p.position_m.y,
+            0.0,
+            0.0,
+            0.0,
+            p.heading_rad,
+        )
     }
 }
 
@@ -88,14 +105,21 @@ pub fn scan(
         .iter()
         .enumerate()
         .filter(|(_, a)| Some(a.id) != ego_id)
-        .filter(|(_, a)| a.pose.position_m.sub(origin).norm() <= config.max_range_m + a.footprint.bounding_radius_m())
+        .filter(|(_, a)| {
+            a.pose.position_m.minus(origin).norm()
+                <= config.max_range_m + a.footprint.bounding_radius_m()
+        })
         .map(|(k, _)| k)
         .collect();
     let layers = config.layer_count();
     let per_layer = config.points_per_layer_count();
     let fov = config.fov_rad();
     let full_circle = fov >= std::f64::consts::TAU - 1e-9;
-    let step = if full_circle || per_layer < 2 { fov / per_layer as f64 } else { fov / (per_layer - 1) as f64 };
+    let step = if full_circle || per_layer < 2 {
+        fov / per_layer as f64
+    } else {
+        fov / (per_layer - 1) as f64
+    };
     // σ = 0 gives an exact scan: Normal::new only fails for a negative or NaN σ, which
     // validation excludes; fall back to noiseless then.
     let noise = Normal::new(0.0, config.range_noise_m).ok();
@@ -111,7 +135,14 @@ pub fn scan(
         for i in 0..per_layer {
             let bearing = -fov / 2.0 + i as f64 * step + stagger;
             let direction = Vec2::from_angle(world_from_sensor.heading_rad + bearing);
-            let hit = cast_ray(world, actors, &candidates, origin, direction, config.max_range_m);
+            let hit = cast_ray(
+                world,
+                actors,
+                &candidates,
+                origin,
+                direction,
+                config.max_range_m,
+            );
             // Draw the noise for every ray, hit or not, so one new object does not shift the
             // random stream of every later ray.
             let dropped = rng.random_bool(config.dropout_probability);
@@ -120,7 +151,8 @@ pub fn scan(
                 && !dropped
             {
                 let r = (range_m + dr).max(0.0);
-                out.points_in_sensor.push(Vec2::from_angle(bearing).scale(r));
+                out.points_in_sensor
+                    .push(Vec2::from_angle(bearing).scale(r));
                 out.layers.push(layer.min(255) as u8);
                 out.hits.push(target);
             }
@@ -156,14 +188,25 @@ mod tests {
             Vec2::new(20.0, 30.0),
         ]])
         .unwrap();
-        World::new(vec![b], vec![], (Vec2::new(-50.0, -50.0), Vec2::new(50.0, 50.0)))
+        World::new(
+            vec![b],
+            vec![],
+            (Vec2::new(-50.0, -50.0), Vec2::new(50.0, 50.0)),
+        )
     }
 
     #[test]
     fn ibeo_scan_has_800_points_with_exact_ranges_to_a_wall() {
         let world = square_world();
         let mut rng = rand::rngs::StdRng::seed_from_u64(0);
-        let s = scan(&exact(ScannerKind::Ibeo), &world, &[], None, Pose2::default(), &mut rng);
+        let s = scan(
+            &exact(ScannerKind::Ibeo),
+            &world,
+            &[],
+            None,
+            Pose2::default(),
+            &mut rng,
+        );
         // The wall at x = 20 spans ±30 m, so every bearing within ±55° hits it (tan 55° · 20 = 28.6).
         assert_eq!(s.points_in_sensor.len(), 800);
         for p in &s.points_in_sensor {
@@ -204,14 +247,25 @@ mod tests {
         let cfg = SensorConfig::default();
         let run = |seed| {
             let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-            scan(&cfg, &world, std::slice::from_ref(&ego), Some(1), Pose2::new(Vec2::new(3.7, 0.0), 0.0), &mut rng)
+            scan(
+                &cfg,
+                &world,
+                std::slice::from_ref(&ego),
+                Some(1),
+                Pose2::new(Vec2::new(3.7, 0.0), 0.0),
+                &mut rng,
+            )
         };
         let a = run(5);
         assert!(a.hits.iter().all(|h| matches!(h, HitTarget::Building(_))));
         assert_eq!(a, run(5));
         assert_ne!(a, run(6));
         // 2 % dropouts of 800: between 1 % and 4 % lost.
-        assert!((768..=792).contains(&a.points_in_sensor.len()), "{}", a.points_in_sensor.len());
+        assert!(
+            (768..=792).contains(&a.points_in_sensor.len()),
+            "{}",
+            a.points_in_sensor.len()
+        );
     }
 
     #[test]

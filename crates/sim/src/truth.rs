@@ -23,7 +23,9 @@ use geodata::CellWindow;
 
 /// Truth class codes, ordered by priority (higher wins).
 #[repr(u8)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize, serde::Deserialize,
+)]
 pub enum TruthClass {
     /// Nothing occupies the cell.
     F = 0,
@@ -39,7 +41,13 @@ pub enum TruthClass {
 
 impl TruthClass {
     /// All five, in code order.
-    pub const ALL: [TruthClass; 5] = [TruthClass::F, TruthClass::I, TruthClass::U, TruthClass::S, TruthClass::M];
+    pub const ALL: [TruthClass; 5] = [
+        TruthClass::F,
+        TruthClass::I,
+        TruthClass::U,
+        TruthClass::S,
+        TruthClass::M,
+    ];
     /// From a code 0..=4.
     pub fn from_code(code: u8) -> Option<Self> {
         Self::ALL.get(code as usize).copied()
@@ -79,7 +87,7 @@ pub fn label_window(
     let (w, h) = (window.width, window.height);
     out.clear();
     out.resize(w * h, TruthClass::F as u8);
-    if w == 0 || h == 0 || !(window.cell_size_m > 0.0) {
+    if w == 0 || h == 0 || window.cell_size_m.is_nan() || window.cell_size_m <= 0.0 {
         return;
     }
     let n = samples_per_axis.clamp(1, 8);
@@ -99,7 +107,11 @@ pub fn label_window(
     let mut xs = Vec::new();
     for &id in &ids {
         let b = &world.buildings()[id as usize];
-        let class = if b.mapped { TruthClass::I } else { TruthClass::U } as u8;
+        let class = if b.mapped {
+            TruthClass::I
+        } else {
+            TruthClass::U
+        } as u8;
         let k0 = first_sample(b.bounds.0.y, y0).max(0.0) as usize;
         let k1 = last_sample(b.bounds.1.y, y0).min((h * n) as f64 - 1.0);
         if k1 < k0 as f64 {
@@ -127,7 +139,11 @@ pub fn label_window(
 
     // Actors: test the samples of the cells under each footprint's bounding box.
     for a in actors {
-        let code = if Some(a.id) == ego_id { IGNORED } else { actor_class(a) as u8 };
+        let code = if Some(a.id) == ego_id {
+            IGNORED
+        } else {
+            actor_class(a) as u8
+        };
         let r = a.footprint.bounding_radius_m();
         let p = a.pose.position_m;
         let col_range = |v: f64| ((v - x0) / s).floor();
@@ -144,7 +160,10 @@ pub fn label_window(
                 let cx = x0 + col as f64 * s;
                 let cy = y0 + row as f64 * s;
                 let covered = (0..n * n).any(|q| {
-                    let sample = Vec2::new(cx + ((q % n) as f64 + 0.5) * sub, cy + ((q / n) as f64 + 0.5) * sub);
+                    let sample = Vec2::new(
+                        cx + ((q % n) as f64 + 0.5) * sub,
+                        cy + ((q / n) as f64 + 0.5) * sub,
+                    );
                     a.footprint.contains(&a.pose, sample)
                 });
                 if covered {
@@ -185,7 +204,18 @@ mod tests {
         // Top row (north) first, for reading.
         out.chunks(w)
             .rev()
-            .map(|r| r.iter().map(|&c| match c { 0 => '.', 1 => 'I', 2 => 'U', 3 => 'S', 4 => 'M', _ => 'x' }).collect())
+            .map(|r| {
+                r.iter()
+                    .map(|&c| match c {
+                        0 => '.',
+                        1 => 'I',
+                        2 => 'U',
+                        3 => 'S',
+                        4 => 'M',
+                        _ => 'x',
+                    })
+                    .collect()
+            })
             .collect()
     }
 
@@ -203,10 +233,16 @@ mod tests {
         let world = World::new(vec![b], vec![], (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)));
         let mut out = Vec::new();
         label_window(&world, &[], None, &window(), 3, &mut out);
-        assert_eq!(rows(&out, 8), vec!["........", "........", ".II.....", ".II....."]);
+        assert_eq!(
+            rows(&out, 8),
+            vec!["........", "........", ".II.....", ".II....."]
+        );
         // With one sample (the centre) cell 2's centre 2.5 is outside → only cell 1.
         label_window(&world, &[], None, &window(), 1, &mut out);
-        assert_eq!(rows(&out, 8), vec!["........", "........", ".I......", ".I......"]);
+        assert_eq!(
+            rows(&out, 8),
+            vec!["........", "........", ".I......", ".I......"]
+        );
     }
 
     #[test]
@@ -215,19 +251,37 @@ mod tests {
         // A bollard (r = 0.1) at (0.5, 3.5) covers the centre sample only.
         let bollard = Actor::fixed(0, ActorKind::Bollard, Pose2::new(Vec2::new(0.5, 3.5), 0.0));
         // A tiny bollard between samples at (2.05, 3.05): no sample inside, centre cell rule → U.
-        let thin = Actor::fixed(1, ActorKind::Bollard, Pose2::new(Vec2::new(2.05, 3.05), 0.0));
+        let thin = Actor::fixed(
+            1,
+            ActorKind::Bollard,
+            Pose2::new(Vec2::new(2.05, 3.05), 0.0),
+        );
         // A car 4.5 × 1.8 centred at (5.0, 1.0) heading east: x ∈ [2.75, 7.25], y ∈ [0.1, 1.9].
         let mut car = Actor::fixed(2, ActorKind::Car, Pose2::new(Vec2::new(5.0, 1.0), 0.0));
         car.speed_mps = 0.49;
-        let mut ped = Actor::fixed(3, ActorKind::Pedestrian, Pose2::new(Vec2::new(6.5, 2.5), 0.0));
+        let mut ped = Actor::fixed(
+            3,
+            ActorKind::Pedestrian,
+            Pose2::new(Vec2::new(6.5, 2.5), 0.0),
+        );
         ped.speed_mps = 0.5;
         let mut out = Vec::new();
-        label_window(&world, &[bollard, thin, car, ped], None, &window(), 3, &mut out);
+        label_window(
+            &world,
+            &[bollard, thin, car, ped],
+            None,
+            &window(),
+            3,
+            &mut out,
+        );
         // Car columns: cell 2 has samples 2.167, 2.5, 2.833 → 2.833 ≥ 2.75 inside → S;
         // cell 7 sample 7.167 ≤ 7.25 → S. Rows 0, 1: samples y 0.167 … 1.833 within [0.1, 1.9].
         // Pedestrian r 0.3 at (6.5, 2.5): covers samples of cell (6, 2) → M (speed 0.5 ≥ 0.5);
         // M beats S where they would meet.
-        assert_eq!(rows(&out, 8), vec!["U.U.....", "......M.", "..SSSSSS", "..SSSSSS"]);
+        assert_eq!(
+            rows(&out, 8),
+            vec!["U.U.....", "......M.", "..SSSSSS", "..SSSSSS"]
+        );
     }
 
     #[test]
@@ -241,7 +295,11 @@ mod tests {
         .unwrap();
         b.mapped = false;
         let world = World::new(vec![b], vec![], (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)));
-        let ego = Actor::fixed(5, ActorKind::Pedestrian, Pose2::new(Vec2::new(5.5, 2.5), 0.0));
+        let ego = Actor::fixed(
+            5,
+            ActorKind::Pedestrian,
+            Pose2::new(Vec2::new(5.5, 2.5), 0.0),
+        );
         let mut out = Vec::new();
         label_window(&world, &[ego], Some(5), &window(), 3, &mut out);
         assert_eq!(out[0], TruthClass::U as u8);

@@ -256,9 +256,16 @@ impl World {
                 rings
             })
             .collect();
-        let buildings = buildings.iter().filter_map(Building::from_polygon).collect();
+        let buildings = buildings
+            .iter()
+            .filter_map(Building::from_polygon)
+            .collect();
         let (min, max) = (extent.min(), extent.max());
-        Self::new(buildings, roads, (Vec2::new(min.x, min.y), Vec2::new(max.x, max.y)))
+        Self::new(
+            buildings,
+            roads,
+            (Vec2::new(min.x, min.y), Vec2::new(max.x, max.y)),
+        )
     }
 
     /// Buildings, in id order.
@@ -283,14 +290,22 @@ impl World {
     /// First building edge hit by the ray (`origin`, unit `direction`) within `max_range_m`:
     /// `(range_m, building_id)`. Walks the bucket grid cell by cell (Amanatides–Woo) and stops as
     /// soon as the best hit lies before the exit of the current bucket.
-    pub fn ray_cast_buildings(&self, origin: Vec2, direction: Vec2, max_range_m: f64) -> Option<(f64, u32)> {
+    pub fn ray_cast_buildings(
+        &self,
+        origin: Vec2,
+        direction: Vec2,
+        max_range_m: f64,
+    ) -> Option<(f64, u32)> {
         let g = &self.edge_index;
         let lo = g.origin;
         let hi = g.max_corner();
         // Clip the ray to the indexed rectangle.
         let mut t0: f64 = 0.0;
         let mut t1 = max_range_m;
-        for (o, d, a, b) in [(origin.x, direction.x, lo.x, hi.x), (origin.y, direction.y, lo.y, hi.y)] {
+        for (o, d, a, b) in [
+            (origin.x, direction.x, lo.x, hi.x),
+            (origin.y, direction.y, lo.y, hi.y),
+        ] {
             if d == 0.0 {
                 if o < a || o > b {
                     return None;
@@ -304,7 +319,7 @@ impl World {
         if t0 > t1 {
             return None;
         }
-        let start = origin.add(direction.scale(t0));
+        let start = origin.plus(direction.scale(t0));
         let mut col = g.clamp_col(start.x) as i64;
         let mut row = g.clamp_row(start.y) as i64;
         let step_c: i64 = if direction.x > 0.0 { 1 } else { -1 };
@@ -318,8 +333,16 @@ impl World {
         };
         let mut t_next_c = boundary(col, step_c, lo.x, origin.x, direction.x);
         let mut t_next_r = boundary(row, step_r, lo.y, origin.y, direction.y);
-        let dt_c = if direction.x == 0.0 { f64::INFINITY } else { g.bucket_m / direction.x.abs() };
-        let dt_r = if direction.y == 0.0 { f64::INFINITY } else { g.bucket_m / direction.y.abs() };
+        let dt_c = if direction.x == 0.0 {
+            f64::INFINITY
+        } else {
+            g.bucket_m / direction.x.abs()
+        };
+        let dt_r = if direction.y == 0.0 {
+            f64::INFINITY
+        } else {
+            g.bucket_m / direction.y.abs()
+        };
         let mut best: Option<(f64, u32)> = None;
         loop {
             for &e in g.bucket(col as usize, row as usize) {
@@ -410,19 +433,28 @@ mod tests {
     fn ray_cast_returns_exact_range_to_square_building() {
         let w = world();
         // Straight east from the origin: west wall at exactly 20 m.
-        let (t, id) = w.ray_cast_buildings(Vec2::default(), Vec2::new(1.0, 0.0), 80.0).unwrap();
+        let (t, id) = w
+            .ray_cast_buildings(Vec2::default(), Vec2::new(1.0, 0.0), 80.0)
+            .unwrap();
         assert_relative_eq!(t, 20.0, epsilon = 1e-12);
         assert_eq!(id, 0);
         // At angle θ with tan θ = 0.2: hits x = 20 at y = 4 (inside the wall), range 20/cos θ.
         let theta = 0.2f64.atan();
-        let (t, _) = w.ray_cast_buildings(Vec2::default(), Vec2::from_angle(theta), 80.0).unwrap();
+        let (t, _) = w
+            .ray_cast_buildings(Vec2::default(), Vec2::from_angle(theta), 80.0)
+            .unwrap();
         assert_relative_eq!(t, 20.0 / theta.cos(), epsilon = 1e-9);
         // Beyond the max range: nothing.
-        assert!(w.ray_cast_buildings(Vec2::default(), Vec2::new(1.0, 0.0), 19.9).is_none());
+        assert!(
+            w.ray_cast_buildings(Vec2::default(), Vec2::new(1.0, 0.0), 19.9)
+                .is_none()
+        );
         // North-east towards the far building's south-west corner region: (100, 42) is on its
         // west wall; direction from (0, 0) to (100, 42) → range = |(100, 42)|.
         let target = Vec2::new(100.0, 42.0);
-        let (t, id) = w.ray_cast_buildings(Vec2::default(), target.scale(1.0 / target.norm()), 200.0).unwrap();
+        let (t, id) = w
+            .ray_cast_buildings(Vec2::default(), target.scale(1.0 / target.norm()), 200.0)
+            .unwrap();
         assert_eq!(id, 1);
         assert_relative_eq!(t, target.norm(), epsilon = 1e-9);
     }
@@ -431,17 +463,31 @@ mod tests {
     fn ray_cast_from_outside_index_and_backwards() {
         let w = world();
         // Start west of the indexed area: the ray is clipped in and still hits at 20 + 80.
-        let (t, _) = w.ray_cast_buildings(Vec2::new(-80.0, 0.0), Vec2::new(1.0, 0.0), 200.0).unwrap();
+        let (t, _) = w
+            .ray_cast_buildings(Vec2::new(-80.0, 0.0), Vec2::new(1.0, 0.0), 200.0)
+            .unwrap();
         assert_relative_eq!(t, 100.0, epsilon = 1e-9);
         // From inside facing west toward nothing.
-        assert!(w.ray_cast_buildings(Vec2::default(), Vec2::new(-1.0, 0.0), 200.0).is_none());
+        assert!(
+            w.ray_cast_buildings(Vec2::default(), Vec2::new(-1.0, 0.0), 200.0)
+                .is_none()
+        );
     }
 
     #[test]
     fn building_lookup_respects_holes() {
         let mut b = square(0.0, 0.0, 10.0);
-        b.rings.push(vec![Vec2::new(4.0, 4.0), Vec2::new(6.0, 4.0), Vec2::new(6.0, 6.0), Vec2::new(4.0, 6.0)]);
-        let w = World::new(vec![b], vec![], (Vec2::new(0.0, 0.0), Vec2::new(10.0, 10.0)));
+        b.rings.push(vec![
+            Vec2::new(4.0, 4.0),
+            Vec2::new(6.0, 4.0),
+            Vec2::new(6.0, 6.0),
+            Vec2::new(4.0, 6.0),
+        ]);
+        let w = World::new(
+            vec![b],
+            vec![],
+            (Vec2::new(0.0, 0.0), Vec2::new(10.0, 10.0)),
+        );
         assert_eq!(w.building_at(Vec2::new(1.0, 1.0)), Some(0));
         assert_eq!(w.building_at(Vec2::new(5.0, 5.0)), None);
         assert_eq!(w.building_at(Vec2::new(11.0, 5.0)), None);

@@ -61,6 +61,19 @@ mod tests {
     }
 
     #[test]
+    fn f32_masses_give_the_same_numbers_to_f32_precision() -> Result<(), BeliefError> {
+        let frame = Frame::new(["a", "b"])?;
+        let m1 = Mass::<f32>::from_values(&frame, vec![0.0, 0.2, 0.6, 0.2])?;
+        let m2 = Mass::<f32>::from_values(&frame, vec![0.0, 0.7, 0.1, 0.2])?;
+        let m = Conjunctive.combine(&m1, &m2)?;
+        for (got, want) in m.values().iter().zip([0.44_f32, 0.32, 0.20, 0.04]) {
+            assert!((got - want).abs() < 1e-6, "{got} vs {want}");
+        }
+        assert_eq!(crate::check_masses(m.values()), Ok(()));
+        Ok(())
+    }
+
+    #[test]
     fn mismatched_frames_are_an_error() -> Result<(), BeliefError> {
         let ab = Frame::new(["a", "b"])?;
         let ac = Frame::new(["a", "c"])?;

@@ -21,10 +21,10 @@ use std::path::PathBuf;
 use anyhow::Result;
 use belief::{
     BeliefError, ClassRateDiscount, ClassicalDiscount, Combination, Conjunctive,
-    ContextualDiscount, Dempster, Discounting, Disjunctive, DuboisPrade, Frame, Mass, Set,
-    SetRate, Yager,
+    ContextualDiscount, Dempster, Discounting, Disjunctive, DuboisPrade, Frame, Mass, Set, SetRate,
+    Yager,
 };
-use clap::{Args, Subcommand, ValueEnum};
+use clap::{ArgGroup, Args, Subcommand, ValueEnum};
 
 use crate::exit::BadInput;
 use json::{Input, describe, read_input};
@@ -85,23 +85,24 @@ enum Rule {
     DuboisPrade,
 }
 
-/// Arguments of `evigrid mass discount`.
+/// Arguments of `evigrid mass discount`: exactly one of the three modes.
 #[derive(Debug, Args)]
+#[command(group(ArgGroup::new("mode").required(true).args(["alpha", "context", "class_rate"])))]
 pub struct DiscountArgs {
     /// Classical discounting rate α in [0, 1]: every set keeps 1 − α of its mass, the rest goes
     /// to Ω.
-    #[arg(long, required_unless_present_any = ["context", "class_rate"], conflicts_with_all = ["context", "class_rate"])]
+    #[arg(long)]
     alpha: Option<f64>,
     /// A context SET=RATE of contextual discounting, elements of SET joined by `+` (`h+r=0.1`);
     /// repeat for several contexts.
-    #[arg(long, value_name = "SET=RATE", conflicts_with = "class_rate")]
+    #[arg(long, value_name = "SET=RATE")]
     context: Vec<String>,
     /// A class rate ELEMENT=RATE of class-rate discounting (SPEC §5 step 3); give one per element.
     #[arg(long, value_name = "ELEMENT=RATE")]
     class_rate: Vec<String>,
-    /// How a set's rate follows from its classes' rates (with --class-rate).
-    #[arg(long, value_enum, default_value = "max", requires = "class_rate")]
-    set_rate: SetRateArg,
+    /// How a set's rate follows from its classes' rates, with --class-rate [default: max].
+    #[arg(long, value_enum)]
+    set_rate: Option<SetRateArg>,
     /// The mass function file (JSON); `-` is standard input.
     input: PathBuf,
     #[command(flatten)]
@@ -183,8 +184,10 @@ fn combine(args: &CombineArgs) -> Result<()> {
         .iter()
         .map(|path| read_input(path))
         .collect::<Result<Vec<Input>>>()?;
-    let first = &inputs[0];
-    for input in &inputs[1..] {
+    let Some((first, rest)) = inputs.split_first() else {
+        return Err(BadInput::new("mass combine: no input files"));
+    };
+    for input in rest {
         if input.mass.frame() != first.mass.frame() {
             return Err(BadInput::new(format!(
                 "{}: frame {} differs from frame {} of {}",
@@ -217,6 +220,9 @@ fn combine(args: &CombineArgs) -> Result<()> {
 }
 
 fn discount(args: &DiscountArgs) -> Result<()> {
+    if args.set_rate.is_some() && args.class_rate.is_empty() {
+        return Err(BadInput::new("--set-rate: applies only with --class-rate"));
+    }
     let input = read_input(&args.input)?;
     let frame = input.mass.frame();
     let discounted = if let Some(alpha) = args.alpha {
@@ -262,14 +268,16 @@ fn class_rate_discount(args: &DiscountArgs, input: &Input) -> Result<Mass<f64>> 
         .zip(frame.names())
         .map(|(rate, name)| {
             rate.ok_or_else(|| {
-                BadInput::new(format!("--class-rate: no rate for element {name} of {frame}"))
+                BadInput::new(format!(
+                    "--class-rate: no rate for element {name} of {frame}"
+                ))
             })
         })
         .collect::<Result<Vec<f64>>>()?;
     let set_rate = match args.set_rate {
-        SetRateArg::Min => SetRate::Min,
-        SetRateArg::Max => SetRate::Max,
-        SetRateArg::Mean => SetRate::Mean,
+        Some(SetRateArg::Min) => SetRate::Min,
+        Some(SetRateArg::Max) | None => SetRate::Max,
+        Some(SetRateArg::Mean) => SetRate::Mean,
     };
     ClassRateDiscount::new(rates, set_rate)
         .and_then(|d| d.discount(&input.mass))

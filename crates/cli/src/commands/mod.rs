@@ -1,3 +1,7 @@
 //! One module per subcommand: each has its clap arguments and a `run` returning `anyhow::Result`.
 
+pub mod bench;
+pub mod cell;
+pub mod map;
 pub mod mass;
+pub mod run;

@@ -1,8 +1,8 @@
 //! One time step of the fusion (SPEC §5, eq 16-31), for every cell of the window.
 //!
 //! The PerceptionGrid is updated in place. Cells are processed in blocks of 16 loaded from the
-//! 32 mass planes into a small stack buffer; every stage is a pass over the block (see
-//! [`passes`](self::passes)), so the work per cell is a fixed sequence of vectorisable
+//! 32 mass planes into a small stack buffer; every stage is a pass over the block (module
+//! `passes`, each derived there), so the work per cell is a fixed sequence of vectorisable
 //! multiply-adds without branches or allocation. Row ranges run in parallel with rayon; each cell
 //! is computed alone and the statistics are integer counts, so the result is bit-identical
 //! whatever the number of threads.
@@ -25,14 +25,20 @@
 //! assert_eq!(pg.mass(31, 1), 1.0); // cell 1 was not observed: still vacuous
 //! ```
 
+// Lane loops index several arrays by the same cell index `i`: that is the form the compiler
+// vectorises, and zipped iterators over five arrays would only hide it.
+#![allow(clippy::needless_range_loop)]
+
 mod passes;
 
-use crate::grids::{GisGrid, N_SETS, OMEGA, PerceptionGrid, PerceptionPlanesMut, SensorGrid, class};
+use crate::grids::{
+    GisGrid, N_SETS, OMEGA, PerceptionGrid, PerceptionPlanesMut, SensorGrid, class,
+};
 use crate::params::{DiscountMode, Params, ResidualPolicy, SetRate};
 use geodata::MapContext;
 use passes::{
-    BLOCK, BlockMasses, Lanes, TOO_SMALL_TO_RESCALE, add_class, discount_to_omega,
-    occupied_mass, remove_class, sum_sets,
+    BLOCK, BlockMasses, Lanes, TOO_SMALL_TO_RESCALE, add_class, discount_to_omega, occupied_mass,
+    remove_class, sum_sets,
 };
 use rayon::iter::ParallelIterator;
 
@@ -210,10 +216,8 @@ impl StepConstants {
         };
         let map = &params.map;
         let mut map_prior = [MapPrior::new(OMEGA, 0.0); 4];
-        map_prior[MapContext::Other as usize] = MapPrior::new(
-            class::F | class::U | class::S | class::M,
-            map.beta_other,
-        );
+        map_prior[MapContext::Other as usize] =
+            MapPrior::new(class::F | class::U | class::S | class::M, map.beta_other);
         map_prior[MapContext::Road as usize] =
             MapPrior::new(class::F | class::S | class::M, map.beta_road);
         map_prior[MapContext::Building as usize] = MapPrior::new(class::I, map.beta_building);
@@ -343,7 +347,12 @@ fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
     let m = &mut block.m;
     // 1-2. The sensor's evidence, refined to Ω_PG and combined with the map prior by Dempster's
     //      rule: SG'_t = r(SG_t) ⊕ GG (eq 16-21).
-    let sensor = SensorEvidence::new(&block.sensor_free, &block.sensor_occupied, &block.context, k);
+    let sensor = SensorEvidence::new(
+        &block.sensor_free,
+        &block.sensor_occupied,
+        &block.context,
+        k,
+    );
     // 3. Discount the previous grid, so that old information fades.
     match &k.discount {
         Discount::ToOmega(rate_per_set) => discount_to_omega(m, rate_per_set),
@@ -364,7 +373,13 @@ fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
     }
     let fallbacks_fusion = settle_empty_set(m, k.residual);
     // 5. Update the accumulator ζ with m(O) and ∅_FO + ∅_OF of this step (eq 24-27).
-    update_accumulator(&mut block.zeta, &occupied_mass(m), &conflict_fo, &conflict_of, k);
+    update_accumulator(
+        &mut block.zeta,
+        &occupied_mass(m),
+        &conflict_fo,
+        &conflict_of,
+        k,
+    );
     // 6. Specialise (eq 28-29): every A ∋ M gives ζ·m(A) to A∖{M}; what {M} gives to ∅ follows
     //    the residual policy.
     remove_class(m, class::M, &block.zeta);
@@ -453,6 +468,7 @@ impl SensorEvidence {
         }
         for i in 0..BLOCK {
             // A valid mass function whatever the input: NaN → 0 (`max` ignores NaN), sum ≤ 1.
+            #[allow(clippy::manual_clamp, reason = "clamp keeps NaN; this turns it into 0")]
             let free = m_free[i].max(0.0).min(1.0);
             let occupied = m_occupied[i].max(0.0).min(1.0 - free);
             let omega = 1.0 - free - occupied;
@@ -467,7 +483,8 @@ impl SensorEvidence {
             e.beta[i] = beta;
             e.conflict[i] = conflict;
             e.inv_normaliser[i] = inv;
-            e.sg_free[i] = (free * (1.0 - beta) + free * beta * in_f[i] + omega * beta * is_f[i]) * inv;
+            e.sg_free[i] =
+                (free * (1.0 - beta) + free * beta * in_f[i] + omega * beta * is_f[i]) * inv;
             e.sg_occupied[i] = (occupied * (1.0 - beta)
                 + occupied * beta * meets_o[i]
                 + omega * beta * within_o[i])
@@ -522,8 +539,14 @@ fn conjunctive_with_sensor(m: &mut BlockMasses, sensor: &SensorEvidence) {
     for (set, plane) in m.iter_mut().enumerate() {
         for i in 0..BLOCK {
             let combined = (1.0 - sensor.beta[i]) * plane[i] + sensor.beta[i] * restricted[set][i];
-            // Dempster's normalisation of SG' (K is 0 outside building cells).
-            let k_part = if set == 0 { sensor.conflict[i] } else { 0.0 };
+            // Dempster's normalisation of SG' (K is 0 outside building cells). m ∩ δ_∅ puts
+            // all of m's mass Σm on ∅, so K·Σm is removed, not K: equal in exact arithmetic,
+            // but with K alone the f32 rounding in Σm grew by 1/(1 − K) at every step.
+            let k_part = if set == 0 {
+                sensor.conflict[i] * (with_free[i] + without_free[i])
+            } else {
+                0.0
+            };
             plane[i] = (combined - k_part) * sensor.inv_normaliser[i];
         }
     }

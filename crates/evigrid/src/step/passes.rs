@@ -161,7 +161,14 @@ mod tests {
 
     #[test]
     fn occupied_mass_sums_nonempty_subsets_of_o() {
-        let m = block_of(&[(0, 0.05), (F, 0.1), (I, 0.2), (S | M, 0.3), (F | M, 0.15), (O, 0.2)]);
+        let m = block_of(&[
+            (0, 0.05),
+            (F, 0.1),
+            (I, 0.2),
+            (S | M, 0.3),
+            (F | M, 0.15),
+            (O, 0.2),
+        ]);
         assert!(close(occupied_mass(&m)[0], 0.7));
     }
 }

@@ -176,11 +176,7 @@ fn classical_discounting_and_rate_per_second() {
     // Two steps of 0.5 s equal one of 1 s: kept 0.707107² = 0.5.
     assert!((rate_for_step(rate_for_step(0.5, 0.5), 2.0) - 0.5).abs() < 1e-12);
     // With unequal class rates, classical uses their set_rate aggregate: max = 0.9.
-    let p = discount_params(
-        DiscountMode::Classical,
-        SetRate::Max,
-        ClassRates::default(),
-    );
+    let p = discount_params(DiscountMode::Classical, SetRate::Max, ClassRates::default());
     let cell = one_step(PRIOR, 0.0, NO_SENSOR, MapContext::Unknown, &p, 1.0);
     assert_masses(&cell, &[(F, 0.05), (S | M, 0.03), (OMEGA, 0.92)]);
 }
@@ -230,11 +226,7 @@ fn mercier_discounting_moves_mass_to_supersets() {
     // {S,M} keeps 0.3·(0.5·0.95·0.8) = 0.114;
     // {F,S,M} gets 0.3·0.5·0.95·0.8 = 0.114 from {S,M} and 0.5·0.3·0.9·0.95·0.8 = 0.1026 from {F};
     // Ω gets 0.5·0.05·0.2·0.3·0.9 = 0.00135 from {F} and 0.3·0.5·0.05·0.2 = 0.0015 from {S,M}.
-    let p = discount_params(
-        DiscountMode::Mercier,
-        SetRate::Max,
-        ClassRates::default(),
-    );
+    let p = discount_params(DiscountMode::Mercier, SetRate::Max, ClassRates::default());
     let cell = one_step(PRIOR, 0.0, NO_SENSOR, MapContext::Unknown, &p, 1.0);
     assert!((cell.m[F] - 0.0266).abs() < 1e-6);
     assert!((cell.m[S | M] - 0.114).abs() < 1e-6);
@@ -425,7 +417,10 @@ fn specialisation_of_moving_to_empty_set_follows_to_omega() {
 #[test]
 fn specialisation_of_moving_to_empty_set_follows_keep() {
     let cell = specialisation_case(ResidualPolicy::Keep);
-    assert_masses(&cell, &[(F, 0.2), (S, 0.1), (M, 0.3), (S | M, 0.1), (0, 0.3)]);
+    assert_masses(
+        &cell,
+        &[(F, 0.2), (S, 0.1), (M, 0.3), (S | M, 0.1), (0, 0.3)],
+    );
 }
 
 #[test]
@@ -434,7 +429,12 @@ fn specialisation_of_moving_to_empty_set_follows_normalise() {
     let cell = specialisation_case(ResidualPolicy::Normalise);
     assert_masses(
         &cell,
-        &[(F, 0.2 / 0.7), (S, 0.1 / 0.7), (M, 0.3 / 0.7), (S | M, 0.1 / 0.7)],
+        &[
+            (F, 0.2 / 0.7),
+            (S, 0.1 / 0.7),
+            (M, 0.3 / 0.7),
+            (S | M, 0.1 / 0.7),
+        ],
     );
     assert_eq!(cell.stats.normalisation_fallbacks, 0);
 }
@@ -457,7 +457,14 @@ fn invalid_sensor_masses_are_clamped_not_propagated() {
     assert_masses(&cell, &[(O, 0.8), (OMEGA, 0.2)]);
     let cell = one_step(VACUOUS, 0.0, (0.7, 0.9), MapContext::Unknown, &p, 0.1);
     assert_masses(&cell, &[(F, 0.7), (O, 0.3)]);
-    let cell = one_step(VACUOUS, 0.0, (-1.0, f32::INFINITY), MapContext::Unknown, &p, 0.1);
+    let cell = one_step(
+        VACUOUS,
+        0.0,
+        (-1.0, f32::INFINITY),
+        MapContext::Unknown,
+        &p,
+        0.1,
+    );
     assert_masses(&cell, &[(O, 1.0)]);
 }
 
@@ -539,7 +546,8 @@ fn arb_params() -> impl Strategy<Value = Params> {
                 stopped: rates[3],
                 moving: rates[4],
             };
-            (p.map.beta_building, p.map.beta_road, p.map.beta_other) = (betas[0], betas[1], betas[2]);
+            (p.map.beta_building, p.map.beta_road, p.map.beta_other) =
+                (betas[0], betas[1], betas[2]);
             p.accumulator.delta_inc = acc[0];
             p.accumulator.delta_dec = acc[1];
             p.accumulator.gamma_occupied = acc[2];
@@ -734,7 +742,9 @@ fn result_is_bit_identical_whatever_the_thread_count() -> Result<(), rayon::Thre
     let mut params = Params::default();
     params.fusion.residual = ResidualPolicy::Normalise;
     let run = |threads: usize| -> Result<(PerceptionGrid, StepStats), rayon::ThreadPoolBuildError> {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()?;
         let mut pg = pg0.clone();
         let mut stats = StepStats::default();
         pool.install(|| {
@@ -753,7 +763,12 @@ fn result_is_bit_identical_whatever_the_thread_count() -> Result<(), rayon::Thre
         let b: Vec<u32> = many.plane(set).iter().map(|x| x.to_bits()).collect();
         assert!(a == b, "plane {set} differs");
     }
-    assert!(one.zeta().iter().zip(many.zeta()).all(|(a, b)| a.to_bits() == b.to_bits()));
+    assert!(
+        one.zeta()
+            .iter()
+            .zip(many.zeta())
+            .all(|(a, b)| a.to_bits() == b.to_bits())
+    );
     Ok(())
 }
 

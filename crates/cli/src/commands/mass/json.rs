@@ -9,7 +9,6 @@ use std::path::Path;
 
 use anyhow::Context;
 use belief::{BeliefError, Frame, Mass, Set, SetFunction};
-use serde::ser::{Serialize, SerializeMap, Serializer};
 use serde::Deserialize;
 
 use crate::exit::BadInput;
@@ -59,8 +58,7 @@ pub fn read_input(path: &Path) -> anyhow::Result<Input> {
 
 /// Parses and checks the text of one input; the error is the problem, without the file name.
 fn parse_mass(text: &str) -> Result<Mass<f64>, String> {
-    let file: MassFile =
-        serde_json::from_str(text).map_err(|e| format!("malformed JSON: {e}"))?;
+    let file: MassFile = serde_json::from_str(text).map_err(|e| format!("malformed JSON: {e}"))?;
     let frame = Frame::new(file.frame).map_err(|e| format!("bad frame: {e}"))?;
     let mut listed: Vec<Set> = Vec::with_capacity(file.mass.len());
     for entry in &file.mass {
@@ -81,7 +79,10 @@ pub fn describe(error: &BeliefError, frame: &Frame) -> String {
             format!("negative mass {value} on set {}", set_label(frame, *set))
         }
         BeliefError::NotFinite { set, value } => {
-            format!("mass {value} on set {} is not finite", set_label(frame, *set))
+            format!(
+                "mass {value} on set {} is not finite",
+                set_label(frame, *set)
+            )
         }
         BeliefError::InvalidSum { sum } => format!(
             "masses sum to {sum}, not 1 (tolerance {})",
@@ -102,45 +103,63 @@ pub fn set_label(frame: &Frame, set: Set) -> String {
     format!("[{}]", frame.names_of(set).join(", "))
 }
 
-/// Serialises `(key, value)` pairs as a JSON object in the given order (serde_json's own map
-/// sorts keys, and the output should follow the frame).
-struct Ordered<'a, V: Serialize>(Vec<(&'a str, V)>);
-
-impl<V: Serialize> Serialize for Ordered<'_, V> {
-    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        let mut map = serializer.serialize_map(Some(self.0.len()))?;
-        for (key, value) in &self.0 {
-            map.serialize_entry(key, value)?;
-        }
-        map.end()
-    }
+#[derive(serde::Serialize)]
+struct FocalOut<'a> {
+    set: Vec<&'a str>,
+    m: f64,
 }
 
 #[derive(serde::Serialize)]
-struct SetValue<'a> {
+struct ValueOut<'a> {
     set: Vec<&'a str>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    m: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    v: Option<f64>,
+    v: f64,
+}
+
+/// A JSON object with one key per line and each value compact on its line; a list value gets one
+/// item per line. People can read it and every JSON parser takes it.
+fn json_object(entries: &[(&str, Field)]) -> anyhow::Result<String> {
+    let mut out = String::from("{\n");
+    for (k, (key, field)) in entries.iter().enumerate() {
+        out.push_str(&format!("  {}: ", serde_json::to_string(key)?));
+        match field {
+            Field::Value(value) => out.push_str(value),
+            Field::List(items) => {
+                out.push_str("[\n");
+                for (i, item) in items.iter().enumerate() {
+                    let comma = if i + 1 < items.len() { "," } else { "" };
+                    out.push_str(&format!("    {item}{comma}\n"));
+                }
+                out.push_str("  ]");
+            }
+        }
+        out.push_str(if k + 1 < entries.len() { ",\n" } else { "\n" });
+    }
+    out.push('}');
+    Ok(out)
+}
+
+/// The value of one key of [`json_object`], already serialised.
+enum Field {
+    Value(String),
+    List(Vec<String>),
 }
 
 /// A mass function as JSON: `{"frame": [...], "mass": [{"set": [...], "m": ...}, ...]}`.
 pub fn mass_json(mass: &Mass<f64>) -> anyhow::Result<String> {
     let frame = mass.frame();
-    let focal: Vec<SetValue> = mass
+    let focal = mass
         .focal_sets()
-        .map(|(set, m)| SetValue {
-            set: frame.names_of(set),
-            m: Some(m),
-            v: None,
+        .map(|(set, m)| {
+            serde_json::to_string(&FocalOut {
+                set: frame.names_of(set),
+                m,
+            })
         })
-        .collect();
-    let out = Ordered(vec![
-        ("frame", serde_json::to_value(frame.names())?),
-        ("mass", serde_json::to_value(focal)?),
-    ]);
-    Ok(serde_json::to_string_pretty(&out)?)
+        .collect::<Result<Vec<_>, _>>()?;
+    json_object(&[
+        ("frame", Field::Value(serde_json::to_string(frame.names())?)),
+        ("mass", Field::List(focal)),
+    ])
 }
 
 /// A mass function as an aligned table, one focal set per line.
@@ -152,45 +171,54 @@ pub fn mass_table(mass: &Mass<f64>) -> String {
     table(("set", "m"), rows)
 }
 
-/// Pignistic probabilities as JSON: `{"frame": [...], "betp": {"a": ..., ...}}`, frame order.
+/// Pignistic probabilities as JSON: `{"frame": [...], "betp": {"a": ..., ...}}`, in frame order.
 pub fn pignistic_json(frame: &Frame, betp: &[f64]) -> anyhow::Result<String> {
-    let betp = Ordered(
-        frame
-            .names()
-            .iter()
-            .map(String::as_str)
-            .zip(betp.iter().copied())
-            .collect(),
-    );
-    let out = Ordered(vec![
-        ("frame", serde_json::to_value(frame.names())?),
-        ("betp", serde_json::to_value(betp)?),
-    ]);
-    Ok(serde_json::to_string_pretty(&out)?)
+    let pairs = frame
+        .names()
+        .iter()
+        .zip(betp)
+        .map(|(name, p)| {
+            Ok(format!(
+                "{}: {}",
+                serde_json::to_string(name)?,
+                serde_json::to_string(p)?
+            ))
+        })
+        .collect::<Result<Vec<_>, serde_json::Error>>()?;
+    json_object(&[
+        ("frame", Field::Value(serde_json::to_string(frame.names())?)),
+        ("betp", Field::Value(format!("{{{}}}", pairs.join(", ")))),
+    ])
 }
 
 /// Pignistic probabilities as a table, one element per line.
 pub fn pignistic_table(frame: &Frame, betp: &[f64]) -> String {
-    let rows = frame.names().iter().cloned().zip(betp.iter().copied()).collect();
+    let rows = frame
+        .names()
+        .iter()
+        .cloned()
+        .zip(betp.iter().copied())
+        .collect();
     table(("element", "betP"), rows)
 }
 
-/// A set function as JSON, every subset listed: `{"frame": [...], "<name>": [{"set": [...], "v": ...}]}`.
+/// A set function as JSON, every subset listed:
+/// `{"frame": [...], "<name>": [{"set": [...], "v": ...}, ...]}`.
 pub fn set_function_json(name: &str, function: &SetFunction<f64>) -> anyhow::Result<String> {
     let frame = function.frame();
-    let values: Vec<SetValue> = frame
+    let values = frame
         .subsets()
-        .map(|set| SetValue {
-            set: frame.names_of(set),
-            m: None,
-            v: Some(function.get(set)),
+        .map(|set| {
+            serde_json::to_string(&ValueOut {
+                set: frame.names_of(set),
+                v: function.get(set),
+            })
         })
-        .collect();
-    let out = Ordered(vec![
-        ("frame", serde_json::to_value(frame.names())?),
-        (name, serde_json::to_value(values)?),
-    ]);
-    Ok(serde_json::to_string_pretty(&out)?)
+        .collect::<Result<Vec<_>, _>>()?;
+    json_object(&[
+        ("frame", Field::Value(serde_json::to_string(frame.names())?)),
+        (name, Field::List(values)),
+    ])
 }
 
 /// A set function as a table, every subset listed.
@@ -203,7 +231,8 @@ pub fn set_function_table(name: &str, function: &SetFunction<f64>) -> String {
     table(("set", name), rows)
 }
 
-/// Two left-aligned columns, the second in full f64 precision.
+/// Two left-aligned columns; values rounded to 12 decimals for reading (JSON keeps every digit),
+/// so that `0.31999999999999995` reads `0.32`.
 fn table(header: (&str, &str), rows: Vec<(String, f64)>) -> String {
     let width = rows
         .iter()
@@ -213,9 +242,20 @@ fn table(header: (&str, &str), rows: Vec<(String, f64)>) -> String {
         .unwrap_or(0);
     let mut out = format!("{:<width$}  {}\n", header.0, header.1);
     for (label, value) in rows {
-        out.push_str(&format!("{label:<width$}  {value}\n"));
+        out.push_str(&format!("{label:<width$}  {}\n", rounded(value)));
     }
     out
+}
+
+/// `value` to 12 decimals without trailing zeros: `0.32`, `1`, `0.000000000001`.
+fn rounded(value: f64) -> String {
+    let text = format!("{value:.12}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" {
+        "0".to_owned()
+    } else {
+        text.to_owned()
+    }
 }
 
 /// Writes a result to standard output, with one final newline.
@@ -253,20 +293,35 @@ mod tests {
     fn problems_name_the_sets() {
         let parse = |text: &str| parse_mass(text).err().unwrap_or_default();
         assert_eq!(
-            parse(r#"{"frame": ["a"], "mass": [{"set": ["a"], "m": 1.2}, {"set": [], "m": -0.2}]}"#),
+            parse(
+                r#"{"frame": ["a"], "mass": [{"set": ["a"], "m": 1.2}, {"set": [], "m": -0.2}]}"#
+            ),
             "negative mass -0.2 on set []"
         );
         assert_eq!(
-            parse(r#"{"frame": ["a", "b"], "mass": [{"set": ["a", "b"], "m": 0.5}, {"set": ["b", "a"], "m": 0.5}]}"#),
+            parse(
+                r#"{"frame": ["a", "b"], "mass": [{"set": ["a", "b"], "m": 0.5}, {"set": ["b", "a"], "m": 0.5}]}"#
+            ),
             "set [a, b] is listed twice"
         );
         assert_eq!(
             parse(r#"{"frame": ["a"], "mass": [{"set": ["c"], "m": 1}]}"#),
             "element \"c\" is not in the frame {a}"
         );
-        assert!(parse(r#"{"frame": ["a"], "mass": [{"set": ["a"], "m": 0.9}]}"#)
-            .starts_with("masses sum to 0.9, not 1"));
+        assert!(
+            parse(r#"{"frame": ["a"], "mass": [{"set": ["a"], "m": 0.9}]}"#)
+                .starts_with("masses sum to 0.9, not 1")
+        );
         assert!(parse(r#"{"frame": ["a"], "masses": []}"#).starts_with("malformed JSON"));
+    }
+
+    #[test]
+    fn table_values_are_rounded_for_reading() {
+        assert_eq!(rounded(0.31999999999999995), "0.32");
+        assert_eq!(rounded(1.0), "1");
+        assert_eq!(rounded(0.0), "0");
+        assert_eq!(rounded(1e-12), "0.000000000001");
+        assert_eq!(rounded(0.5714285714285713), "0.571428571429");
     }
 
     #[test]

@@ -1,0 +1,137 @@
+//! `evigrid bench`: the fusion step against the memory floor and the naive baseline.
+
+use crate::exit::BadInput;
+use crate::progress;
+use anyhow::Context;
+use clap::Args;
+use evigrid_bench::{BenchOptions, BenchReport, real::RealInputs};
+use std::path::PathBuf;
+
+/// Arguments of `evigrid bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// Window sizes in cells per side, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "200,1000")]
+    sizes: Vec<usize>,
+    /// Timed rounds after one warm-up round; every ratio is a median of per-round ratios.
+    #[arg(long, default_value_t = 7)]
+    rounds: usize,
+    /// Rounds that include the naive step (about a hundred times slower than the kernel).
+    #[arg(long, default_value_t = 3)]
+    naive_rounds: usize,
+    /// Lidar scan for the `sensor` and `frame` cases (PCD or KITTI .bin). By default the first
+    /// scan of `$EVIGRID_SHARED/data/lidar/kitti-city-22`.
+    #[arg(long)]
+    scan: Option<PathBuf>,
+    /// Map for the `prior` and `frame` cases. By default
+    /// `$EVIGRID_SHARED/data/osm/helsinki-centre.osm.pbf`.
+    #[arg(long)]
+    map: Option<PathBuf>,
+    /// Skip the real-data cases (`sensor`, `prior`, `frame`).
+    #[arg(long)]
+    synthetic_only: bool,
+    /// Cell size of the real-data cases, metres.
+    #[arg(long, default_value_t = 0.2)]
+    cell_size: f64,
+    /// Print the report as JSON on standard output.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `evigrid bench`.
+pub fn run(args: BenchArgs) -> anyhow::Result<()> {
+    if args.sizes.is_empty() || args.sizes.contains(&0) {
+        return Err(BadInput::new(
+            "--sizes: every size must be a positive number of cells",
+        ));
+    }
+    if args.rounds == 0 {
+        return Err(BadInput::new("--rounds must be at least 1"));
+    }
+    if !(args.cell_size.is_finite() && args.cell_size > 0.0) {
+        return Err(BadInput::new(format!(
+            "--cell-size {}: must be a positive number of metres",
+            args.cell_size
+        )));
+    }
+    let real = if args.synthetic_only {
+        None
+    } else {
+        let shared =
+            PathBuf::from(std::env::var("EVIGRID_SHARED").unwrap_or_else(|_| "../shared".into()));
+        let scan = args
+            .scan
+            .unwrap_or_else(|| shared.join("data/lidar/kitti-city-22/0000000000.pcd"));
+        let map = args
+            .map
+            .unwrap_or_else(|| shared.join("data/osm/helsinki-centre.osm.pbf"));
+        for (what, path) in [("scan", &scan), ("map", &map)] {
+            if !path.is_file() {
+                return Err(BadInput::new(format!(
+                    "{}: {what} file not found (give --{what}, set EVIGRID_SHARED, or use --synthetic-only)",
+                    path.display()
+                )));
+            }
+        }
+        Some(RealInputs { scan, map })
+    };
+    let options = BenchOptions {
+        sizes: args.sizes,
+        rounds: args.rounds,
+        naive_rounds: args.naive_rounds.min(args.rounds),
+        real,
+        cell_size_m: args.cell_size,
+    };
+    let total = options.sizes.len() as u64 * (options.rounds as u64 + 1);
+    let bar = progress::bar(total, "bench");
+    let report = evigrid_bench::run(&options, |round| {
+        bar.set_message(round.to_string());
+        bar.inc(1);
+    });
+    bar.finish_and_clear();
+    let report = report.map_err(|e| match e {
+        evigrid_bench::BenchError::Real(real) => BadInput::new(real.to_string()),
+        other => anyhow::Error::new(other),
+    })?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).context("serialising the report")?
+        );
+    } else {
+        print!("{}", table(&report));
+    }
+    Ok(())
+}
+
+/// The report as aligned text tables, one per window size.
+fn table(report: &BenchReport) -> String {
+    let mut out = String::new();
+    for w in &report.windows {
+        out += &format!(
+            "window {0}×{0} ({1} cells), {2} threads; state {3:.0} B/cell; a step moves {4:.1} MB\n",
+            w.size,
+            w.cells,
+            w.threads,
+            w.state_bytes_per_cell,
+            w.bytes_moved_per_step as f64 / 1e6
+        );
+        out += &format!("  {:<16} {:>12} {:>16}\n", "case", "ms/frame", "cells/s");
+        for t in &w.timings {
+            out += &format!(
+                "  {:<16} {:>12.3} {:>16.3e}\n",
+                t.case, t.median_ms, t.cells_per_second
+            );
+        }
+        out += &format!("  {:<24} {:>8}\n", "ratio", "value");
+        for (name, value) in &w.ratios {
+            out += &format!("  {name:<24} {value:>8.3}\n");
+        }
+        out += "\n";
+    }
+    out += &format!(
+        "naive vs library, largest difference on random cells: {:.2e}\n",
+        report.naive_max_difference
+    );
+    out
+}

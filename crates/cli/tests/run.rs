@@ -1,0 +1,162 @@
+//! `evigrid run` end to end on real KITTI scans and a real OSM map (from the shared data).
+//!
+//! The KITTI street is not in any of the shared OSM files, so the drive is placed on the
+//! Bavarian village's map along a made-up straight line: this checks the command's wiring,
+//! outputs and statistics, not the method's accuracy.
+
+#![allow(clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn shared() -> Option<PathBuf> {
+    let root = std::env::var("EVIGRID_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|_| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared"));
+    let ok = root.join("data/lidar/kitti-city-22").is_dir()
+        && root.join("data/osm/bavarian-village.osm").is_file();
+    if !ok {
+        assert!(
+            std::env::var("EVIGRID_REQUIRE_SHARED").as_deref() != Ok("1"),
+            "shared data missing at {}",
+            root.display()
+        );
+        eprintln!("note: skipping, no shared data at {}", root.display());
+        return None;
+    }
+    Some(root)
+}
+
+/// Links the first `n` KITTI scans into `dir` (no copy of the data).
+fn link_scans(shared: &Path, dir: &Path, n: usize) -> Vec<PathBuf> {
+    let source = shared.join("data/lidar/kitti-city-22");
+    let mut names: Vec<_> = std::fs::read_dir(&source)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    names.sort();
+    std::fs::create_dir_all(dir).unwrap();
+    names
+        .into_iter()
+        .take(n)
+        .map(|p| {
+            let link = dir.join(p.file_name().unwrap());
+            std::os::unix::fs::symlink(&p, &link).unwrap();
+            link
+        })
+        .collect()
+}
+
+fn evigrid() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_evigrid"))
+}
+
+#[test]
+fn runs_end_to_end_on_real_scans() {
+    let Some(shared) = shared() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let scans = tmp.path().join("scans");
+    link_scans(&shared, &scans, 3);
+    // 10 Hz, 1 m per scan eastwards (36 km/h), the lidar 1.73 m above the map's ground.
+    let poses =
+        "# time x y z roll pitch yaw\n0.0 0 0 1.73 0 0 0\n0.1 1 0 1.73 0 0 0\n0.2 2 0 1.73 0 0 0\n";
+    std::fs::write(tmp.path().join("poses.txt"), poses).unwrap();
+    std::fs::write(
+        tmp.path().join("p.toml"),
+        "[window]\nwidth_cells = 200\nheight_cells = 160\n",
+    )
+    .unwrap();
+    let out = tmp.path().join("out");
+    let output = evigrid()
+        .args(["run", "--json", "--map"])
+        .arg(shared.join("data/osm/bavarian-village.osm"))
+        .arg("--scans")
+        .arg(&scans)
+        .arg("--poses")
+        .arg(tmp.path().join("poses.txt"))
+        .arg("--config")
+        .arg(tmp.path().join("p.toml"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    assert_eq!(summary["frames"], 3);
+    assert_eq!(summary["params"]["window"]["width_cells"], 200);
+    let classes: Vec<u64> = serde_json::from_value(summary["final_classes"].clone()).unwrap();
+    assert_eq!(classes.iter().sum::<u64>(), 200 * 160);
+    // Most of a city street around the car is seen free; something is occupied.
+    let [_unknown, free, i, u, s, m] = classes[..] else {
+        panic!("six classes")
+    };
+    assert!(free > 2000, "{classes:?}");
+    assert!(i + u + s + m > 100, "{classes:?}");
+    let frame0 = &summary["per_frame"][0]["stats"]["sensor"];
+    assert_eq!(frame0["points"], 119_978);
+    let ground = frame0["ground_plane"]["offset_m"].as_f64().unwrap();
+    assert!((ground + 1.73).abs() < 0.15, "ground plane offset {ground}");
+    assert_eq!(summary["per_frame"][1]["stats"]["entered_cells"], 2 * 160);
+    for name in [
+        "frames/decision-000000.png",
+        "frames/decision-000002.png",
+        "decision.png",
+        "pignistic.png",
+        "trace.png",
+        "occupancy.json",
+        "masses.json",
+        "masses.bin",
+        "summary.json",
+    ] {
+        assert!(out.join(name).is_file(), "{name} missing");
+    }
+    let occupancy: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("occupancy.json")).unwrap()).unwrap();
+    assert_eq!(occupancy["data"].as_array().unwrap().len(), 200 * 160);
+    assert_eq!(
+        std::fs::metadata(out.join("masses.bin")).unwrap().len(),
+        200 * 160 * 35 * 4
+    );
+}
+
+#[test]
+fn bad_input_exits_with_status_2_naming_the_file() {
+    let Some(shared) = shared() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let scans = tmp.path().join("scans");
+    link_scans(&shared, &scans, 2);
+    let poses = tmp.path().join("poses.txt");
+    std::fs::write(&poses, "0.0 0 0 1.73 0 0 0\n").unwrap();
+    let run = |map: &Path, poses: &Path| {
+        evigrid()
+            .args(["run", "--map"])
+            .arg(map)
+            .arg("--scans")
+            .arg(&scans)
+            .arg("--poses")
+            .arg(poses)
+            .arg("--out")
+            .arg(tmp.path().join("out"))
+            .output()
+            .unwrap()
+    };
+    let map = shared.join("data/osm/bavarian-village.osm");
+    let output = run(&map, &poses);
+    assert_eq!(output.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("poses.txt") && stderr.contains("1 poses for 2 scans"),
+        "{stderr}"
+    );
+    let output = run(&tmp.path().join("nope.osm"), &poses);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&output.stderr).contains("nope.osm"));
+    std::fs::write(&poses, "0.0 0 0 1.73 0 0 0\nzero 1 0 1.73 0 0 0\n").unwrap();
+    let output = run(&map, &poses);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&output.stderr).contains("line 2"));
+}

@@ -1,0 +1,651 @@
+//! Scores of a per-cell classification against the simulator's truth, accumulated frame by
+//! frame in constant memory.
+//!
+//! # What is scored
+//! Every frame, every cell of the window that is (a) not [`IGNORED`](crate::truth::IGNORED) in
+//! truth and (b) observed at least once since it entered the window (the caller's `observed`
+//! mask: the sensor grid had evidence there at least once) adds one (truth, prediction) pair to a
+//! confusion matrix. A cell is counted once per frame, so long-lived cells weigh more, as in a
+//! per-frame benchmark.
+//!
+//! Truth is one of {F, I, U, S, M}. Predictions are one of {F, I, U, S, M, O, unknown}, where O
+//! ("occupied, static, class not resolved") is what a two-class baseline says of an occupied
+//! cell that is not moving. Because a baseline cannot name I, U or S, two views are reported:
+//! - **five-class** scores on the matrix as is (O counts as a miss for I, U and S);
+//! - **coarse** scores on {F, O = I ∪ U ∪ S, M}: truth and predictions I, U, S, O merge into O,
+//!   which compares every method fairly on free / static-occupied / moving.
+//!
+//! # Definitions (per class c, counts over scored cell-frames)
+//! TP = truth c and predicted c; FP = predicted c, truth not c; FN = truth c, predicted not c
+//! (unknown included: failing to decide is a miss). Precision TP/(TP+FP), recall TP/(TP+FN),
+//! IoU TP/(TP+FP+FN), F1 2TP/(2TP+FP+FN); a ratio with a zero denominator is `None`. Macro-F1 is
+//! the mean F1 over the classes whose F1 is defined (a class absent from truth and prediction
+//! neither helps nor hurts).
+//!
+//! Static and dynamic accuracy follow the KTH DynamicMap benchmark (Zhang, Khoche & Jensfelt,
+//! "A Dynamic Points Removal Benchmark in Point Cloud Maps", ITSC 2023; their
+//! `scripts/py/eval/evaluate_all.py`): SA = correctly kept static / all truly static, DA =
+//! correctly flagged dynamic / all truly dynamic, HA = their harmonic mean. For grids: SA is the
+//! fraction of cells whose truth is F, I, U or S that are *not* predicted M (unknown counts as
+//! kept: it does not wrongly delete a static object); DA is the fraction of truly M cells
+//! predicted M.
+//!
+//! Remanence: for a cell whose truth goes from M to F while the sensor observes it, the number of
+//! frames until it is first predicted F (0 = the same frame). Cells that leave the window, stop
+//! being F in truth, or never turn F are censored (counted, not timed). Latency: per moving
+//! episode of an actor (it has scan returns and moves; the episode ends when it stops or goes
+//! unseen), the frames from the episode's first return until a cell holding one of its returns
+//! is predicted M.
+//!
+//! # Why two scoring masks
+//! A scanner sees the near face of an object, never its inside: the cells inside a moving car
+//! were seen free before it came and are not observed while it is there, so under the "observed
+//! at least once" mask no method can get them right, which caps the M IoU far below 1. The
+//! evaluation therefore also keeps a second confusion matrix over the cells observed in the
+//! current frame (the sensor grid has evidence there now): it scores what the sensor can see,
+//! like point-wise benchmarks, at the price of not scoring the grid's memory of occluded cells.
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// A predicted label.
+#[repr(u8)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub enum Predicted {
+    /// Free.
+    F = 0,
+    /// Mapped infrastructure.
+    I = 1,
+    /// Unmapped infrastructure.
+    U = 2,
+    /// Stopped object.
+    S = 3,
+    /// Moving object.
+    M = 4,
+    /// Occupied and static, class not resolved (two-class baselines).
+    O = 5,
+    /// No decision.
+    Unknown = 6,
+}
+
+impl Predicted {
+    /// All labels, in code order.
+    pub const ALL: [Predicted; 7] = [
+        Predicted::F,
+        Predicted::I,
+        Predicted::U,
+        Predicted::S,
+        Predicted::M,
+        Predicted::O,
+        Predicted::Unknown,
+    ];
+    /// Short name.
+    pub fn name(self) -> &'static str {
+        ["F", "I", "U", "S", "M", "O", "unknown"][self as usize]
+    }
+}
+
+/// Names of the truth classes, in code order.
+pub const TRUTH_NAMES: [&str; 5] = ["F", "I", "U", "S", "M"];
+
+/// Counts of (truth, prediction) pairs: `counts[truth][predicted]`.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ConfusionMatrix {
+    /// Rows: truth F, I, U, S, M. Columns: predicted F, I, U, S, M, O, unknown.
+    pub counts: [[u64; 7]; 5],
+}
+
+impl ConfusionMatrix {
+    /// Adds one pair. Truth codes outside 0..=4 (e.g. ignored cells) are skipped.
+    pub fn add(&mut self, truth: u8, predicted: Predicted) {
+        if let Some(row) = self.counts.get_mut(truth as usize) {
+            row[predicted as usize] += 1;
+        }
+    }
+
+    /// Adds a frame: cell `k` counts when `observed[k]` is true. Slices must have equal length
+    /// (extra elements of the longer ones are ignored).
+    pub fn add_frame(&mut self, truth: &[u8], predicted: &[Predicted], observed: &[bool]) {
+        for ((&t, &p), &o) in truth.iter().zip(predicted).zip(observed) {
+            if o {
+                self.add(t, p);
+            }
+        }
+    }
+
+    /// Adds another matrix.
+    pub fn merge(&mut self, other: &ConfusionMatrix) {
+        for (a, b) in self.counts.iter_mut().zip(&other.counts) {
+            for (x, y) in a.iter_mut().zip(b) {
+                *x += y;
+            }
+        }
+    }
+
+    /// Total scored cell-frames.
+    pub fn total(&self) -> u64 {
+        self.counts.iter().flatten().sum()
+    }
+
+    /// The coarse 3 × 4 view: rows truth F, O, M; columns predicted F, O, M, unknown.
+    pub fn coarse(&self) -> [[u64; 4]; 3] {
+        let row_of = [0usize, 1, 1, 1, 2];
+        let col_of = [0usize, 1, 1, 1, 2, 1, 3];
+        let mut out = [[0u64; 4]; 3];
+        for (t, row) in self.counts.iter().enumerate() {
+            for (p, &n) in row.iter().enumerate() {
+                out[row_of[t]][col_of[p]] += n;
+            }
+        }
+        out
+    }
+
+    /// Every score.
+    pub fn scores(&self) -> Scores {
+        let five: Vec<ClassScores> = (0..5)
+            .map(|c| {
+                let tp = self.counts[c][c];
+                let fp: u64 = (0..5).filter(|&t| t != c).map(|t| self.counts[t][c]).sum();
+                let fn_: u64 = self.counts[c].iter().sum::<u64>() - tp;
+                ClassScores::new(TRUTH_NAMES[c], tp, fp, fn_)
+            })
+            .collect();
+        let coarse_m = self.coarse();
+        let coarse: Vec<ClassScores> = (0..3)
+            .map(|c| {
+                let tp = coarse_m[c][c];
+                let fp: u64 = (0..3).filter(|&t| t != c).map(|t| coarse_m[t][c]).sum();
+                let fn_: u64 = coarse_m[c].iter().sum::<u64>() - tp;
+                ClassScores::new(["F", "O", "M"][c], tp, fp, fn_)
+            })
+            .collect();
+        let static_total: u64 = self.counts[..4].iter().flatten().sum();
+        let static_kept: u64 = self.counts[..4]
+            .iter()
+            .map(|r| r.iter().sum::<u64>() - r[Predicted::M as usize])
+            .sum();
+        let dynamic_total: u64 = self.counts[4].iter().sum();
+        let dynamic_found = self.counts[4][Predicted::M as usize];
+        let sa = ratio(static_kept, static_total);
+        let da = ratio(dynamic_found, dynamic_total);
+        let ha = match (sa, da) {
+            (Some(s), Some(d)) if s + d > 0.0 => Some(2.0 * s * d / (s + d)),
+            (Some(_), Some(_)) => Some(0.0),
+            _ => None,
+        };
+        Scores {
+            macro_f1: macro_f1(&five),
+            macro_f1_coarse: macro_f1(&coarse),
+            moving_iou: five[4].iou,
+            static_accuracy: sa,
+            dynamic_accuracy: da,
+            harmonic_accuracy: ha,
+            classes: five,
+            coarse_classes: coarse,
+            scored_cell_frames: self.total(),
+        }
+    }
+}
+
+fn ratio(num: u64, den: u64) -> Option<f64> {
+    (den > 0).then(|| num as f64 / den as f64)
+}
+
+fn macro_f1(classes: &[ClassScores]) -> Option<f64> {
+    let defined: Vec<f64> = classes.iter().filter_map(|c| c.f1).collect();
+    (!defined.is_empty()).then(|| defined.iter().sum::<f64>() / defined.len() as f64)
+}
+
+/// Scores of one class.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ClassScores {
+    /// Class name.
+    pub class: String,
+    /// True positives.
+    pub tp: u64,
+    /// False positives.
+    pub fp: u64,
+    /// False negatives.
+    pub fn_: u64,
+    /// TP / (TP + FP).
+    pub precision: Option<f64>,
+    /// TP / (TP + FN).
+    pub recall: Option<f64>,
+    /// TP / (TP + FP + FN).
+    pub iou: Option<f64>,
+    /// 2TP / (2TP + FP + FN).
+    pub f1: Option<f64>,
+}
+
+impl ClassScores {
+    fn new(class: &str, tp: u64, fp: u64, fn_: u64) -> Self {
+        Self {
+            class: class.to_string(),
+            tp,
+            fp,
+            fn_,
+            precision: ratio(tp, tp + fp),
+            recall: ratio(tp, tp + fn_),
+            iou: ratio(tp, tp + fp + fn_),
+            f1: ratio(2 * tp, 2 * tp + fp + fn_),
+        }
+    }
+}
+
+/// All scores of a confusion matrix (see the module docs for definitions).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Scores {
+    /// Per class F, I, U, S, M.
+    pub classes: Vec<ClassScores>,
+    /// Per coarse class F, O (= I ∪ U ∪ S), M.
+    pub coarse_classes: Vec<ClassScores>,
+    /// Mean F1 over the five classes.
+    pub macro_f1: Option<f64>,
+    /// Mean F1 over the three coarse classes.
+    pub macro_f1_coarse: Option<f64>,
+    /// IoU of M.
+    pub moving_iou: Option<f64>,
+    /// DynamicMap SA.
+    pub static_accuracy: Option<f64>,
+    /// DynamicMap DA.
+    pub dynamic_accuracy: Option<f64>,
+    /// Harmonic mean of SA and DA.
+    pub harmonic_accuracy: Option<f64>,
+    /// Cell-frames scored.
+    pub scored_cell_frames: u64,
+}
+
+/// Durations in frames, as a bounded histogram (the last bin holds everything at or beyond it).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FrameHistogram {
+    bins: Vec<u64>,
+}
+
+impl Default for FrameHistogram {
+    fn default() -> Self {
+        Self {
+            bins: vec![0; 1024],
+        }
+    }
+}
+
+impl FrameHistogram {
+    /// Records one duration.
+    pub fn add(&mut self, frames: u32) {
+        let last = self.bins.len() - 1;
+        self.bins[(frames as usize).min(last)] += 1;
+    }
+    /// Number of durations recorded.
+    pub fn count(&self) -> u64 {
+        self.bins.iter().sum()
+    }
+    /// Nearest-rank percentile (`p` in (0, 1]): the smallest duration d such that at least
+    /// ⌈p·N⌉ recorded durations are ≤ d. `None` when empty.
+    pub fn percentile(&self, p: f64) -> Option<u32> {
+        let n = self.count();
+        if n == 0 {
+            return None;
+        }
+        let rank = ((p.clamp(0.0, 1.0) * n as f64).ceil() as u64).max(1);
+        let mut acc = 0;
+        for (d, &c) in self.bins.iter().enumerate() {
+            acc += c;
+            if acc >= rank {
+                return Some(d as u32);
+            }
+        }
+        None
+    }
+    /// Adds another histogram.
+    pub fn merge(&mut self, other: &FrameHistogram) {
+        for (a, b) in self.bins.iter_mut().zip(&other.bins) {
+            *a += b;
+        }
+    }
+}
+
+/// Summary of a duration histogram.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DurationSummary {
+    /// Events timed.
+    pub timed: u64,
+    /// Events started but never completed (censored).
+    pub censored: u64,
+    /// Median, frames.
+    pub median_frames: Option<u32>,
+    /// 95th percentile, frames.
+    pub p95_frames: Option<u32>,
+}
+
+/// Remanence tracker over a fixed set of cells (indexed like the caller's grid storage).
+#[derive(Clone, Debug)]
+pub struct Remanence {
+    previous_truth: Vec<u8>,
+    /// Frame when the cell was vacated, or u32::MAX when not waiting.
+    vacated_at: Vec<u32>,
+    histogram: FrameHistogram,
+    censored: u64,
+}
+
+const NOT_WAITING: u32 = u32::MAX;
+const NO_TRUTH: u8 = u8::MAX;
+
+impl Remanence {
+    /// A tracker over `len` cells.
+    pub fn new(len: usize) -> Self {
+        Self {
+            previous_truth: vec![NO_TRUTH; len],
+            vacated_at: vec![NOT_WAITING; len],
+            histogram: FrameHistogram::default(),
+            censored: 0,
+        }
+    }
+    /// Forgets cell `idx` (it left the window): a pending wait is censored.
+    pub fn reset(&mut self, idx: usize) {
+        if let Some(v) = self.vacated_at.get_mut(idx) {
+            if *v != NOT_WAITING {
+                self.censored += 1;
+            }
+            *v = NOT_WAITING;
+            self.previous_truth[idx] = NO_TRUTH;
+        }
+    }
+    /// Updates cell `idx` at `frame` with its truth, prediction and whether the sensor observes it
+    /// in this frame.
+    pub fn update(
+        &mut self,
+        idx: usize,
+        frame: u32,
+        truth: u8,
+        predicted: Predicted,
+        observed_now: bool,
+    ) {
+        let Some(prev) = self.previous_truth.get(idx).copied() else {
+            return;
+        };
+        let f = crate::truth::TruthClass::F as u8;
+        let m = crate::truth::TruthClass::M as u8;
+        if prev == m && truth == f && observed_now && self.vacated_at[idx] == NOT_WAITING {
+            self.vacated_at[idx] = frame;
+        }
+        let start = self.vacated_at[idx];
+        if start != NOT_WAITING {
+            if truth != f {
+                self.censored += 1;
+                self.vacated_at[idx] = NOT_WAITING;
+            } else if predicted == Predicted::F {
+                self.histogram.add(frame.saturating_sub(start));
+                self.vacated_at[idx] = NOT_WAITING;
+            }
+        }
+        self.previous_truth[idx] = truth;
+    }
+    /// Folds in another tracker's results (e.g. another seed's): its timed durations and its
+    /// censored events, waiting cells included.
+    pub fn merge(&mut self, other: &Remanence) {
+        self.histogram.merge(&other.histogram);
+        self.censored += other.summary().censored;
+    }
+    /// Summary so far (cells still waiting count as censored).
+    pub fn summary(&self) -> DurationSummary {
+        let waiting = self
+            .vacated_at
+            .iter()
+            .filter(|&&v| v != NOT_WAITING)
+            .count() as u64;
+        DurationSummary {
+            timed: self.histogram.count(),
+            censored: self.censored + waiting,
+            median_frames: self.histogram.percentile(0.5),
+            p95_frames: self.histogram.percentile(0.95),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct LatencyState {
+    /// Frame of the first return of the current moving episode, when one is being timed.
+    pending_since: Option<u32>,
+    /// The current moving episode has been decided M.
+    decided: bool,
+    /// Last frame the actor had returns.
+    last_seen: u32,
+}
+
+/// Detection latency per actor and moving episode.
+#[derive(Clone, Debug, Default)]
+pub struct Latency {
+    // BTreeMap: deterministic iteration order.
+    actors: BTreeMap<u32, LatencyState>,
+    histogram: FrameHistogram,
+    censored: u64,
+}
+
+impl Latency {
+    /// Records that `actor` has returns in `frame`; `moving` is its truth at that instant and
+    /// `decided_moving` whether any cell holding one of its returns is predicted M.
+    ///
+    /// An episode starts at a frame where the actor has returns and moves; it is timed when a
+    /// return cell is first decided M. It is censored (counted, not timed) when the actor stops
+    /// first or goes unseen for a frame; the next return while moving starts a new episode.
+    /// So a car that stops at a junction and drives off again is timed again when it restarts.
+    pub fn observe(&mut self, actor: u32, frame: u32, moving: bool, decided_moving: bool) {
+        let state = self.actors.entry(actor).or_insert(LatencyState {
+            pending_since: None,
+            decided: false,
+            last_seen: frame,
+        });
+        let gap = frame.saturating_sub(state.last_seen) > 1;
+        state.last_seen = frame;
+        if !moving || gap {
+            if state.pending_since.take().is_some() {
+                self.censored += 1;
+            }
+            state.decided = false;
+            if !moving {
+                return;
+            }
+        }
+        if state.decided {
+            return;
+        }
+        let since = *state.pending_since.get_or_insert(frame);
+        if decided_moving {
+            self.histogram.add(frame.saturating_sub(since));
+            state.pending_since = None;
+            state.decided = true;
+        }
+    }
+    /// Folds in another tracker's results (another drive: its actors are different actors).
+    pub fn merge(&mut self, other: &Latency) {
+        self.histogram.merge(&other.histogram);
+        self.censored += other.summary().censored;
+    }
+    /// Summary so far.
+    pub fn summary(&self) -> DurationSummary {
+        DurationSummary {
+            timed: self.histogram.count(),
+            censored: self.censored
+                + self
+                    .actors
+                    .values()
+                    .filter(|s| s.pending_since.is_some())
+                    .count() as u64,
+            median_frames: self.histogram.percentile(0.5),
+            p95_frames: self.histogram.percentile(0.95),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use Predicted as P;
+    use approx::assert_relative_eq;
+
+    fn hand_matrix() -> ConfusionMatrix {
+        // Ten scored cells, one unobserved (would be F→M) and one ignored (255):
+        // truth: F F F F I I   U S M M | F  | 255
+        // pred:  F F M U I unk U S M F | M  | M
+        let truth = [0, 0, 0, 0, 1, 1, 2, 3, 4, 4, 0, 255];
+        let pred = [
+            P::F,
+            P::F,
+            P::M,
+            P::U,
+            P::I,
+            P::Unknown,
+            P::U,
+            P::S,
+            P::M,
+            P::F,
+            P::M,
+            P::M,
+        ];
+        let mut observed = [true; 12];
+        observed[10] = false;
+        let mut m = ConfusionMatrix::default();
+        m.add_frame(&truth, &pred, &observed);
+        m
+    }
+
+    #[test]
+    fn confusion_matrix_counts_only_observed_scored_cells() {
+        let m = hand_matrix();
+        assert_eq!(m.total(), 10);
+        assert_eq!(m.counts[0], [2, 0, 1, 0, 1, 0, 0]);
+        assert_eq!(m.counts[1], [0, 1, 0, 0, 0, 0, 1]);
+        assert_eq!(m.counts[4], [1, 0, 0, 0, 1, 0, 0]);
+    }
+
+    #[test]
+    fn every_score_matches_hand_computation() {
+        let s = hand_matrix().scores();
+        // F: TP 2, FP 1 (M→F), FN 2 (F→M, F→U): P 2/3, R 1/2, IoU 2/5, F1 4/7.
+        let f = &s.classes[0];
+        assert_eq!((f.tp, f.fp, f.fn_), (2, 1, 2));
+        assert_relative_eq!(f.precision.unwrap_or(-1.0), 2.0 / 3.0);
+        assert_relative_eq!(f.recall.unwrap_or(-1.0), 0.5);
+        assert_relative_eq!(f.iou.unwrap_or(-1.0), 0.4);
+        assert_relative_eq!(f.f1.unwrap_or(-1.0), 4.0 / 7.0);
+        // I: TP 1, FP 0, FN 1 (unknown): P 1, R 1/2, IoU 1/2, F1 2/3.
+        let i = &s.classes[1];
+        assert_relative_eq!(i.precision.unwrap_or(-1.0), 1.0);
+        assert_relative_eq!(i.recall.unwrap_or(-1.0), 0.5);
+        assert_relative_eq!(i.iou.unwrap_or(-1.0), 0.5);
+        // U: TP 1, FP 1 (F→U), FN 0: P 1/2, R 1, IoU 1/2, F1 2/3.
+        let u = &s.classes[2];
+        assert_relative_eq!(u.precision.unwrap_or(-1.0), 0.5);
+        assert_relative_eq!(u.recall.unwrap_or(-1.0), 1.0);
+        assert_relative_eq!(u.f1.unwrap_or(-1.0), 2.0 / 3.0);
+        // S: perfect.
+        assert_relative_eq!(s.classes[3].iou.unwrap_or(-1.0), 1.0);
+        // M: TP 1, FP 1 (F→M), FN 1 (M→F): P 1/2, R 1/2, IoU 1/3, F1 1/2.
+        assert_relative_eq!(s.moving_iou.unwrap_or(-1.0), 1.0 / 3.0);
+        assert_relative_eq!(s.classes[4].f1.unwrap_or(-1.0), 0.5);
+        // Macro-F1 = (4/7 + 2/3 + 2/3 + 1 + 1/2) / 5 = 0.680952…
+        assert_relative_eq!(
+            s.macro_f1.unwrap_or(-1.0),
+            (4.0 / 7.0 + 2.0 / 3.0 + 2.0 / 3.0 + 1.0 + 0.5) / 5.0
+        );
+        assert_relative_eq!(
+            s.macro_f1.unwrap_or(-1.0),
+            0.680_952_380_952,
+            epsilon = 1e-9
+        );
+        // SA: 8 static-truth cells (4 F, 2 I, 1 U, 1 S), one predicted M → 7/8.
+        // DA: 1 of 2 M cells → 1/2. HA = 2·0.875·0.5 / 1.375 = 0.636363…
+        assert_relative_eq!(s.static_accuracy.unwrap_or(-1.0), 0.875);
+        assert_relative_eq!(s.dynamic_accuracy.unwrap_or(-1.0), 0.5);
+        assert_relative_eq!(
+            s.harmonic_accuracy.unwrap_or(-1.0),
+            0.636_363_636_36,
+            epsilon = 1e-9
+        );
+        // Coarse: O = I ∪ U ∪ S. Truth O cells: I→I, I→unk, U→U, S→S → TP 3, FN 1; FP 1 (F→U).
+        // P 3/4, R 3/4, IoU 3/5, F1 3/4. F and M as before.
+        let o = &s.coarse_classes[1];
+        assert_eq!((o.tp, o.fp, o.fn_), (3, 1, 1));
+        assert_relative_eq!(o.iou.unwrap_or(-1.0), 0.6);
+        assert_relative_eq!(
+            s.macro_f1_coarse.unwrap_or(-1.0),
+            (4.0 / 7.0 + 0.75 + 0.5) / 3.0
+        );
+    }
+
+    #[test]
+    fn baseline_o_counts_as_static_in_coarse_view_only() {
+        let mut m = ConfusionMatrix::default();
+        // One I cell predicted O: five-class I recall 0, coarse O recall 1, SA 1.
+        m.add(1, P::O);
+        let s = m.scores();
+        assert_eq!(s.classes[1].recall, Some(0.0));
+        assert_eq!(s.coarse_classes[1].recall, Some(1.0));
+        assert_eq!(s.static_accuracy, Some(1.0));
+        assert_eq!(s.dynamic_accuracy, None);
+        assert_eq!(s.harmonic_accuracy, None);
+        // Undefined classes (F, U, S, M: no truth, no prediction) are left out of macro-F1:
+        // only I (F1 0) counts.
+        assert_eq!(s.macro_f1, Some(0.0));
+    }
+
+    #[test]
+    fn remanence_times_vacated_cells_and_censors_the_rest() {
+        let (f, m) = (0u8, 4u8);
+        let mut r = Remanence::new(4);
+        // Cell 0: truth M M F F F F, pred M M M M F F → vacated at 2, F at 4: 2 frames.
+        // Cell 1: truth M F, pred M F → 0 frames.
+        // Cell 2: truth M F F, pred M M M → censored (still waiting).
+        // Cell 3: truth M F, but not observed when vacated → never starts.
+        let t0 = [m, m, f, f, f, f];
+        let p0 = [P::M, P::M, P::M, P::M, P::F, P::F];
+        for k in 0..6 {
+            r.update(0, k as u32, t0[k], p0[k], true);
+        }
+        r.update(1, 0, m, P::M, true);
+        r.update(1, 1, f, P::F, true);
+        for k in 0..3 {
+            r.update(2, k, if k == 0 { m } else { f }, P::M, true);
+        }
+        r.update(3, 0, m, P::M, true);
+        r.update(3, 1, f, P::M, false);
+        let s = r.summary();
+        assert_eq!(s.timed, 2);
+        assert_eq!(s.censored, 1);
+        // Nearest rank over {0, 2}: median rank ⌈1⌉ = 1 → 0; p95 rank ⌈1.9⌉ = 2 → 2.
+        assert_eq!(s.median_frames, Some(0));
+        assert_eq!(s.p95_frames, Some(2));
+        // Leaving the window censors nothing more here; a waiting cell reset is censored once.
+        r.reset(2);
+        assert_eq!(r.summary().censored, 1);
+    }
+
+    #[test]
+    fn latency_times_moving_episodes_from_first_return() {
+        let mut l = Latency::default();
+        // Actor 1 first seen moving at frame 3, decided M at frame 6 → 3 frames; later frames of
+        // the same episode add nothing.
+        l.observe(1, 3, true, false);
+        l.observe(1, 4, true, false);
+        l.observe(1, 5, true, false);
+        l.observe(1, 6, true, true);
+        l.observe(1, 7, true, true);
+        // It stops (frame 8), restarts at frame 9 and is decided at once → 0 frames.
+        l.observe(1, 8, false, false);
+        l.observe(1, 9, true, true);
+        // Actor 2 first seen stopped: nothing; moving from frame 4, decided at 5 → 1 frame.
+        l.observe(2, 0, false, false);
+        l.observe(2, 4, true, false);
+        l.observe(2, 5, true, true);
+        // Actor 3 moving, unseen after frame 1 (gap), seen again at 5 → first episode censored;
+        // second one still pending at the end → censored too.
+        l.observe(3, 1, true, false);
+        l.observe(3, 5, true, false);
+        let s = l.summary();
+        assert_eq!(s.timed, 3);
+        assert_eq!(s.censored, 2);
+        // Durations {0, 1, 3}: median rank 2 → 1; p95 rank 3 → 3.
+        assert_eq!(s.median_frames, Some(1));
+        assert_eq!(s.p95_frames, Some(3));
+    }
+}

@@ -1,0 +1,114 @@
+//! End-to-end: simulated drives on real OpenStreetMap extracts, every variant scored.
+
+use sim::eval::{EvalConfig, Variant, evaluate};
+use sim::{Drive, Scenario};
+use std::path::PathBuf;
+
+/// The shared data directory (`EVIGRID_SHARED`, else `<workspace>/../shared`), or `None` with a
+/// printed note when it is missing and not required.
+fn shared_file(relative: &str) -> Option<PathBuf> {
+    let root = std::env::var_os("EVIGRID_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"));
+    let path = root.join(relative);
+    if path.exists() {
+        return Some(path);
+    }
+    assert!(
+        std::env::var("EVIGRID_REQUIRE_SHARED").as_deref() != Ok("1"),
+        "shared data {} is missing and EVIGRID_REQUIRE_SHARED=1",
+        path.display()
+    );
+    eprintln!("skipping: shared data {} not found", path.display());
+    None
+}
+
+fn load(relative: &str) -> Option<geodata::LocalMap> {
+    let path = shared_file(relative)?;
+    match geodata::load_map(&path, &geodata::LoadOptions::default()) {
+        Ok(loaded) => Some(loaded.map),
+        Err(e) => panic!("cannot load {}: {e}", path.display()),
+    }
+}
+
+fn village_scenario() -> Scenario {
+    let mut s = Scenario {
+        duration_s: 10.0,
+        ..Scenario::default()
+    };
+    s.traffic.moving_cars = 6;
+    s.traffic.parked_cars = 8;
+    s.traffic.pedestrians = 8;
+    s.traffic.infrastructure = 15;
+    s.ego.speed_mps = 6.0;
+    s
+}
+
+#[test]
+fn full_beats_no_map_on_the_bavarian_village() -> Result<(), Box<dyn std::error::Error>> {
+    let Some(map) = load("data/osm/bavarian-village.osm") else {
+        return Ok(());
+    };
+    let mut config = EvalConfig::default();
+    // 100 m × 100 m: the IBEO's useful range ahead of the ego.
+    config.params.window.width_cells = 200;
+    config.params.window.height_cells = 200;
+    let report = evaluate(
+        &map,
+        &village_scenario(),
+        &Variant::ALL,
+        &[1, 2],
+        &config,
+        &mut |_| {},
+    )?;
+    println!("{}", report.to_markdown());
+    println!("{}", serde_json::to_string(&report.variants[0].latency)?);
+    let full = &report.variants[0].scores;
+    let no_map = &report.variants[1].scores;
+    let f1 = |s: &sim::metrics::Scores| s.macro_f1.unwrap_or(0.0);
+    assert!(
+        f1(full) > f1(no_map),
+        "full {:?} vs no-map {:?}",
+        full.macro_f1,
+        no_map.macro_f1
+    );
+    assert!(
+        full.moving_iou.unwrap_or(0.0) > MOVING_IOU_FLOOR,
+        "{:?}",
+        full.moving_iou
+    );
+    let visible = report.variants[0].scores_visible.moving_iou.unwrap_or(0.0);
+    assert!(visible > MOVING_IOU_VISIBLE_FLOOR, "{visible}");
+    Ok(())
+}
+
+/// Floor on the moving-class IoU of `full` over cells observed at least once. Measured 0.106 on
+/// this drive (seeds 1 and 2) with evigrid's default parameters; it is low because the inside of
+/// a moving car is never visible (see `sim::metrics`). Half of it: a pipeline that stops
+/// deciding M, or decides it in the wrong cells, falls below; retuning the defaults does not.
+const MOVING_IOU_FLOOR: f64 = 0.05;
+/// Floor on the same IoU over the cells observed in each frame. Measured 0.270; half of it.
+const MOVING_IOU_VISIBLE_FLOOR: f64 = 0.135;
+
+#[test]
+fn drives_on_every_shared_map_are_deterministic() -> Result<(), Box<dyn std::error::Error>> {
+    for file in ["data/osm/bavarian-village.osm", "data/osm/monaco.osm.gz"] {
+        let Some(map) = load(file) else { continue };
+        let s = Scenario {
+            duration_s: 1.0,
+            ..Scenario::default()
+        };
+        let run = || -> Result<Vec<sim::Frame>, sim::SimError> {
+            let mut d = Drive::new(&map, &s)?;
+            Ok(std::iter::from_fn(|| d.next_frame()).collect())
+        };
+        let a = run()?;
+        assert_eq!(a.len(), 10);
+        assert!(
+            a.iter().all(|f| !f.scan.points_in_sensor.is_empty()),
+            "{file}: empty scan"
+        );
+        assert_eq!(a, run()?);
+    }
+    Ok(())
+}
