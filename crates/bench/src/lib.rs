@@ -136,7 +136,10 @@ pub struct BenchReport {
 /// # Errors
 /// Invalid options, a naive step that disagrees with the library, or real inputs that cannot be
 /// read.
-pub fn run(options: &BenchOptions, mut progress: impl FnMut(&str)) -> Result<BenchReport, BenchError> {
+pub fn run(
+    options: &BenchOptions,
+    mut progress: impl FnMut(&str),
+) -> Result<BenchReport, BenchError> {
     if options.sizes.contains(&0) || options.rounds == 0 {
         return Err(BenchError::InvalidOption(
             "sizes and rounds must be positive".into(),
@@ -227,13 +230,19 @@ impl<'a> Cases<'a> {
         let size = self.size;
         let (pg, sg, gg, params) = (&mut self.pg, &self.sg, &self.gg, self.params);
         let floor = &mut self.floor;
-        times.push(("copy@1".into(), one_thread.install(|| time(|| floor.run(size)))));
+        times.push((
+            "copy@1".into(),
+            one_thread.install(|| time(|| floor.run(size))),
+        ));
         times.push((format!("copy@{n}"), time(|| floor.run(size))));
         times.push((
             "step@1".into(),
             one_thread.install(|| time(|| evigrid::step(pg, sg, gg, params, 0.1))),
         ));
-        times.push((format!("step@{n}"), time(|| evigrid::step(pg, sg, gg, params, 0.1))));
+        times.push((
+            format!("step@{n}"),
+            time(|| evigrid::step(pg, sg, gg, params, 0.1)),
+        ));
         if with_naive {
             let naive = &mut self.naive;
             times.push(("naive@1".into(), time(|| naive.step(sg, gg, params, 0.1))));
@@ -266,11 +275,7 @@ impl<'a> Cases<'a> {
         let n = self.threads;
         let pairs = [
             ("copy/step@1", "copy@1".to_string(), "step@1".to_string()),
-            (
-                "copy/step@N",
-                format!("copy@{n}"),
-                format!("step@{n}"),
-            ),
+            ("copy/step@N", format!("copy@{n}"), format!("step@{n}")),
             ("naive/step@1", "naive@1".into(), "step@1".into()),
             ("step@1/step@N", "step@1".into(), format!("step@{n}")),
             (
@@ -336,7 +341,7 @@ pub fn median(mut values: Vec<f64>) -> f64 {
     }
     values.sort_by(f64::total_cmp);
     let mid = values.len() / 2;
-    if values.len() % 2 == 0 {
+    if values.len().is_multiple_of(2) {
         (values[mid - 1] + values[mid]) / 2.0
     } else {
         values[mid]

@@ -98,7 +98,10 @@ impl Rates {
             } else {
                 set
             };
-            rate_for_step(set_rate_per_second(set, &class_rates, fusion.set_rate), dt_s) as f32
+            rate_for_step(
+                set_rate_per_second(set, &class_rates, fusion.set_rate),
+                dt_s,
+            ) as f32
         });
         let per_class = class_rates.map(|rate| rate_for_step(rate, dt_s) as f32);
         Rates { per_set, per_class }

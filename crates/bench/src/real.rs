@@ -75,8 +75,8 @@ impl RealCases {
         params.grid.cell_size_m = cell_size_m;
         params.window.width_cells = size;
         params.window.height_cells = size;
-        let mut window = Window::new(size, size, cell_size_m)
-            .map_err(evigrid::pipeline::PipelineError::from)?;
+        let mut window =
+            Window::new(size, size, cell_size_m).map_err(evigrid::pipeline::PipelineError::from)?;
         let _ = window.recentre(0.0, 0.0);
         let mut gis = GisGrid::new(size, size);
         let mut prior = MapPrior::new(Some(raster.clone()));
@@ -117,13 +117,10 @@ impl RealCases {
         threads: usize,
     ) -> Result<Vec<(String, f64)>, RealError> {
         let pose = Isometry3::from_xyz_rpy(0.0, 0.0, KITTI_SENSOR_HEIGHT_M, 0.0, 0.0, 0.0);
-        let (model, window, grid) = (
-            &mut self.sensor_model,
-            &self.window,
-            &mut self.sensor_grid,
-        );
+        let (model, window, grid) = (&mut self.sensor_model, &self.window, &mut self.sensor_grid);
         let points = &self.points;
-        let sensor = one_thread.install(|| crate::time(|| model.build(points, &pose, window, grid)));
+        let sensor =
+            one_thread.install(|| crate::time(|| model.build(points, &pose, window, grid)));
 
         let shift = 5 * self.prior_direction;
         self.prior_direction = -self.prior_direction;
@@ -131,7 +128,8 @@ impl RealCases {
         let window = &mut self.window;
         let prior_s = one_thread.install(|| {
             crate::time(|| {
-                let entered = window.move_to(window.first_col() + shift, window.first_row() + shift);
+                let entered =
+                    window.move_to(window.first_col() + shift, window.first_row() + shift);
                 prior.fill_entered(window, &entered, gis);
             })
         });

@@ -60,7 +60,7 @@ pub fn random_gis_grid(width: usize, height: usize, rng: &mut SplitMix64) -> Gis
     ];
     let mut current = MapContext::Other;
     for context in gg.context.iter_mut() {
-        if rng.next_u64() % 8 == 0 {
+        if rng.next_u64().is_multiple_of(8) {
             current = contexts[(rng.next_u64() % 4) as usize];
         }
         *context = current;

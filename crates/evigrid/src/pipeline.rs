@@ -26,6 +26,8 @@
 //! # Ok::<(), evigrid::pipeline::PipelineError>(())
 //! ```
 
+use std::time::Instant;
+
 use geodata::ContextRaster;
 use serde::Serialize;
 
@@ -79,6 +81,15 @@ pub struct FrameStats {
     pub observed_cells: u64,
     /// Cells in total conflict between sensor and map (SPEC §5 step 2).
     pub total_map_conflicts: u64,
+    /// Wall time of the stages, milliseconds: window move with resets and map prior, sensor
+    /// grid, fusion step, decision.
+    pub window_ms: f64,
+    /// See `window_ms`.
+    pub sensor_ms: f64,
+    /// See `window_ms`.
+    pub step_ms: f64,
+    /// See `window_ms`.
+    pub decide_ms: f64,
 }
 
 /// The whole perception loop for one drive.
@@ -150,6 +161,8 @@ impl Pipeline {
             });
         }
         let [x_m, y_m, _] = world_from_sensor.translation;
+        let ms = |start: Instant| start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
 
         // Follow the vehicle: whole-cell shift of the window; cells that enter start vacuous and
         // get their map prior (all cells on the first frame).
@@ -171,7 +184,10 @@ impl Pipeline {
             entered.cell_count()
         };
 
+        let window_ms = ms(start);
+
         // Sensor grid from the scan (SPEC §3).
+        let start = Instant::now();
         let sensor = self.sensor_model.build(
             points_in_sensor,
             world_from_sensor,
@@ -181,6 +197,8 @@ impl Pipeline {
 
         // Refine, combine with the map prior, discount the past, fuse, accumulate, specialise
         // (SPEC §5).
+        let sensor_ms = ms(start);
+        let start = Instant::now();
         let dt_s = time_s - previous_s;
         let step_stats: StepStats = step(
             &mut self.perception,
@@ -190,13 +208,18 @@ impl Pipeline {
             dt_s,
         );
 
+        let step_ms = ms(start);
+
         // Decide, and add this frame's moving cells to the trace (SPEC §6).
+        let start = Instant::now();
         decide_grid(
             &self.perception,
             self.params.decision.unknown_threshold,
             &mut self.decisions,
         );
         self.trace.record(&self.decisions);
+
+        let decide_ms = ms(start);
 
         self.last_time_s = Some(time_s);
         Ok(FrameStats {
@@ -206,6 +229,10 @@ impl Pipeline {
             step_cells: step_stats.cells,
             observed_cells: step_stats.observed_cells,
             total_map_conflicts: step_stats.total_map_conflicts,
+            window_ms,
+            sensor_ms,
+            step_ms,
+            decide_ms,
         })
     }
 

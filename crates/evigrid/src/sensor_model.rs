@@ -930,7 +930,12 @@ mod tests {
         let mut stats = SensorStats::default();
         for _ in 0..5 {
             let (cpu0, start) = (cpu_ns(), std::time::Instant::now());
-            stats = model.build(&scan.points_in_sensor, &Isometry3::IDENTITY, &window, &mut grid);
+            stats = model.build(
+                &scan.points_in_sensor,
+                &Isometry3::IDENTITY,
+                &window,
+                &mut grid,
+            );
             let wall = start.elapsed();
             let cpu = cpu_ns().zip(cpu0).map_or(u64::MAX, |(b, a)| b - a);
             fastest = (fastest.0.min(cpu), fastest.1.min(wall));

@@ -61,9 +61,11 @@ pub enum SkipReason {
     DegenerateRing,
     /// A ring that crosses itself.
     SelfIntersectingRing,
-    /// A multipolygon relation's member ways are absent from the extract.
+    /// Some member ways of a multipolygon relation are absent from the extract (or cut). The
+    /// rings that still close are used; the relation is counted here once either way.
     RelationMissingMembers,
-    /// A multipolygon relation whose member ways do not join into closed rings.
+    /// A multipolygon relation whose (present) member ways do not all join into closed rings;
+    /// the rings that close are used.
     RelationOpenRing,
     /// A multipolygon relation with no usable outer ring.
     RelationNoOuterRing,
@@ -96,8 +98,9 @@ impl SkipReason {
 /// Counts of skipped items by reason.
 pub type SkipCounts = BTreeMap<SkipReason, usize>;
 
-/// Counts of tagged elements in the source, before any geometry is built. They make a reader
-/// checkable against an independent count (e.g. pyosmium's).
+/// Counts of tagged elements in the source and of how many of them were used. The first four
+/// make a reader checkable against an independent count (e.g. pyosmium's); the `_used` ones show
+/// what an extract cut at its border cost.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct SourceCounts {
     /// OSM ways (or GeoJSON features) tagged `building=*` other than `no`.

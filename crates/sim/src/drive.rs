@@ -57,7 +57,7 @@ impl Drive {
     pub fn new(map: &LocalMap, scenario: &Scenario) -> Result<Self, SimError> {
         scenario.validate()?;
         let mut world = World::from_polygons(&map.buildings, &map.roads, &map.extent);
-        let net = RoadNetwork::new(&world);
+        let mut net = RoadNetwork::new(&world);
         if net.anchor_count() == 0 {
             return Err(SimError::NoRoads {
                 road_polygons: map.roads.len(),
@@ -65,6 +65,7 @@ impl Drive {
         }
         let mut traffic_rng = StdRng::seed_from_u64(scenario.seed);
         let ego_route = ego_route(&net, scenario, &mut traffic_rng)?;
+        net.set_focus(&ego_route.path, scenario.traffic.spawn_within_m);
         let mut actors = actors::populate(&net, &scenario.traffic, &mut traffic_rng);
         let ego_id = actors.len() as u32;
         actors.push(Actor::driving_car(

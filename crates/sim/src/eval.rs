@@ -546,6 +546,17 @@ impl EvalReport {
                 fmt(v.scores.coarse_classes[1].iou)
             ));
         }
+        for v in &self.variants {
+            s.push_str(&format!(
+                "\nConfusion of {} (cell-frames observed at least once; rows truth, columns prediction):\n\n",
+                v.variant.name()
+            ));
+            s.push_str("| truth \\ predicted | F | I | U | S | M | O | unknown |\n|---|---|---|---|---|---|---|---|\n");
+            for (name, row) in crate::metrics::TRUTH_NAMES.iter().zip(&v.confusion.counts) {
+                let cells: Vec<String> = row.iter().map(u64::to_string).collect();
+                s.push_str(&format!("| {name} | {} |\n", cells.join(" | ")));
+            }
+        }
         s
     }
 }

@@ -37,6 +37,7 @@ pub mod drive;
 pub mod eval;
 pub mod geometry;
 pub mod metrics;
+pub mod plots;
 pub mod roadnet;
 pub mod scenario;
 pub mod sensor;
@@ -45,6 +46,7 @@ pub mod world;
 
 pub use drive::{Drive, Frame};
 pub use eval::{EvalConfig, EvalReport, Variant, evaluate};
+pub use plots::{confusion_heatmap, per_class_iou_chart};
 pub use scenario::Scenario;
 pub use truth::TruthClass;
 

@@ -40,6 +40,8 @@ pub struct RoadNetwork {
     dist_m: Vec<f32>,
     /// Skeleton pixels wide enough for a car (index into the raster), for drawing route ends.
     anchors: Vec<u32>,
+    /// Anchors near the focus path, where random routes start (all anchors when empty).
+    focus: Vec<u32>,
     /// Raster index → compact skeleton index (u32::MAX off the skeleton).
     skeleton_index: Vec<u32>,
     /// Compact skeleton index → raster index.
@@ -76,6 +78,7 @@ impl RoadNetwork {
             flags: vec![0; cols * rows],
             dist_m: vec![0.0; cols * rows],
             anchors: Vec::new(),
+            focus: Vec::new(),
             skeleton_index: Vec::new(),
             skeleton_pixels: Vec::new(),
             adjacency_start: Vec::new(),
@@ -473,17 +476,47 @@ impl RoadNetwork {
         self.route_from_pixel(s, min_len_m, max_len_m, rng)
     }
 
-    /// A route starting at a random anchor.
+    /// Makes random routes start within `radius_m` of `path` (e.g. the ego route), so that a
+    /// few actors on a large map are where the sensor can see them. A radius ≤ 0, or no anchor
+    /// that near, lets routes start anywhere.
+    pub fn set_focus(&mut self, path: &Polyline, radius_m: f64) {
+        self.focus.clear();
+        if radius_m <= 0.0 {
+            return;
+        }
+        let n = (path.length_m() / 5.0).ceil() as usize;
+        let samples: Vec<Vec2> = (0..=n).map(|k| path.at(k as f64 * 5.0).0).collect();
+        let r2 = radius_m * radius_m;
+        self.focus = self
+            .anchors
+            .iter()
+            .copied()
+            .filter(|&a| {
+                let p = self.centre(a as usize);
+                samples.iter().any(|q| {
+                    let d = p.minus(*q);
+                    d.dot(d) <= r2
+                })
+            })
+            .collect();
+    }
+
+    /// A route starting at a random anchor (near the focus, if one is set).
     pub fn random_route(
         &self,
         min_len_m: f64,
         max_len_m: f64,
         rng: &mut impl Rng,
     ) -> Option<Route> {
-        if self.anchors.is_empty() {
+        let pool = if self.focus.is_empty() {
+            &self.anchors
+        } else {
+            &self.focus
+        };
+        if pool.is_empty() {
             return None;
         }
-        let s = self.anchors[rng.random_range(0..self.anchors.len())] as usize;
+        let s = pool[rng.random_range(0..pool.len())] as usize;
         self.route_from_pixel(s, min_len_m, max_len_m, rng)
     }
 

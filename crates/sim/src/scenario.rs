@@ -76,6 +76,10 @@ pub struct TrafficConfig {
     pub stand_duration_s: [f64; 2],
     /// Unmapped street furniture on the pavements: poles, trees, bins, bollards.
     pub infrastructure: usize,
+    /// Actors are placed on roads within this distance of the ego route, metres (0: anywhere on
+    /// the map). By default 150 m, about twice the scanner's range: on a town-sized map the
+    /// actors would otherwise mostly be out of sight.
+    pub spawn_within_m: f64,
 }
 
 impl Default for TrafficConfig {
@@ -91,6 +95,7 @@ impl Default for TrafficConfig {
             walk_duration_s: [4.0, 15.0],
             stand_duration_s: [2.0, 10.0],
             infrastructure: 30,
+            spawn_within_m: 150.0,
         }
     }
 }
@@ -253,8 +258,9 @@ impl Scenario {
                 return bad(field, v);
             }
         }
-        let non_negative: [(&'static str, f64); 6] = [
+        let non_negative: [(&'static str, f64); 7] = [
             ("ego.speed_mps", self.ego.speed_mps),
+            ("traffic.spawn_within_m", t.spawn_within_m),
             ("sensor.range_noise_m", s.range_noise_m),
             ("errors.pose_sigma_m", e.pose_sigma_m),
             ("errors.pose_sigma_heading_deg", e.pose_sigma_heading_deg),

@@ -82,13 +82,13 @@ fn full_beats_no_map_on_the_bavarian_village() -> Result<(), Box<dyn std::error:
     Ok(())
 }
 
-/// Floor on the moving-class IoU of `full` over cells observed at least once. Measured 0.106 on
+/// Floor on the moving-class IoU of `full` over cells observed at least once. Measured 0.098 on
 /// this drive (seeds 1 and 2) with evigrid's default parameters; it is low because the inside of
 /// a moving car is never visible (see `sim::metrics`). Half of it: a pipeline that stops
 /// deciding M, or decides it in the wrong cells, falls below; retuning the defaults does not.
 const MOVING_IOU_FLOOR: f64 = 0.05;
-/// Floor on the same IoU over the cells observed in each frame. Measured 0.270; half of it.
-const MOVING_IOU_VISIBLE_FLOOR: f64 = 0.135;
+/// Floor on the same IoU over the cells observed in each frame. Measured 0.230; half of it.
+const MOVING_IOU_VISIBLE_FLOOR: f64 = 0.115;
 
 #[test]
 fn drives_on_every_shared_map_are_deterministic() -> Result<(), Box<dyn std::error::Error>> {

@@ -86,8 +86,15 @@ fn disjunctive_values<R: Real>(a: &[R], b: &[R]) -> Vec<R> {
 /// are skipped, so sparse mass functions (the usual case) cost far less than `4^n`.
 fn combine_by<R: Real>(a: &[R], b: &[R], set_op: impl Fn(usize, usize) -> usize) -> Vec<R> {
     let mut out = vec![R::ZERO; a.len()];
+    // The focal sets of `b` once, so the inner loop runs over them only, without a branch.
+    let b_focal: Vec<(usize, R)> = b
+        .iter()
+        .enumerate()
+        .filter(|&(_, &m)| m != R::ZERO)
+        .map(|(y, &m)| (y, m))
+        .collect();
     for (x, &ma) in a.iter().enumerate().filter(|&(_, &m)| m != R::ZERO) {
-        for (y, &mb) in b.iter().enumerate().filter(|&(_, &m)| m != R::ZERO) {
+        for &(y, mb) in &b_focal {
             out[set_op(x, y)] += ma * mb;
         }
     }

@@ -272,13 +272,14 @@ impl<'a> CellRun<'a> {
         (left, Some(right))
     }
 
-    /// Steps every cell of the run, block by block.
+    /// Steps every cell of the run, block by block, through one reused block buffer.
     fn step(mut self, k: &StepConstants) -> StepStats {
         let mut stats = StepStats::default();
+        let mut block = Block::vacuous();
         let mut start = 0;
         while start < self.m_free.len() {
             let end = (start + BLOCK).min(self.m_free.len());
-            let mut block = Block::load(&self, start..end);
+            block.load(&self, start..end);
             let events = step_block(&mut block, k);
             block.store(&mut self, start..end);
             stats = stats.merged(events);
@@ -299,19 +300,40 @@ struct Block {
     sensor_free: Lanes,
     sensor_occupied: Lanes,
     context: [MapContext; BLOCK],
+    /// Scratch for stages 1-2, kept here so that it is not rebuilt (and moved) for every block.
+    sensor: SensorEvidence,
     /// Lanes holding real cells.
     len: usize,
 }
 
+/// Copies a run of at most [`BLOCK`] values into lanes; a full block is one fixed-size copy,
+/// which compiles to a few vector moves instead of a call to `memcpy`.
+#[inline(always)]
+fn load_lanes<T: Copy>(lanes: &mut [T; BLOCK], values: &[T]) {
+    match <&[T; BLOCK]>::try_from(values) {
+        Ok(full) => *lanes = *full,
+        Err(_) => lanes[..values.len()].copy_from_slice(values),
+    }
+}
+
+/// The reverse of [`load_lanes`].
+#[inline(always)]
+fn store_lanes<T: Copy>(values: &mut [T], lanes: &[T; BLOCK]) {
+    let n = values.len();
+    if n == BLOCK {
+        if let Ok(full) = <&mut [T; BLOCK]>::try_from(values) {
+            *full = *lanes;
+        }
+    } else {
+        values.copy_from_slice(&lanes[..n]);
+    }
+}
+
 impl Block {
-    fn load(run: &CellRun<'_>, cells: std::ops::Range<usize>) -> Block {
-        let len = cells.len();
+    fn vacuous() -> Block {
         let mut m = [[0.0; BLOCK]; N_SETS];
         m[OMEGA] = [1.0; BLOCK];
-        for (lanes, plane) in m.iter_mut().zip(&run.pg.masses) {
-            lanes[..len].copy_from_slice(&plane[cells.clone()]);
-        }
-        let mut block = Block {
+        Block {
             m,
             zeta: [0.0; BLOCK],
             conflict_fo: [0.0; BLOCK],
@@ -320,25 +342,36 @@ impl Block {
             sensor_free: [0.0; BLOCK],
             sensor_occupied: [0.0; BLOCK],
             context: [MapContext::Unknown; BLOCK],
-            len,
-        };
-        block.zeta[..len].copy_from_slice(&run.pg.zeta[cells.clone()]);
-        block.seen[..len].copy_from_slice(&run.pg.seen[cells.clone()]);
-        block.sensor_free[..len].copy_from_slice(&run.m_free[cells.clone()]);
-        block.sensor_occupied[..len].copy_from_slice(&run.m_occupied[cells.clone()]);
-        block.context[..len].copy_from_slice(&run.context[cells]);
-        block
+            sensor: SensorEvidence::zeroed(),
+            len: 0,
+        }
+    }
+
+    fn load(&mut self, run: &CellRun<'_>, cells: std::ops::Range<usize>) {
+        self.len = cells.len();
+        if self.len < BLOCK {
+            // Only the last block of a run: pad with vacuous cells, not the previous block.
+            *self = Block::vacuous();
+            self.len = cells.len();
+        }
+        for (lanes, plane) in self.m.iter_mut().zip(&run.pg.masses) {
+            load_lanes(lanes, &plane[cells.clone()]);
+        }
+        load_lanes(&mut self.zeta, &run.pg.zeta[cells.clone()]);
+        load_lanes(&mut self.seen, &run.pg.seen[cells.clone()]);
+        load_lanes(&mut self.sensor_free, &run.m_free[cells.clone()]);
+        load_lanes(&mut self.sensor_occupied, &run.m_occupied[cells.clone()]);
+        load_lanes(&mut self.context, &run.context[cells]);
     }
 
     fn store(&self, run: &mut CellRun<'_>, cells: std::ops::Range<usize>) {
-        let len = self.len;
         for (lanes, plane) in self.m.iter().zip(run.pg.masses.iter_mut()) {
-            plane[cells.clone()].copy_from_slice(&lanes[..len]);
+            store_lanes(&mut plane[cells.clone()], lanes);
         }
-        run.pg.zeta[cells.clone()].copy_from_slice(&self.zeta[..len]);
-        run.pg.conflict_fo[cells.clone()].copy_from_slice(&self.conflict_fo[..len]);
-        run.pg.conflict_of[cells.clone()].copy_from_slice(&self.conflict_of[..len]);
-        run.pg.seen[cells].copy_from_slice(&self.seen[..len]);
+        store_lanes(&mut run.pg.zeta[cells.clone()], &self.zeta);
+        store_lanes(&mut run.pg.conflict_fo[cells.clone()], &self.conflict_fo);
+        store_lanes(&mut run.pg.conflict_of[cells.clone()], &self.conflict_of);
+        store_lanes(&mut run.pg.seen[cells], &self.seen);
     }
 }
 
@@ -347,12 +380,13 @@ fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
     let m = &mut block.m;
     // 1-2. The sensor's evidence, refined to Ω_PG and combined with the map prior by Dempster's
     //      rule: SG'_t = r(SG_t) ⊕ GG (eq 16-21).
-    let sensor = SensorEvidence::new(
+    block.sensor.fill(
         &block.sensor_free,
         &block.sensor_occupied,
         &block.context,
         k,
     );
+    let sensor = &block.sensor;
     // 3. Discount the previous grid, so that old information fades.
     match &k.discount {
         Discount::ToOmega(rate_per_set) => discount_to_omega(m, rate_per_set),
@@ -364,8 +398,8 @@ fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
     }
     // 4. Modified conjunctive rule (eq 22-23, 30-31): ∅_FO = m(F)·m'(O) goes to {M} (an object
     //    appeared), ∅_OF = m(O)·m'(F) to Ω (an object left), the residual conflict to the policy.
-    let (conflict_fo, conflict_of) = conflict_masses(m, &sensor);
-    conjunctive_with_sensor(m, &sensor);
+    let (conflict_fo, conflict_of) = conflict_masses(m, sensor);
+    conjunctive_with_sensor(m, sensor);
     for i in 0..BLOCK {
         m[class::M][i] += conflict_fo[i];
         m[OMEGA][i] += conflict_of[i];
@@ -431,13 +465,8 @@ struct SensorEvidence {
 }
 
 impl SensorEvidence {
-    fn new(
-        m_free: &Lanes,
-        m_occupied: &Lanes,
-        context: &[MapContext; BLOCK],
-        k: &StepConstants,
-    ) -> Self {
-        let mut e = SensorEvidence {
+    fn zeroed() -> Self {
+        SensorEvidence {
             free: [0.0; BLOCK],
             occupied: [0.0; BLOCK],
             omega: [0.0; BLOCK],
@@ -449,7 +478,17 @@ impl SensorEvidence {
             sg_occupied: [0.0; BLOCK],
             observed: [0; BLOCK],
             total_conflict: [0; BLOCK],
-        };
+        }
+    }
+
+    fn fill(
+        &mut self,
+        m_free: &Lanes,
+        m_occupied: &Lanes,
+        context: &[MapContext; BLOCK],
+        k: &StepConstants,
+    ) {
+        let e = self;
         // The map prior of each cell, looked up by context (a table, not a branch).
         let mut in_f = [0.0; BLOCK];
         let mut meets_o = [0.0; BLOCK];
@@ -492,7 +531,6 @@ impl SensorEvidence {
             e.observed[i] = u8::from(free + occupied > 0.0);
             e.total_conflict[i] = u8::from(total);
         }
-        e
     }
 }
 
