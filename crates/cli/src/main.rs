@@ -31,6 +31,8 @@ enum Command {
     Run(commands::run::RunArgs),
     /// Speed of the fusion step against the memory floor and a naive baseline (ratios).
     Bench(commands::bench::BenchArgs),
+    /// Variants side by side on simulated drives over a real map, scored against the truth.
+    Eval(commands::eval::EvalArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -41,6 +43,7 @@ fn main() -> std::process::ExitCode {
         Command::Cell(args) => commands::cell::run(args),
         Command::Run(args) => commands::run::run(args),
         Command::Bench(args) => commands::bench::run(args),
+        Command::Eval(args) => commands::eval::run(args),
     };
     exit::report(result)
 }

@@ -93,7 +93,8 @@ fn never_observed_cell_is_unknown() -> TestResult {
 #[test]
 fn building_context_explicit_pair_and_dt() -> TestResult {
     // 0.6/0.1 on a building: r(SG) {F} 0.6, O 0.1, Ω 0.3; GG {I} 0.9. K = 0.54;
-    // {F} 0.06/0.46, {I} (0.09 + 0.27)/0.46, O 0.01/0.46, Ω 0.03/0.46.
+    // {F} 0.06/0.46, {I} (0.09 + 0.27)/0.46, O 0.01/0.46, Ω 0.03/0.46. m(O) ≥ γ_O without
+    // conflict, so ζ = 0.1 and the specialisation keeps 0.9 of O (the rest goes to {I,U,S}).
     let steps = json_steps(&[
         "cell",
         "--context",
@@ -107,7 +108,9 @@ fn building_context_explicit_pair_and_dt() -> TestResult {
     let s = &steps[0];
     assert!((mass_of(s, &["F"]) - 0.06 / 0.46).abs() < 1e-6);
     assert!((mass_of(s, &["I"]) - 0.36 / 0.46).abs() < 1e-6);
-    assert!((mass_of(s, &["I", "U", "S", "M"]) - 0.01 / 0.46).abs() < 1e-6);
+    assert!((mass_of(s, &["I", "U", "S", "M"]) - 0.9 * 0.01 / 0.46).abs() < 1e-6);
+    assert!((mass_of(s, &["I", "U", "S"]) - 0.1 * 0.01 / 0.46).abs() < 1e-6);
+    assert!((number(&s["zeta"]) - 0.1).abs() < 1e-6);
     assert_eq!(s["decision"], "I");
     Ok(())
 }

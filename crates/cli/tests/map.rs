@@ -10,7 +10,9 @@ fn osm_file(name: &str) -> Option<PathBuf> {
 }
 
 fn evigrid(args: &[&str]) -> std::io::Result<Output> {
-    Command::new(env!("CARGO_BIN_EXE_evigrid")).args(args).output()
+    Command::new(env!("CARGO_BIN_EXE_evigrid"))
+        .args(args)
+        .output()
 }
 
 fn text(bytes: &[u8]) -> String {
@@ -19,14 +21,27 @@ fn text(bytes: &[u8]) -> String {
 
 #[test]
 fn info_prints_extent_and_counts() -> Result<(), Box<dyn std::error::Error>> {
-    let Some(path) = osm_file("helsinki-centre.osm.pbf") else { return Ok(()) };
+    let Some(path) = osm_file("helsinki-centre.osm.pbf") else {
+        return Ok(());
+    };
     let path = path.to_str().ok_or("path")?;
     let output = evigrid(&["map", "info", path])?;
     assert!(output.status.success(), "{}", text(&output.stderr));
     let stdout = text(&output.stdout);
-    assert!(stdout.contains("buildings: 448 (from 385 of 433 building ways and 61 of 67 building relations)"), "{stdout}");
-    assert!(stdout.contains("1012.7 m east-west x 1666.6 m north-south"), "{stdout}");
-    assert!(stdout.contains("skipped: area_way_missing_nodes 54"), "{stdout}");
+    assert!(
+        stdout.contains(
+            "buildings: 448 (from 385 of 433 building ways and 61 of 67 building relations)"
+        ),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("1012.7 m east-west x 1666.6 m north-south"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("skipped: area_way_missing_nodes 54"),
+        "{stdout}"
+    );
 
     let output = evigrid(&["map", "info", path, "--json"])?;
     assert!(output.status.success());
@@ -34,23 +49,43 @@ fn info_prints_extent_and_counts() -> Result<(), Box<dyn std::error::Error>> {
     assert_eq!(json["source"]["building_ways"], 433);
     assert_eq!(json["source"]["highway_ways"], 2650);
     assert_eq!(json["format"], "osm_pbf");
-    assert!(json["skipped"]["relation_missing_members"].as_u64().is_some());
+    assert!(
+        json["skipped"]["relation_missing_members"]
+            .as_u64()
+            .is_some()
+    );
     Ok(())
 }
 
 #[test]
 fn render_writes_a_png_with_the_map_size() -> Result<(), Box<dyn std::error::Error>> {
-    let Some(path) = osm_file("bavarian-village.osm") else { return Ok(()) };
+    let Some(path) = osm_file("bavarian-village.osm") else {
+        return Ok(());
+    };
     let dir = tempfile::tempdir()?;
     let out = dir.path().join("village.png");
     let output = evigrid(&[
-        "map", "render", path.to_str().ok_or("path")?, "--cell", "0.5", "--out", out.to_str().ok_or("out")?, "--json",
+        "map",
+        "render",
+        path.to_str().ok_or("path")?,
+        "--cell",
+        "0.5",
+        "--out",
+        out.to_str().ok_or("out")?,
+        "--json",
     ])?;
     assert!(output.status.success(), "{}", text(&output.stderr));
-    assert!(text(&output.stderr).contains("scale bar bottom left: 20 m in alternating 10 m blocks"), "{}", text(&output.stderr));
+    assert!(
+        text(&output.stderr).contains("scale bar bottom left: 20 m in alternating 10 m blocks"),
+        "{}",
+        text(&output.stderr)
+    );
     let summary: serde_json::Value = serde_json::from_slice(&output.stdout)?;
     // 223 m × 222 m at 0.5 m → 448 × 446 cells (see the geodata snapshot).
-    assert_eq!((summary["width_px"].as_u64(), summary["height_px"].as_u64()), (Some(448), Some(446)));
+    assert_eq!(
+        (summary["width_px"].as_u64(), summary["height_px"].as_u64()),
+        (Some(448), Some(446))
+    );
     let image = image::open(&out)?.to_rgb8();
     assert_eq!(image.dimensions(), (448, 446));
     // Only the final file remains: the temporary one was renamed.
@@ -60,14 +95,28 @@ fn render_writes_a_png_with_the_map_size() -> Result<(), Box<dyn std::error::Err
 
 #[test]
 fn crop_writes_geojson_that_reads_back() -> Result<(), Box<dyn std::error::Error>> {
-    let Some(path) = osm_file("kouvola.osm.pbf") else { return Ok(()) };
+    let Some(path) = osm_file("kouvola.osm.pbf") else {
+        return Ok(());
+    };
     let dir = tempfile::tempdir()?;
     let out = dir.path().join("crop.geojson");
     let out_str = out.to_str().ok_or("out")?;
-    let output = evigrid(&["map", "crop", path.to_str().ok_or("path")?, "--bbox", "60.528,26.945,60.532,26.955", "--out", out_str, "--json"])?;
+    let output = evigrid(&[
+        "map",
+        "crop",
+        path.to_str().ok_or("path")?,
+        "--bbox",
+        "60.528,26.945,60.532,26.955",
+        "--out",
+        out_str,
+        "--json",
+    ])?;
     assert!(output.status.success(), "{}", text(&output.stderr));
     let summary: serde_json::Value = serde_json::from_slice(&output.stdout)?;
-    assert!(summary["buildings"].as_u64().is_some_and(|n| n > 5), "{summary}");
+    assert!(
+        summary["buildings"].as_u64().is_some_and(|n| n > 5),
+        "{summary}"
+    );
     let output = evigrid(&["map", "info", out_str, "--json"])?;
     assert!(output.status.success(), "{}", text(&output.stderr));
     let info: serde_json::Value = serde_json::from_slice(&output.stdout)?;
@@ -92,7 +141,10 @@ fn bad_input_exits_2_with_one_line_naming_the_file() -> Result<(), Box<dyn std::
         let output = evigrid(&["map", "info", path.to_str().ok_or("path")?])?;
         let stderr = text(&output.stderr);
         assert_eq!(output.status.code(), Some(2), "{name}: {stderr}");
-        assert!(stderr.contains(name) && stderr.contains(expected), "{name}: {stderr}");
+        assert!(
+            stderr.contains(name) && stderr.contains(expected),
+            "{name}: {stderr}"
+        );
         assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
     }
     let missing = dir.path().join("missing.osm.pbf");
@@ -105,9 +157,21 @@ fn bad_input_exits_2_with_one_line_naming_the_file() -> Result<(), Box<dyn std::
         std::fs::write(&cut, &bytes[..bytes.len() / 3])?;
         let output = evigrid(&["map", "info", cut.to_str().ok_or("path")?])?;
         assert_eq!(output.status.code(), Some(2));
-        assert!(text(&output.stderr).contains("cut.osm.pbf: invalid OSM PBF"), "{}", text(&output.stderr));
+        assert!(
+            text(&output.stderr).contains("cut.osm.pbf: invalid OSM PBF"),
+            "{}",
+            text(&output.stderr)
+        );
     }
-    let output = evigrid(&["map", "crop", "x.osm", "--bbox", "1,2,3", "--out", "y.geojson"])?;
+    let output = evigrid(&[
+        "map",
+        "crop",
+        "x.osm",
+        "--bbox",
+        "1,2,3",
+        "--out",
+        "y.geojson",
+    ])?;
     assert_eq!(output.status.code(), Some(2));
     assert!(text(&output.stderr).contains("--bbox"));
     Ok(())

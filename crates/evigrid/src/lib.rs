@@ -9,8 +9,8 @@
 //!
 //! The key design decision: the grids are structure-of-arrays of `f32`, one plane per focal set,
 //! and the step is a dedicated block kernel whose passes are derived from the belief-function
-//! operations rather than calling them; [`reference`] evaluates the same step on one cell in f64
-//! with the generic `belief` crate, and the tests hold the kernel to it.
+//! operations rather than calling them; [`reference`](mod@crate::reference) evaluates the same
+//! step on one cell in f64 with the generic `belief` crate, and the tests hold the kernel to it.
 //!
 //! ```
 //! use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid, decision::{Decision, decide}};

@@ -26,11 +26,16 @@ pub struct CellArgs {
     #[arg(long, value_name = "FILE.toml")]
     config: Option<PathBuf>,
     /// Time between steps, seconds.
-    #[arg(long, default_value_t = 0.1, value_name = "SECONDS")]
+    #[arg(
+        long,
+        default_value_t = 0.1,
+        value_name = "SECONDS",
+        allow_hyphen_values = true
+    )]
     dt: f64,
     /// Observations, comma-separated: `free` (m(F) = μ_F), `occupied` (m(O) = μ_O), `none`
     /// (vacuous), an explicit `mF/mO` pair such as `0.6/0.1`; `X*N` repeats X N times.
-    #[arg(long, required = true, value_name = "LIST")]
+    #[arg(long, required = true, value_name = "LIST", allow_hyphen_values = true)]
     observe: String,
     /// Print a JSON array, one object per step, instead of a table.
     #[arg(long)]

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod cell;
+pub mod eval;
 pub mod map;
 pub mod mass;
 pub mod run;

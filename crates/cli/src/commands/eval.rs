@@ -1,0 +1,315 @@
+//! `evigrid eval`: variants side by side on simulated drives over a real map, scored against the
+//! simulator's truth.
+//!
+//! ```text
+//! evigrid eval --map city.osm.pbf --scenario drive.toml --out eval/ \
+//!     [--variants full,no-map,moras2011,log-odds] [--seeds 3] [--config params.toml] [--json]
+//! ```
+//!
+//! Wiring only: reading and checking the inputs, the progress bar, writing the outputs. The work
+//! is `sim::evaluate`'s, the pictures `sim::plots`'.
+
+use std::fmt::Write as _;
+use std::fs;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use evigrid::Params;
+use evigrid::render::{write_atomic, write_png};
+use evigrid::sensor_model::GroundModel;
+use sim::eval::{EvalConfig, EvalReport, Progress, Variant};
+use sim::{Scenario, SimError, plots};
+
+use crate::exit::BadInput;
+
+/// Arguments of `evigrid eval`.
+#[derive(Debug, Args)]
+#[command(after_long_help = OUTPUTS_HELP)]
+pub struct EvalArgs {
+    /// Vector map: OSM PBF, OSM XML (optionally gzipped) or GeoJSON. Its local frame has its
+    /// origin at the map's centre; the scenario's waypoints are in that frame.
+    #[arg(long)]
+    map: PathBuf,
+    /// Scenario (TOML): traffic, ego route, sensor, map errors (see scenarios/README.md).
+    #[arg(long)]
+    scenario: PathBuf,
+    /// Methods to compare, comma-separated: full, no-map, moras2011, log-odds.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "full,no-map,moras2011,log-odds"
+    )]
+    variants: Vec<String>,
+    /// Number of seeds: the scenario's seed, seed + 1, … (one drive each).
+    #[arg(long, default_value_t = 1)]
+    seeds: u64,
+    /// evigrid parameters (TOML, any subset of SPEC §7's layout); defaults otherwise. The
+    /// simulated scanner is planar, so the sensor's ground model is always `none`.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Output directory (created if missing).
+    #[arg(long)]
+    out: PathBuf,
+    /// Print the whole report as JSON on standard output instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+const OUTPUTS_HELP: &str = "\
+Outputs (in --out, each written atomically):
+  metrics.json              the evaluation report: confusion matrices, scores, timings per variant
+  report.md                 the report's tables, the parameters used (TOML), the command line
+  confusion-<variant>.png   row-normalised confusion matrix per variant (rows truth F I U S M,
+                            columns prediction F I U S M O ?, darker = larger share of the row)
+  per-class-iou.png         IoU of F, I, U, S, M, one bar per variant";
+
+/// Runs `evigrid eval`.
+pub fn run(args: EvalArgs) -> Result<()> {
+    let started = Instant::now();
+    // Every input is checked before any work, and nothing is written before the evaluation has
+    // succeeded: a bad input leaves no output behind.
+    if args.seeds == 0 {
+        return Err(BadInput::new("--seeds 0: at least one seed is needed"));
+    }
+    let variants = parse_variants(&args.variants)?;
+    let params = read_params(args.config.as_deref())?;
+    let scenario_text = fs::read_to_string(&args.scenario)
+        .map_err(|e| BadInput::new(format!("{}: {e}", args.scenario.display())))?;
+    let scenario = Scenario::from_toml(&scenario_text).map_err(|e| {
+        BadInput::new(one_line(&format!("{}: {e}", args.scenario.display())))
+    })?;
+    let loaded = geodata::load_map(&args.map, &geodata::LoadOptions { origin: None })
+        .map_err(|e| BadInput::new(with_path(&args.map, &e.to_string())))?;
+
+    let seeds: Vec<u64> = (0..args.seeds)
+        .map(|k| scenario.seed.wrapping_add(k))
+        .collect();
+    let config = EvalConfig {
+        params,
+        ..EvalConfig::default()
+    };
+    let frames = scenario.frame_count();
+    let bar = crate::progress::bar(frames as u64 * seeds.len() as u64, "eval");
+    let report = sim::evaluate(
+        &loaded.map,
+        &scenario,
+        &variants,
+        &seeds,
+        &config,
+        &mut |p: Progress| {
+            bar.set_position((p.seed_index * p.frames + p.frame) as u64);
+        },
+    )
+    .map_err(|e| evaluation_error(e, &args))?;
+    bar.finish_and_clear();
+
+    fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let json = serde_json::to_string_pretty(&report)?;
+    write_atomic(&args.out.join("metrics.json"), |f| {
+        f.write_all(json.as_bytes())?;
+        f.write_all(b"\n")
+    })?;
+    for v in &report.variants {
+        let name = format!("confusion-{}.png", v.variant.name());
+        write_png(&plots::variant_heatmap(v), &args.out.join(name))?;
+    }
+    write_png(
+        &plots::report_iou_chart(&report),
+        &args.out.join("per-class-iou.png"),
+    )?;
+    let markdown = report_markdown(&report, &config.params, started.elapsed().as_secs_f64())?;
+    write_atomic(&args.out.join("report.md"), |f| {
+        f.write_all(markdown.as_bytes())
+    })?;
+
+    if args.json {
+        println!("{json}");
+    } else {
+        print!("{}", table(&report));
+        println!(
+            "{} seed(s) × {} frames in {:.1} s; outputs in {}",
+            report.seeds.len(),
+            report.frames_per_seed,
+            started.elapsed().as_secs_f64(),
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+/// Variant names → variants, in the order given; an unknown or repeated name is bad input.
+fn parse_variants(names: &[String]) -> Result<Vec<Variant>> {
+    let mut variants = Vec::with_capacity(names.len());
+    for name in names {
+        let v = Variant::parse(name.trim())
+            .map_err(|e| BadInput::new(format!("--variants: {e}")))?;
+        if variants.contains(&v) {
+            return Err(BadInput::new(format!(
+                "--variants: {} is given twice",
+                v.name()
+            )));
+        }
+        variants.push(v);
+    }
+    if variants.is_empty() {
+        return Err(BadInput::new("--variants: no variant given"));
+    }
+    Ok(variants)
+}
+
+fn read_params(path: Option<&Path>) -> Result<Params> {
+    let Some(path) = path else {
+        return Ok(Params::default());
+    };
+    let text =
+        fs::read_to_string(path).map_err(|e| BadInput::new(format!("{}: {e}", path.display())))?;
+    let params = Params::from_toml_str(&text)
+        .map_err(|e| BadInput::new(format!("{}: {e}", path.display())))?;
+    Ok(params)
+}
+
+/// `message` on one line: the TOML parser's messages quote the offending line below the message.
+fn one_line(message: &str) -> String {
+    message.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Prefixes `message` with the file's path unless it already names it.
+fn with_path(path: &Path, message: &str) -> String {
+    let shown = path.display().to_string();
+    if message.contains(&shown) {
+        message.to_string()
+    } else {
+        format!("{shown}: {message}")
+    }
+}
+
+/// Errors of the evaluation itself, blamed on the input they come from.
+fn evaluation_error(error: SimError, args: &EvalArgs) -> anyhow::Error {
+    let config = args
+        .config
+        .as_deref()
+        .map_or_else(|| "default parameters".to_string(), |p| p.display().to_string());
+    match error {
+        SimError::NoRoads { .. } => BadInput::new(with_path(&args.map, &error.to_string())),
+        SimError::Pipeline(_) => BadInput::new(format!("{config}: {error}")),
+        SimError::ScenarioToml { .. }
+        | SimError::InvalidScenario { .. }
+        | SimError::NoEgoRoute { .. } => {
+            BadInput::new(format!("{}: {error}", args.scenario.display()))
+        }
+        other => anyhow::Error::new(other).context("evaluation failed"),
+    }
+}
+
+fn fmt_score(v: Option<f64>) -> String {
+    v.map_or_else(|| "-".to_string(), |x| format!("{x:.3}"))
+}
+
+/// The stdout table: one line per variant.
+fn table(report: &EvalReport) -> String {
+    let mut s = format!(
+        "{:<10} {:>9} {:>9} {:>9} {:>9} {:>9}\n",
+        "variant", "macro-F1", "IoU M", "static", "dynamic", "ms/frame"
+    );
+    for v in &report.variants {
+        let sc = &v.scores;
+        // Writing to a String cannot fail.
+        let _ = writeln!(
+            s,
+            "{:<10} {:>9} {:>9} {:>9} {:>9} {:>9.2}",
+            v.variant.name(),
+            fmt_score(sc.macro_f1),
+            fmt_score(sc.moving_iou),
+            fmt_score(sc.static_accuracy),
+            fmt_score(sc.dynamic_accuracy),
+            v.ms_per_frame
+        );
+    }
+    s
+}
+
+/// `report.md`: the report's tables, how to read the pictures, the parameters and the command.
+fn report_markdown(report: &EvalReport, params: &Params, seconds: f64) -> Result<String> {
+    // evaluate() forces the planar ground model; print what actually ran.
+    let mut used = params.clone();
+    used.sensor.ground_model = GroundModel::None;
+    let params_toml = used.to_toml_string()?;
+    let scenario_toml = toml::to_string(&report.scenario)?;
+    let mut s = String::from("# evigrid eval\n\n");
+    let _ = writeln!(s, "Command (wall time {seconds:.1} s):\n");
+    let _ = writeln!(s, "```sh\n{}\n```\n", command_line());
+    s.push_str("## Scores\n\n");
+    s.push_str(&report.to_markdown());
+    s.push_str(
+        "\nSA: share of truly static cells (F, I, U, S) not predicted M; DA: share of truly \
+         moving cells predicted M; HA: their harmonic mean. Two-class baselines predict O \
+         (occupied, static) and never I, U or S, so their five-class scores for I, U, S are 0 \
+         by construction; compare them on the coarse columns.\n",
+    );
+    s.push_str("\n## Pictures\n\n");
+    s.push_str(
+        "- `confusion-<variant>.png`: confusion matrix over the cells observed at least once. \
+         Rows: truth F, I, U, S, M (top to bottom). Columns: prediction F, I, U, S, M, O \
+         (occupied, static, class not resolved), ? (no decision), left to right. Each cell shows \
+         its share of the row in per cent and is shaded from white (0 %) to dark blue (100 %); a \
+         grey row has no truth cell.\n",
+    );
+    s.push_str(
+        "- `per-class-iou.png`: IoU per class, groups F, I, U, S, M from left to right, one bar \
+         per variant in this order and colour:",
+    );
+    let colours = [
+        "blue",
+        "orange",
+        "bluish green",
+        "reddish purple",
+        "vermillion",
+        "sky blue",
+        "yellow",
+        "black",
+    ];
+    for (k, v) in report.variants.iter().enumerate() {
+        let _ = write!(
+            s,
+            "{} {} ({})",
+            if k == 0 { "" } else { "," },
+            v.variant.name(),
+            colours[k % colours.len()]
+        );
+    }
+    s.push_str(
+        ". Axis 0–1 with grid lines every 0.25; a grey stub under the axis marks an undefined \
+         IoU (class absent from truth and prediction).\n",
+    );
+    let _ = writeln!(
+        s,
+        "\n## Parameters used\n\nevigrid (`full`, `no-map` and the baselines' sensor model):\n\n```toml\n{params_toml}```\n"
+    );
+    let _ = writeln!(
+        s,
+        "Scenario (seed replaced by each of {:?}):\n\n```toml\n{scenario_toml}```",
+        report.seeds
+    );
+    Ok(s)
+}
+
+/// The command line as typed, quoted for a POSIX shell where needed.
+fn command_line() -> String {
+    std::env::args()
+        .map(|a| {
+            let plain = !a.is_empty()
+                && a.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "-_./=,:+@%".contains(c));
+            if plain {
+                a
+            } else {
+                format!("'{}'", a.replace('\'', r"'\''"))
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
