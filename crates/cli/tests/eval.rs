@@ -90,7 +90,11 @@ fn writes_metrics_report_and_plots_for_every_variant() {
     let names: Vec<&str> = report.variants.iter().map(|v| v.variant.name()).collect();
     assert_eq!(names, ["full", "no-map", "moras2011", "log-odds"]);
     for v in &report.variants {
-        assert!(v.confusion.total() > 0, "{} scored nothing", v.variant.name());
+        assert!(
+            v.confusion.total() > 0,
+            "{} scored nothing",
+            v.variant.name()
+        );
         assert_eq!(v.per_seed.len(), 2);
         let png = s.out.join(format!("confusion-{}.png", v.variant.name()));
         let image = image::open(&png).unwrap();

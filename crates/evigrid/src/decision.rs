@@ -88,18 +88,35 @@ pub fn betp(m: &[f32; N_SETS]) -> [f32; 5] {
     p.map(|pk| pk / normal)
 }
 
+/// betP values closer than this are a tie (f32 rounding of equal shares differs in the last bits).
+const TIE_TOLERANCE: f32 = 1e-6;
+
+/// Class indices (F = 0 … M = 4) in the order that wins a betP tie: U, M, S, I, F.
+///
+/// Ties are not rare: mass on O = {I, U, S, M} or {I, U, S} gives its classes equal betP, and
+/// only the map (I), the conflict ∅_FO (M) or the accumulator (S) ever separate them. A tie
+/// therefore means "occupied, and nothing says which kind", and the order says what that is:
+/// - U before I: a mapped building (I) is only claimed where the map says so; without a map an
+///   obstacle is unmapped infrastructure, never a building;
+/// - M before S: S gains mass only through the accumulator's evidence that the object stays
+///   (eq 28-29), so an {S, M} tie means no such evidence yet;
+/// - U before M: a tie of U with M comes from static mass on O with no appearance conflict
+///   (∅_FO, which would favour M strictly);
+/// - F last: occupied evidence wins a free/occupied tie (the safer error for driving).
+const TIE_ORDER: [usize; 5] = [2, 4, 3, 1, 0];
+
 /// The decided class (SPEC §6): `Unknown` where the cell was never `seen`, where
-/// m(Ω) > `unknown_threshold`, or in total conflict; otherwise the class of largest betP (the
-/// first in frame order F, I, U, S, M on a tie).
+/// m(Ω) > `unknown_threshold`, or in total conflict; otherwise the class of largest betP, ties
+/// (within 1e-6) broken in the order U, M, S, I, F (see `TIE_ORDER` for why).
 pub fn decide(m: &[f32; N_SETS], seen: bool, unknown_threshold: f64) -> Decision {
     // Compared in f32, the grid's precision: m(Ω) = 0.6_f32 is not above a threshold of 0.6.
     if !seen || m[OMEGA] > unknown_threshold as f32 || 1.0 - m[0] <= MIN_NORMAL_MASS {
         return Decision::Unknown;
     }
     let p = betp(m);
-    let mut best = 0;
-    for k in 1..5 {
-        if p[k] > p[best] {
+    let mut best = TIE_ORDER[0];
+    for &k in &TIE_ORDER[1..] {
+        if p[k] > p[best] + TIE_TOLERANCE {
             best = k;
         }
     }
@@ -173,15 +190,36 @@ mod tests {
     }
 
     #[test]
-    fn decision_is_argmax_betp_first_class_on_tie() {
-        // {I,U} 0.8 splits into I 0.4 + U 0.4 (+ Ω 0.2/5 each): a tie, won by I (first).
+    fn decision_is_argmax_betp_with_ties_in_order_u_m_s_i_f() {
+        // {I,U} 0.8 splits into I 0.4 + U 0.4 (+ Ω 0.2/5 each): a tie, won by U.
         let mut m = [0.0; N_SETS];
         m[I | U] = 0.8;
         m[OMEGA] = 0.2;
-        assert_eq!(decide(&m, true, 0.5), Decision::I);
-        m[U] = 0.1;
-        m[I | U] = 0.7;
         assert_eq!(decide(&m, true, 0.5), Decision::U);
+        // I 0.1 + 0.35 = 0.45 > U 0.35: no tie, I.
+        m[I] = 0.1;
+        m[I | U] = 0.7;
+        assert_eq!(decide(&m, true, 0.5), Decision::I);
+        // O = {I,U,S,M} 0.8: I = U = S = M = 0.2 + 0.04; U wins (no map says "building").
+        let mut o = [0.0; N_SETS];
+        o[O] = 0.8;
+        o[OMEGA] = 0.2;
+        assert_eq!(decide(&o, true, 0.5), Decision::U);
+        // {S,M} 0.9: S = M = 0.45 + 0.02; M wins (no evidence that the object stays).
+        let mut sm = [0.0; N_SETS];
+        sm[S | M] = 0.9;
+        sm[OMEGA] = 0.1;
+        assert_eq!(decide(&sm, true, 0.5), Decision::M);
+        // {I,S} 0.9: I = S; S wins over I.
+        let mut is = [0.0; N_SETS];
+        is[I | S] = 0.9;
+        is[OMEGA] = 0.1;
+        assert_eq!(decide(&is, true, 0.5), Decision::S);
+        // {F,M} 0.9: F = M; the occupied class wins.
+        let mut fm = [0.0; N_SETS];
+        fm[F | M] = 0.9;
+        fm[OMEGA] = 0.1;
+        assert_eq!(decide(&fm, true, 0.5), Decision::M);
     }
 
     #[test]

@@ -8,7 +8,7 @@
 //!
 //! Every scenario runs with the default parameters (except the sensor's ground model, which is
 //! set for a planar scanner). A scenario the defaults cannot satisfy is a finding, not a test to
-//! bend: it is marked `#[ignore]` with the measured numbers in its reason.
+//! bend: it is marked `#[ignore]` with the measured numbers in its reason, as an open question.
 
 #![allow(clippy::unwrap_used)]
 
@@ -249,8 +249,6 @@ fn an_object_that_stays_becomes_stopped_as_fast_as_delta_inc_allows() {
 }
 
 #[test]
-#[ignore = "finding: with δ_inc = 0 nothing is ever specialised, S and M stay tied on {S, M}, and \
-            decide() breaks the tie towards S (class order): decided S after 80 frames; see the C2 report"]
 fn without_accumulation_an_object_is_never_stopped() {
     let mut never = params();
     never.accumulator.delta_inc = 0.0;
@@ -343,9 +341,9 @@ fn an_obstacle_staying_on_the_pavement_is_unmapped_infrastructure() {
 }
 
 #[test]
-#[ignore = "finding: on pavement (context T = {F,U,S,M}) U and S always get equal betP (0.496 each \
-            after 3 s with the defaults); U is decided only because decide() breaks ties in class \
-            order; see the C2 report"]
+#[ignore = "open: on pavement (prior T = {F,U,S,M}) nothing in SPEC §5 separates U from S, so they \
+            keep equal betP (0.496 each after 3 s with the defaults) and U is decided by the tie \
+            order of decision::decide, not by evidence"]
 fn an_obstacle_on_the_pavement_is_unmapped_infrastructure_on_evidence() {
     for (_, p) in pole_cells() {
         assert!(p[2] > p[3] + 1e-3, "U {} vs S {}", p[2], p[3]);
@@ -353,8 +351,6 @@ fn an_obstacle_on_the_pavement_is_unmapped_infrastructure_on_evidence() {
 }
 
 #[test]
-#[ignore = "finding: without a map an obstacle has betP I = U = S (= M) and decide() breaks the tie \
-            towards I (class order): 202 cells decided I at the first frame; see the C2 report"]
 fn without_a_map_the_same_obstacles_are_never_mapped_infrastructure() {
     let mut drive = Drive::new(params(), false);
     let scene = [FENCE.as_slice(), &[BUILDING, POLE]].concat();
@@ -456,9 +452,9 @@ fn scrolling_the_window_keeps_world_fixed_content_exact() {
 }
 
 #[test]
-#[ignore = "finding: SPEC §5 steps 5-6 run on every cell, so a scan without points still raises ζ \
-            where m(O) ≥ γ_O and specialises M away (cell with {I,U,S}: 0.609 after vs 0.455 from \
-            discounting alone); see the C2 report"]
+#[ignore = "open: SPEC §5 runs steps 2 and 4-6 on every cell, so a scan without points still fuses \
+            the map prior, raises ζ where m(O) ≥ γ_O and specialises M away (a cell with {I,U,S}: \
+            0.609 after vs 0.455 from discounting alone); the issue asks for discounting only"]
 fn a_scan_with_zero_points_changes_nothing_but_discounting() {
     let params = params();
     let rates = params.fusion.discount_per_second.as_array();

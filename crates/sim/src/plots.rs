@@ -60,6 +60,8 @@ pub const EMPTY_ROW: Rgb<u8> = Rgb([200, 200, 200]);
 pub const GRID_GREY: Rgb<u8> = Rgb([190, 190, 190]);
 
 /// Rows of a glyph, top to bottom; bit 4 is the leftmost of the 5 columns.
+// One glyph per line keeps the bitmaps readable; rustfmt would split each over three lines.
+#[rustfmt::skip]
 fn glyph(c: char) -> [u8; 7] {
     match c.to_ascii_uppercase() {
         '0' => [0b01110, 0b10001, 0b10011, 0b10101, 0b11001, 0b10001, 0b01110],
@@ -442,7 +444,8 @@ mod tests {
         assert_eq!(image.width(), LEFT + 7 * CELL_WIDTH + MARGIN);
         assert_eq!(image.height(), TOP + 5 * CELL_HEIGHT + MARGIN);
         // A point in a cell's corner, away from its centred number.
-        let corner = |t: u32, p: u32| pixel(&image, LEFT + p * CELL_WIDTH + 2, TOP + t * CELL_HEIGHT + 2);
+        let corner =
+            |t: u32, p: u32| pixel(&image, LEFT + p * CELL_WIDTH + 2, TOP + t * CELL_HEIGHT + 2);
         assert_eq!(corner(0, 0), Rgb([70, 100, 144])); // 0.75, see heat_colour test
         // 255 + (8 − 255)·0.25 = 193.25 → 193; 255 − 207/4 = 203.25 → 203; 255 − 37 = 218.
         assert_eq!(corner(0, 1), Rgb([193, 203, 218]));
@@ -478,7 +481,10 @@ mod tests {
         use chart_layout::*;
         let series = [
             ("full", [Some(1.0), Some(0.5), None, Some(0.0), Some(0.25)]),
-            ("log-odds", [Some(0.5), Some(0.0), None, Some(0.0), Some(0.75)]),
+            (
+                "log-odds",
+                [Some(0.5), Some(0.0), None, Some(0.0), Some(0.75)],
+            ),
         ];
         let image = per_class_iou_chart(&series);
         let group_width = 2 * (BAR_WIDTH + BAR_GAP);

@@ -78,9 +78,8 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let params = read_params(args.config.as_deref())?;
     let scenario_text = fs::read_to_string(&args.scenario)
         .map_err(|e| BadInput::new(format!("{}: {e}", args.scenario.display())))?;
-    let scenario = Scenario::from_toml(&scenario_text).map_err(|e| {
-        BadInput::new(one_line(&format!("{}: {e}", args.scenario.display())))
-    })?;
+    let scenario = Scenario::from_toml(&scenario_text)
+        .map_err(|e| BadInput::new(one_line(&format!("{}: {e}", args.scenario.display()))))?;
     let loaded = geodata::load_map(&args.map, &geodata::LoadOptions { origin: None })
         .map_err(|e| BadInput::new(with_path(&args.map, &e.to_string())))?;
 
@@ -145,8 +144,8 @@ pub fn run(args: EvalArgs) -> Result<()> {
 fn parse_variants(names: &[String]) -> Result<Vec<Variant>> {
     let mut variants = Vec::with_capacity(names.len());
     for name in names {
-        let v = Variant::parse(name.trim())
-            .map_err(|e| BadInput::new(format!("--variants: {e}")))?;
+        let v =
+            Variant::parse(name.trim()).map_err(|e| BadInput::new(format!("--variants: {e}")))?;
         if variants.contains(&v) {
             return Err(BadInput::new(format!(
                 "--variants: {} is given twice",
@@ -189,10 +188,10 @@ fn with_path(path: &Path, message: &str) -> String {
 
 /// Errors of the evaluation itself, blamed on the input they come from.
 fn evaluation_error(error: SimError, args: &EvalArgs) -> anyhow::Error {
-    let config = args
-        .config
-        .as_deref()
-        .map_or_else(|| "default parameters".to_string(), |p| p.display().to_string());
+    let config = args.config.as_deref().map_or_else(
+        || "default parameters".to_string(),
+        |p| p.display().to_string(),
+    );
     match error {
         SimError::NoRoads { .. } => BadInput::new(with_path(&args.map, &error.to_string())),
         SimError::Pipeline(_) => BadInput::new(format!("{config}: {error}")),
