@@ -33,6 +33,8 @@ enum Command {
     Bench(commands::bench::BenchArgs),
     /// Variants side by side on simulated drives over a real map, scored against the truth.
     Eval(commands::eval::EvalArgs),
+    /// The main job on embedded data, no input needed: drive, perception, views, evaluation.
+    Demo(commands::demo::DemoArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -44,6 +46,7 @@ fn main() -> std::process::ExitCode {
         Command::Run(args) => commands::run::run(args),
         Command::Bench(args) => commands::bench::run(args),
         Command::Eval(args) => commands::eval::run(args),
+        Command::Demo(args) => commands::demo::run(args),
     };
     exit::report(result)
 }

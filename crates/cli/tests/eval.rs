@@ -3,24 +3,11 @@
 
 #![allow(clippy::unwrap_used)]
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Command, Output};
 
 fn shared_map() -> Option<PathBuf> {
-    let root = std::env::var("EVIGRID_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|_| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared"));
-    let map = root.join("data/osm/bavarian-village.osm");
-    if !map.is_file() {
-        assert!(
-            std::env::var("EVIGRID_REQUIRE_SHARED").as_deref() != Ok("1"),
-            "shared data missing at {}",
-            root.display()
-        );
-        eprintln!("note: skipping, no shared data at {}", root.display());
-        return None;
-    }
-    Some(map)
+    geodata::testdata::shared_file("data/osm/bavarian-village.osm")
 }
 
 /// One second (10 scans) with a little traffic; the route is drawn from the seed.

@@ -3,7 +3,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output, Stdio};
 
 use serde_json::{Value, json};
@@ -32,15 +32,6 @@ fn evigrid_with_stdin(args: &[&str], stdin: &str) -> Output {
         .write_all(stdin.as_bytes())
         .expect("stdin written");
     child.wait_with_output().expect("evigrid finishes")
-}
-
-/// The shared data directory: `$EVIGRID_SHARED` (relative to the workspace root), else `../shared`.
-fn shared_dir() -> PathBuf {
-    let workspace = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-    match std::env::var_os("EVIGRID_SHARED") {
-        Some(dir) => workspace.join(dir),
-        None => workspace.join("../shared"),
-    }
 }
 
 fn stdout_json(output: &Output) -> Result<Value, String> {
@@ -185,19 +176,10 @@ fn check_vector(dir: &Path, index: usize, vector: &Value) -> Result<(), String> 
 
 #[test]
 fn calculator_reproduces_every_shared_vector() {
-    let path = shared_dir().join("vectors/belief-vectors.json");
-    let Ok(text) = std::fs::read_to_string(&path) else {
-        assert!(
-            std::env::var("EVIGRID_REQUIRE_SHARED").as_deref() != Ok("1"),
-            "EVIGRID_REQUIRE_SHARED=1 but {} cannot be read",
-            path.display()
-        );
-        eprintln!(
-            "skipping: {} not found (set EVIGRID_SHARED)",
-            path.display()
-        );
+    let Some(path) = geodata::testdata::shared_file("vectors/belief-vectors.json") else {
         return;
     };
+    let text = std::fs::read_to_string(&path).expect("vector file readable");
     let file: Value = serde_json::from_str(&text).expect("vector file is JSON");
     let vectors = file["vectors"].as_array().expect("a vectors array");
     let dir = tempfile::tempdir().expect("temp dir");

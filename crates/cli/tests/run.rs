@@ -10,21 +10,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn shared() -> Option<PathBuf> {
-    let root = std::env::var("EVIGRID_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|_| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared"));
-    let ok = root.join("data/lidar/kitti-city-22").is_dir()
-        && root.join("data/osm/bavarian-village.osm").is_file();
-    if !ok {
-        assert!(
-            std::env::var("EVIGRID_REQUIRE_SHARED").as_deref() != Ok("1"),
-            "shared data missing at {}",
-            root.display()
-        );
-        eprintln!("note: skipping, no shared data at {}", root.display());
-        return None;
-    }
-    Some(root)
+    geodata::testdata::shared_file("data/lidar/kitti-city-22")?;
+    geodata::testdata::shared_file("data/osm/bavarian-village.osm")?;
+    geodata::testdata::shared_dir()
 }
 
 /// Links the first `n` KITTI scans into `dir` (no copy of the data).

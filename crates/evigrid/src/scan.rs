@@ -490,22 +490,10 @@ mod tests {
     use super::*;
 
     fn shared_scans() -> Option<Vec<PathBuf>> {
-        let root = std::env::var("EVIGRID_SHARED")
-            .map(PathBuf::from)
-            .unwrap_or_else(|_| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared"));
-        let dir = root.join("data/lidar/kitti-city-22");
-        match list_scans(&dir) {
-            Ok(paths) if !paths.is_empty() => Some(paths),
-            _ => {
-                assert!(
-                    std::env::var("EVIGRID_REQUIRE_SHARED").as_deref() != Ok("1"),
-                    "shared lidar data missing at {}",
-                    dir.display()
-                );
-                eprintln!("note: skipping, no shared lidar data at {}", dir.display());
-                None
-            }
-        }
+        let dir = geodata::testdata::shared_file("data/lidar/kitti-city-22")?;
+        let paths = list_scans(&dir).unwrap();
+        assert!(!paths.is_empty(), "no scans in {}", dir.display());
+        Some(paths)
     }
 
     #[test]

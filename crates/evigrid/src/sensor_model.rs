@@ -657,7 +657,6 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
-    use std::path::{Path, PathBuf};
 
     fn planar_params() -> SensorParams {
         SensorParams {
@@ -874,19 +873,7 @@ mod tests {
     }
 
     fn shared_scan(name: &str) -> Option<crate::scan::Scan> {
-        let root = std::env::var("EVIGRID_SHARED")
-            .map(PathBuf::from)
-            .unwrap_or_else(|_| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared"));
-        let path = root.join("data/lidar/kitti-city-22").join(name);
-        if !path.exists() {
-            assert!(
-                std::env::var("EVIGRID_REQUIRE_SHARED").as_deref() != Ok("1"),
-                "shared scan missing: {}",
-                path.display()
-            );
-            eprintln!("note: skipping, no shared scan at {}", path.display());
-            return None;
-        }
+        let path = geodata::testdata::shared_file(&format!("data/lidar/kitti-city-22/{name}"))?;
         Some(crate::scan::read_scan(&path).unwrap())
     }
 

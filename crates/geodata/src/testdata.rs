@@ -1,8 +1,9 @@
-//! Locating the shared test data (`../shared` next to the workspace), for this crate's tests and
-//! as the one rule other crates copy.
+//! Locating the shared test data (`../shared` next to the workspace): the one fixture loader of
+//! every crate's tests (`belief`, which has no dependencies, repeats the rule).
 //!
-//! The directory is `$EVIGRID_SHARED` if set, else `<workspace>/../shared` resolved from this
-//! crate's manifest directory. When it is missing, tests skip with a note — unless
+//! The directory is `$EVIGRID_SHARED` if set (a relative value is taken from the workspace root,
+//! as the README says, not from the crate directory cargo runs tests in), else
+//! `<workspace>/../shared`. When it is missing, tests skip with a note — unless
 //! `EVIGRID_REQUIRE_SHARED=1`, in which case they fail.
 
 use std::path::PathBuf;
@@ -14,9 +15,11 @@ use std::path::PathBuf;
 /// When the directory is absent and `EVIGRID_REQUIRE_SHARED=1`: that is the test failure the
 /// variable asks for.
 pub fn shared_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("EVIGRID_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"));
+    let workspace = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let dir = match std::env::var_os("EVIGRID_SHARED") {
+        Some(dir) => workspace.join(dir),
+        None => workspace.join("../shared"),
+    };
     if dir.is_dir() {
         return Some(dir);
     }
@@ -37,4 +40,24 @@ pub fn shared_dir() -> Option<PathBuf> {
 /// [`shared_dir`]).
 pub fn osm_file(name: &str) -> Option<PathBuf> {
     shared_dir().map(|dir| dir.join("data/osm").join(name))
+}
+
+/// A file or folder under the shared directory (`relative` such as
+/// `data/lidar/kitti-city-22/0000000000.pcd`), or `None` when it is absent and not required.
+///
+/// # Panics
+/// When it is absent and `EVIGRID_REQUIRE_SHARED=1`.
+pub fn shared_file(relative: &str) -> Option<PathBuf> {
+    let path = shared_dir()?.join(relative);
+    if path.exists() {
+        return Some(path);
+    }
+    let required = std::env::var("EVIGRID_REQUIRE_SHARED").is_ok_and(|v| v == "1");
+    assert!(
+        !required,
+        "shared data required (EVIGRID_REQUIRE_SHARED=1) but {} is missing",
+        path.display()
+    );
+    eprintln!("note: {} not found; skipping", path.display());
+    None
 }

@@ -1,27 +1,8 @@
 //! End-to-end: simulated drives on real OpenStreetMap extracts, every variant scored.
 
+use geodata::testdata::shared_file;
 use sim::eval::{EvalConfig, Variant, evaluate};
 use sim::{Drive, Scenario};
-use std::path::PathBuf;
-
-/// The shared data directory (`EVIGRID_SHARED`, else `<workspace>/../shared`), or `None` with a
-/// printed note when it is missing and not required.
-fn shared_file(relative: &str) -> Option<PathBuf> {
-    let root = std::env::var_os("EVIGRID_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared"));
-    let path = root.join(relative);
-    if path.exists() {
-        return Some(path);
-    }
-    assert!(
-        std::env::var("EVIGRID_REQUIRE_SHARED").as_deref() != Ok("1"),
-        "shared data {} is missing and EVIGRID_REQUIRE_SHARED=1",
-        path.display()
-    );
-    eprintln!("skipping: shared data {} not found", path.display());
-    None
-}
 
 fn load(relative: &str) -> Option<geodata::LocalMap> {
     let path = shared_file(relative)?;

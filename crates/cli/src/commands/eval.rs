@@ -105,25 +105,13 @@ pub fn run(args: EvalArgs) -> Result<()> {
     .map_err(|e| evaluation_error(e, &args))?;
     bar.finish_and_clear();
 
-    fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let json = serde_json::to_string_pretty(&report)?;
-    write_atomic(&args.out.join("metrics.json"), |f| {
-        f.write_all(json.as_bytes())?;
-        f.write_all(b"\n")
-    })?;
-    for v in &report.variants {
-        let name = format!("confusion-{}.png", v.variant.name());
-        write_png(&plots::variant_heatmap(v), &args.out.join(name))?;
-    }
-    write_png(
-        &plots::report_iou_chart(&report),
-        &args.out.join("per-class-iou.png"),
+    let json = write_outputs(
+        &args.out,
+        &report,
+        &config.params,
+        "evigrid eval",
+        started.elapsed().as_secs_f64(),
     )?;
-    let markdown = report_markdown(&report, &config.params, started.elapsed().as_secs_f64())?;
-    write_atomic(&args.out.join("report.md"), |f| {
-        f.write_all(markdown.as_bytes())
-    })?;
 
     if args.json {
         println!("{json}");
@@ -138,6 +126,35 @@ pub fn run(args: EvalArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Writes `metrics.json`, `confusion-<variant>.png`, `per-class-iou.png` and `report.md` (headed
+/// `title`) into `out`, creating it if missing; returns the JSON written to `metrics.json`.
+/// Shared with `evigrid demo`, which reports the same evaluation.
+pub(crate) fn write_outputs(
+    out: &Path,
+    report: &EvalReport,
+    params: &Params,
+    title: &str,
+    seconds: f64,
+) -> Result<String> {
+    fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let json = serde_json::to_string_pretty(report)?;
+    write_atomic(&out.join("metrics.json"), |f| {
+        f.write_all(json.as_bytes())?;
+        f.write_all(b"\n")
+    })?;
+    for v in &report.variants {
+        let name = format!("confusion-{}.png", v.variant.name());
+        write_png(&plots::variant_heatmap(v), &out.join(name))?;
+    }
+    write_png(
+        &plots::report_iou_chart(report),
+        &out.join("per-class-iou.png"),
+    )?;
+    let markdown = report_markdown(report, params, title, seconds)?;
+    write_atomic(&out.join("report.md"), |f| f.write_all(markdown.as_bytes()))?;
+    Ok(json)
 }
 
 /// Variant names → variants, in the order given; an unknown or repeated name is bad input.
@@ -209,7 +226,7 @@ fn fmt_score(v: Option<f64>) -> String {
 }
 
 /// The stdout table: one line per variant.
-fn table(report: &EvalReport) -> String {
+pub(crate) fn table(report: &EvalReport) -> String {
     let mut s = format!(
         "{:<10} {:>9} {:>9} {:>9} {:>9} {:>9}\n",
         "variant", "macro-F1", "IoU M", "static", "dynamic", "ms/frame"
@@ -232,13 +249,18 @@ fn table(report: &EvalReport) -> String {
 }
 
 /// `report.md`: the report's tables, how to read the pictures, the parameters and the command.
-fn report_markdown(report: &EvalReport, params: &Params, seconds: f64) -> Result<String> {
+fn report_markdown(
+    report: &EvalReport,
+    params: &Params,
+    title: &str,
+    seconds: f64,
+) -> Result<String> {
     // evaluate() forces the planar ground model; print what actually ran.
     let mut used = params.clone();
     used.sensor.ground_model = GroundModel::None;
     let params_toml = used.to_toml_string()?;
     let scenario_toml = toml::to_string(&report.scenario)?;
-    let mut s = String::from("# evigrid eval\n\n");
+    let mut s = format!("# {title}\n\n");
     let _ = writeln!(s, "Command (wall time {seconds:.1} s):\n");
     let _ = writeln!(s, "```sh\n{}\n```\n", command_line());
     s.push_str("## Scores\n\n");
