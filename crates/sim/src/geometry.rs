@@ -232,6 +232,26 @@ pub fn ring_contains(ring: &[Vec2], p: Vec2) -> bool {
     inside
 }
 
+/// Appends the x coordinates where the horizontal line at `y` crosses the edges of `rings`;
+/// sorted pairs of them bound the inside (even–odd, so holes are respected). An edge counts
+/// when one end is above `y` and the other at or below it, so a vertex on the line counts once.
+pub fn ring_crossings<'a>(rings: impl IntoIterator<Item = &'a [Vec2]>, y: f64, out: &mut Vec<f64>) {
+    for ring in rings {
+        let n = ring.len();
+        if n < 3 {
+            continue;
+        }
+        let mut j = n - 1;
+        for i in 0..n {
+            let (a, b) = (ring[i], ring[j]);
+            if (a.y > y) != (b.y > y) {
+                out.push(a.x + (y - a.y) / (b.y - a.y) * (b.x - a.x));
+            }
+            j = i;
+        }
+    }
+}
+
 /// Wraps an angle to (−π, π].
 pub fn wrap_angle(angle_rad: f64) -> f64 {
     let two_pi = std::f64::consts::TAU;
@@ -353,6 +373,29 @@ impl Polyline {
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+
+    #[test]
+    fn ring_crossings_respect_holes_and_count_a_vertex_on_the_line_once() {
+        let square = |lo: f64, hi: f64| {
+            vec![
+                Vec2 { x: lo, y: lo },
+                Vec2 { x: hi, y: lo },
+                Vec2 { x: hi, y: hi },
+                Vec2 { x: lo, y: hi },
+            ]
+        };
+        let rings = [square(0.0, 10.0), square(4.0, 6.0)];
+        let mut xs = Vec::new();
+        // y = 5 crosses the outer ring at 0 and 10 and the hole at 4 and 6.
+        ring_crossings(rings.iter().map(Vec::as_slice), 5.0, &mut xs);
+        xs.sort_by(f64::total_cmp);
+        assert_eq!(xs, [0.0, 4.0, 6.0, 10.0]);
+        // y = 4 runs along the hole's lower edge: its vertical edges count once each.
+        xs.clear();
+        ring_crossings(rings.iter().map(Vec::as_slice), 4.0, &mut xs);
+        xs.sort_by(f64::total_cmp);
+        assert_eq!(xs, [0.0, 4.0, 6.0, 10.0]);
+    }
 
     #[test]
     fn ray_hits_segment_at_exact_distance() {

@@ -223,20 +223,7 @@ impl RoadNetwork {
         for row in r0..=(r1 as usize) {
             let y = self.origin.y + (row as f64 + 0.5) * res;
             xs.clear();
-            for ring in rings.clone() {
-                let n = ring.len();
-                if n < 3 {
-                    continue;
-                }
-                let mut j = n - 1;
-                for i in 0..n {
-                    let (a, b) = (ring[i], ring[j]);
-                    if (a.y > y) != (b.y > y) {
-                        xs.push(a.x + (y - a.y) / (b.y - a.y) * (b.x - a.x));
-                    }
-                    j = i;
-                }
-            }
+            crate::geometry::ring_crossings(rings.clone(), y, xs);
             xs.sort_by(f64::total_cmp);
             for pair in xs.chunks_exact(2) {
                 let c0 = ((pair[0] - self.origin.x) / res - 0.5).ceil().max(0.0) as usize;

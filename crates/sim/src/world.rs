@@ -71,20 +71,7 @@ impl Building {
     /// Appends the x coordinates where the horizontal line at `y` crosses the building's edges.
     /// Sorted pairs of them bound the inside (even–odd, so holes are respected).
     pub fn crossings_at(&self, y: f64, out: &mut Vec<f64>) {
-        for ring in &self.rings {
-            let n = ring.len();
-            if n < 3 {
-                continue;
-            }
-            let mut j = n - 1;
-            for i in 0..n {
-                let (a, b) = (ring[i], ring[j]);
-                if (a.y > y) != (b.y > y) {
-                    out.push(a.x + (y - a.y) / (b.y - a.y) * (b.x - a.x));
-                }
-                j = i;
-            }
-        }
+        crate::geometry::ring_crossings(self.rings.iter().map(Vec::as_slice), y, out);
     }
 }
 
