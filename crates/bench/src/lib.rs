@@ -99,6 +99,12 @@ pub struct WindowReport {
     pub cells: usize,
     /// Threads of the "all threads" cases.
     pub threads: usize,
+    /// The inputs of `step` and `naive`: `"real"` (the SensorGrid of the real scan and the
+    /// GISGrid of the real map, as `frame` sees them) or `"random"` (random grids whose map
+    /// context changes every 8 cells on average: a worst case for the kernel).
+    pub step_inputs: &'static str,
+    /// Observed cells (non-vacuous SensorGrid) in the step's inputs, as a fraction.
+    pub observed_fraction: f64,
     /// Bytes one step reads plus writes (the copy floor's traffic).
     pub bytes_moved_per_step: usize,
     /// Bytes of state per window cell: PerceptionGrid + SensorGrid + GisGrid (independent of the
@@ -197,15 +203,25 @@ impl<'a> Cases<'a> {
         options: &BenchOptions,
         threads: usize,
     ) -> Result<Self, BenchError> {
-        let mut rng = workload::SplitMix64::new(size as u64);
-        let sg = workload::random_sensor_grid(size, size, &mut rng);
-        let gg = workload::random_gis_grid(size, size, &mut rng);
-        let pg = PerceptionGrid::new(size, size);
-        let naive = naive::NaiveGrid::from_perception(&pg);
         let real = match &options.real {
             Some(inputs) => Some(real::RealCases::new(inputs, size, options.cell_size_m)?),
             None => None,
         };
+        // The step's inputs: what the real scan and map give at the map's centre, else random
+        // grids (every block of cells then holds several map contexts: a worst case).
+        let (sg, gg) = match &real {
+            Some(real) => (
+                real.step_sensor_grid().clone(),
+                real.step_gis_grid().clone(),
+            ),
+            None => {
+                let mut rng = workload::SplitMix64::new(size as u64);
+                let sg = workload::random_sensor_grid(size, size, &mut rng);
+                (sg, workload::random_gis_grid(size, size, &mut rng))
+            }
+        };
+        let pg = PerceptionGrid::new(size, size);
+        let naive = naive::NaiveGrid::from_perception(&pg);
         Ok(Cases {
             size,
             threads,
@@ -296,9 +312,22 @@ impl<'a> Cases<'a> {
             })
             .collect();
         let floor = &self.floor;
+        let observed = self
+            .sg
+            .m_free
+            .iter()
+            .zip(&self.sg.m_occupied)
+            .filter(|(free, occupied)| **free + **occupied > 0.0)
+            .count();
         WindowReport {
             size: self.size,
             cells,
+            step_inputs: if self.real.is_some() {
+                "real"
+            } else {
+                "random"
+            },
+            observed_fraction: observed as f64 / cells as f64,
             threads: n,
             bytes_moved_per_step: floor.bytes_moved(),
             state_bytes_per_cell: state_bytes(&self.pg, &self.sg, &self.gg) as f64 / cells as f64,

@@ -54,6 +54,8 @@ pub struct RealCases {
     sensor_grid: SensorGrid,
     gis: GisGrid,
     prior: MapPrior,
+    step_sensor: SensorGrid,
+    step_gis: GisGrid,
     pipelines: [Pipeline; 2],
     /// Frames driven so far, per pipeline.
     frames: [u32; 2],
@@ -81,14 +83,20 @@ impl RealCases {
         let mut gis = GisGrid::new(size, size);
         let mut prior = MapPrior::new(Some(raster.clone()));
         prior.fill_window(&window, &mut gis);
+        let pose = Isometry3::from_xyz_rpy(0.0, 0.0, KITTI_SENSOR_HEIGHT_M, 0.0, 0.0, 0.0);
+        let mut sensor_model = SensorModel::new(params.sensor.clone());
+        let mut step_sensor = SensorGrid::new(size, size);
+        sensor_model.build(&scan.points_in_sensor, &pose, &window, &mut step_sensor);
         let pipelines = [
             Pipeline::new(params.clone(), Some(raster.clone()))?,
             Pipeline::new(params.clone(), Some(raster.clone()))?,
         ];
         Ok(RealCases {
             points: scan.points_in_sensor,
-            sensor_model: SensorModel::new(params.sensor.clone()),
+            sensor_model,
             params,
+            step_sensor,
+            step_gis: gis.clone(),
             raster,
             window,
             sensor_grid: SensorGrid::new(size, size),
@@ -98,6 +106,16 @@ impl RealCases {
             frames: [0; 2],
             prior_direction: 1,
         })
+    }
+
+    /// The SensorGrid of the scan with the window at the map's centre (before any timed case).
+    pub fn step_sensor_grid(&self) -> &SensorGrid {
+        &self.step_sensor
+    }
+
+    /// The GISGrid of the window at the map's centre (before any timed case).
+    pub fn step_gis_grid(&self) -> &GisGrid {
+        &self.step_gis
     }
 
     /// Points in the scan.

@@ -116,6 +116,11 @@ fn table(report: &BenchReport) -> String {
             w.state_bytes_per_cell,
             w.bytes_moved_per_step as f64 / 1e6
         );
+        out += &format!(
+            "  step inputs: {} ({:.0}% of cells observed)\n",
+            w.step_inputs,
+            100.0 * w.observed_fraction
+        );
         out += &format!("  {:<16} {:>12} {:>16}\n", "case", "ms/frame", "cells/s");
         for t in &w.timings {
             out += &format!(

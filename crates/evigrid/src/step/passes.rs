@@ -5,19 +5,25 @@
 //! on `BLOCK` floats that the compiler vectorises; per-cell choices (map context, ζ) enter as
 //! per-cell factors, never as branches.
 //!
-//! Two elementary passes suffice for every stage, because each stage is a combination with a
-//! mass function whose focal sets differ from Ω by one class:
-//! - [`remove_class`]: conjunctive combination with the simple mass function "s on Ω∖{θ}, 1 − s on
-//!   Ω". For B ⊆ Ω: (m ∩ m_s)(B) = (1 − s)·m(B) + s·Σ_{A∖{θ} = B} m(A), i.e. every A ∋ θ gives
-//!   s·m(A) to A∖{θ}. With s ∈ {0, 1} per cell it restricts to Ω∖{θ} or does nothing.
+//! Every stage is a combination with a mass function of one or two focal sets, and each is one
+//! kind of pass, a transfer of a per-cell share of m(A) from each source set A to one target:
+//! - [`restrict_to`]: conjunctive combination with "s on G, 1 − s on Ω". For B ⊆ Ω:
+//!   (m ∩ m_s)(B) = (1 − s)·m(B) + s·Σ_{A ∩ G = B} m(A): every A ⊄ G gives s·m(A) to A ∩ G.
+//!   With G = Ω∖{θ} ([`remove_class`]) it removes one class: the specialisation (θ = M, s = ζ,
+//!   eq 28-29, whose matrix is exactly this combination); with G the map context's focal set and
+//!   s = β it is the map prior (eq 34-38).
 //! - [`add_class`]: disjunctive combination with "1 − α on ∅, α on {θ}" (one Mercier context).
 //!   (m ∪ m_α)(B) = (1 − α)·m(B) + α·Σ_{A ∪ {θ} = B} m(A): every A ∌ θ gives α·m(A) to A ∪ {θ}.
+//! - [`discount_to_omega`]: every A ≠ Ω gives a rate of its mass to Ω.
+//!
+//! The refined sensor r(SG) has three focal sets and is combined in one pass of its own
+//! (`combine_with_refined_sensor` in the parent module).
 
 use crate::grids::{N_SETS, OMEGA};
 
 /// Cells per block: 16 lanes of f32 are four SSE or two AVX registers, and a block of 32 planes
 /// (2 KiB) and its copy stay in L1.
-pub(crate) const BLOCK: usize = 16;
+pub(crate) const BLOCK: usize = 32;
 
 /// One value per cell of a block.
 pub(crate) type Lanes = [f32; BLOCK];
@@ -28,33 +34,27 @@ pub(crate) type BlockMasses = [Lanes; N_SETS];
 /// Below this, a mass left to rescale is treated as zero (f32 cannot resolve it from rounding).
 pub(crate) const TOO_SMALL_TO_RESCALE: f32 = 1e-6;
 
-/// Gives `moved[cell] = s[cell]·m[from][cell]` from set `from` to set `to` (`to < from`
-/// or `to > from`, never equal).
+/// Gives `moved[cell] = s[cell]·m[from][cell]` from set `from` to set `to` (never equal).
 #[inline(always)]
 fn transfer(m: &mut BlockMasses, from: usize, to: usize, s: &Lanes) {
-    let source = m[from];
-    let mut kept = source;
-    let target = &mut m[to];
+    // Local copies, not two borrows into `m`: the compiler then knows that nothing aliases and
+    // keeps the lanes in vector registers.
+    let (mut source, mut target, share) = (m[from], m[to], *s);
     for i in 0..BLOCK {
-        let moved = s[i] * source[i];
+        let moved = share[i] * source[i];
         target[i] += moved;
-        kept[i] = source[i] - moved;
+        source[i] -= moved;
     }
-    m[from] = kept;
+    m[from] = source;
+    m[to] = target;
 }
 
 /// m ∩ "s on Ω∖{θ}, 1 − s on Ω": every A ∋ θ gives s·m(A) to A∖{θ} (`class_bit` = θ's bit).
 ///
-/// Used for the map prior's restriction (s ∈ {0, 1}), for the refined sensor's O
-/// (θ = F, s = 1), and for the specialisation (θ = M, s = ζ, eq 28-29, whose matrix is exactly
-/// this combination).
+/// The specialisation of eq 28-29 with θ = M and s = ζ.
 #[inline(always)]
 pub(crate) fn remove_class(m: &mut BlockMasses, class_bit: usize, s: &Lanes) {
-    for set in 0..N_SETS {
-        if set & class_bit != 0 {
-            transfer(m, set, set ^ class_bit, s);
-        }
-    }
+    restrict_to(m, OMEGA ^ class_bit, s);
 }
 
 /// m ∪ "1 − α on ∅, α on {θ}": every A ∌ θ gives α·m(A) to A ∪ {θ} (Mercier contextual
@@ -72,10 +72,40 @@ pub(crate) fn add_class(m: &mut BlockMasses, class_bit: usize, alpha: f32) {
 
 /// Discounting by a rate per focal set: every A ≠ Ω gives `rate[A]`·m(A) to Ω (eq 13-14 when all
 /// rates are equal; the class-rate discounting otherwise).
+///
+/// What Ω gains is summed in four partial sums, so that 31 additions are four short dependency
+/// chains instead of one long one.
 #[inline(always)]
 pub(crate) fn discount_to_omega(m: &mut BlockMasses, rate_per_set: &[f32; N_SETS]) {
+    let mut gained = [[0.0; BLOCK]; 4];
     for (set, &rate) in rate_per_set.iter().enumerate().take(OMEGA) {
-        transfer(m, set, OMEGA, &[rate; BLOCK]);
+        let plane = &mut m[set];
+        let partial = &mut gained[set % 4];
+        for i in 0..BLOCK {
+            let moved = rate * plane[i];
+            plane[i] -= moved;
+            partial[i] += moved;
+        }
+    }
+    for i in 0..BLOCK {
+        m[OMEGA][i] += (gained[0][i] + gained[1][i]) + (gained[2][i] + gained[3][i]);
+    }
+}
+
+/// m ∩ "s on G, 1 − s on Ω" for a focal set `g` (`s` per cell): every A ⊄ G gives s·m(A) to
+/// A ∩ G (possibly ∅).
+///
+/// This is the map prior's half of SG' = r(SG) ∩ GG (eq 21, 34-38): (m ∩ m_GG)(B) =
+/// (1 − β)·m(B) + β·Σ_{A ∩ G = B} m(A). Sources (A ⊄ G) and targets (A ∩ G ⊆ G) never coincide,
+/// so one transfer per source set, in any order, is the whole combination; a cell whose `s` is 0
+/// (another map context) is left exactly as it was.
+#[inline(always)]
+pub(crate) fn restrict_to(m: &mut BlockMasses, g: usize, s: &Lanes) {
+    for set in 0..N_SETS {
+        let target = set & g;
+        if target != set {
+            transfer(m, set, target, s);
+        }
     }
 }
 
@@ -157,6 +187,22 @@ mod tests {
         rate[O] = 0.6;
         discount_to_omega(&mut m, &rate);
         assert!(close(m[F][0], 0.4) && close(m[O][0], 0.2) && close(m[OMEGA][0], 0.4));
+    }
+
+    #[test]
+    fn restrict_to_moves_the_share_s_to_the_intersection_with_g() {
+        // G = {F,S,M} (road), s = 0.8: {I,S} 0.5 → {S} 0.4; Ω 0.3 → G 0.24; {I} 0.2 → ∅ 0.16;
+        // what stays is 1 − s of each source; {S} and G (⊆ G) do not move.
+        let g = F | S | M;
+        let mut m = block_of(&[(I | S, 0.5), (OMEGA, 0.3), (I, 0.2)]);
+        let mut s = [0.8; BLOCK];
+        s[1] = 0.0; // another context: untouched
+        restrict_to(&mut m, g, &s);
+        assert!(close(m[S][0], 0.4) && close(m[I | S][0], 0.1));
+        assert!(close(m[g][0], 0.24) && close(m[OMEGA][0], 0.06));
+        assert!(close(m[0][0], 0.16) && close(m[I][0], 0.04));
+        assert_eq!((m[I | S][1], m[OMEGA][1], m[I][1]), (0.5, 0.3, 0.2));
+        assert_eq!((m[S][1], m[g][1], m[0][1]), (0.0, 0.0, 0.0));
     }
 
     #[test]

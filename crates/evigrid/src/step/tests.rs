@@ -794,3 +794,48 @@ fn grid_cells_equal_single_cell_steps() {
         assert_eq!(one.zeta()[0], pg.zeta()[idx]);
     }
 }
+
+#[test]
+fn the_vector_code_for_this_cpu_equals_the_portable_code_bit_for_bit() {
+    // On a CPU with AVX2 `step` runs code compiled for it; `step_blocks` is the portable code.
+    // Without FMA contraction both do the same IEEE operations lane by lane.
+    let params = Params::default();
+    let (mut dispatched, sg, gg) = scene(67, 23, 5);
+    let mut portable = dispatched.clone();
+    for _ in 0..4 {
+        step(&mut dispatched, &sg, &gg, &params, 0.1);
+        step_cells(&mut portable, &sg, &gg, &params, 0.1, None, |run, k| {
+            run.step_blocks(k)
+        });
+    }
+    for set in 0..N_SETS {
+        let same = dispatched
+            .plane(set)
+            .iter()
+            .zip(portable.plane(set))
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(same, "set {set} differs");
+    }
+    assert_eq!(dispatched.zeta(), portable.zeta());
+}
+
+#[test]
+fn step_and_decide_decides_as_decide_grid_after_step() {
+    let params = Params::default();
+    let (mut fused, sg, gg) = scene(41, 37, 9);
+    let mut separate = fused.clone();
+    let mut fused_decisions = vec![crate::Decision::Unknown; fused.len()];
+    let mut separate_decisions = fused_decisions.clone();
+    for _ in 0..3 {
+        step_and_decide(&mut fused, &sg, &gg, &params, 0.1, &mut fused_decisions);
+        step(&mut separate, &sg, &gg, &params, 0.1);
+    }
+    let threshold = params.decision.unknown_threshold;
+    crate::decision::decide_grid(&separate, threshold, &mut separate_decisions);
+    assert_eq!(fused_decisions, separate_decisions);
+    assert!(
+        fused_decisions
+            .iter()
+            .any(|d| *d != crate::Decision::Unknown)
+    );
+}
