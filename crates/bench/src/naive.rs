@@ -7,7 +7,7 @@
 //! `evigrid bench`, the baseline the kernel's speed is stated against.
 
 use evigrid::grids::{N_SETS, OMEGA, class};
-use evigrid::params::{DiscountMode, ResidualPolicy};
+use evigrid::params::{DiscountMode, ResidualPolicy, UnobservedCells};
 use evigrid::step::{rate_for_step, set_rate_per_second};
 use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid};
 use geodata::MapContext;
@@ -221,6 +221,12 @@ fn step_cell(
             }
         }
     }
+    if params.fusion.unobserved == UnobservedCells::DiscountOnly && free + occ <= 0.0 {
+        cell.m = past;
+        cell.conflict_fo = 0.0;
+        cell.conflict_of = 0.0;
+        return;
+    }
     // 4. The modified conjunctive rule (eq 22-23, 30-31).
     let sensor_occupied = occupied(&sensor);
     let conflict_fo = past[class::F] * sensor_occupied;
@@ -278,10 +284,16 @@ mod tests {
                 ResidualPolicy::Keep,
                 ResidualPolicy::Normalise,
             ] {
-                params.fusion.discount_mode = mode;
-                params.fusion.residual = residual;
-                let worst = crate::workload::max_difference_after_steps(&params, 40, 30, 7);
-                assert!(worst < 1e-5, "{mode:?}/{residual:?}: differs by {worst}");
+                for unobserved in [UnobservedCells::Fuse, UnobservedCells::DiscountOnly] {
+                    params.fusion.discount_mode = mode;
+                    params.fusion.residual = residual;
+                    params.fusion.unobserved = unobserved;
+                    let worst = crate::workload::max_difference_after_steps(&params, 40, 30, 7);
+                    assert!(
+                        worst < 1e-5,
+                        "{mode:?}/{residual:?}/{unobserved:?}: differs by {worst}"
+                    );
+                }
             }
         }
     }

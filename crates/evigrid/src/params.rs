@@ -250,9 +250,11 @@ impl Default for WindowParams {
 #[serde(default, deny_unknown_fields)]
 pub struct SensorParams {
     /// μ_F, the mass on {F} of a cell a ray crosses before its first obstacle. By default 0.7
-    /// (paper IV-D).
+    /// (paper IV-D; kept by the tuning on simulated drives over Helsinki and Kouvola, see
+    /// docs/tuning.md).
     pub mu_free: f64,
-    /// μ_O, the mass on {O} of a cell holding an obstacle return. By default 0.8 (paper IV-D).
+    /// μ_O, the mass on {O} of a cell holding an obstacle return. By default 0.8 (paper IV-D; kept
+    /// by the tuning on simulated drives over Helsinki and Kouvola, see docs/tuning.md).
     pub mu_occupied: f64,
     /// Width of an angular sector, degrees. By default 0.5°, about the angle of a 0.5 m cell
     /// seen from 57 m (provisional, to be tuned on the benchmark).
@@ -300,14 +302,15 @@ impl Default for SensorParams {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct MapParams {
-    /// β_B, mass on {I} in a building cell. By default 0.9 (provisional, to be tuned on the
-    /// benchmark; the paper gives none).
+    /// β_B, mass on {I} in a building cell. By default 0.9 (the paper gives none; kept by the
+    /// tuning on simulated drives over Helsinki and Kouvola, which found the scores flat in
+    /// it, see docs/tuning.md).
     pub beta_building: f64,
-    /// β_R, mass on {F, S, M} in a road cell. By default 0.8 (provisional, to be tuned on the
-    /// benchmark).
+    /// β_R, mass on {F, S, M} in a road cell. By default 0.6 (tuned on simulated drives over
+    /// Helsinki and Kouvola, see docs/tuning.md; 0.8 before tuning).
     pub beta_road: f64,
-    /// β_T, mass on {F, U, S, M} in the intermediate space. By default 0.7 (provisional, to be
-    /// tuned on the benchmark).
+    /// β_T, mass on {F, U, S, M} in the intermediate space. By default 0.7 (kept by the tuning
+    /// on simulated drives over Helsinki and Kouvola, see docs/tuning.md).
     pub beta_other: f64,
 }
 
@@ -315,7 +318,7 @@ impl Default for MapParams {
     fn default() -> Self {
         Self {
             beta_building: 0.9,
-            beta_road: 0.8,
+            beta_road: 0.6,
             beta_other: 0.7,
         }
     }
@@ -364,6 +367,20 @@ pub enum ResidualPolicy {
     /// Removed, and the other masses rescaled to sum to 1, as Dempster's rule. If nothing is
     /// left to rescale, the cell falls back to `to_omega` (vacuous) and the event is counted.
     Normalise,
+}
+
+/// What a step does to a cell the scan did not observe (its SensorGrid is vacuous).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UnobservedCells {
+    /// SPEC §5 as written: every step runs on every cell, so an unobserved cell is discounted
+    /// and fused again with the map prior (SG' = GG), and its accumulator and specialisation
+    /// run.
+    Fuse,
+    /// Only step 3 (discounting): a scan says nothing about a cell it did not reach, and the
+    /// map prior is not counted again as if it were new evidence. ζ keeps its value and the
+    /// conflict masses are 0.
+    DiscountOnly,
 }
 
 /// One discount rate per class of Ω_PG, per second, each in `[0, 1]`.
@@ -417,8 +434,9 @@ impl ClassRates {
 impl Default for ClassRates {
     /// Free space changes quickly (objects move in); buildings almost never; unmapped
     /// infrastructure rarely; a stopped object may leave; a moving object is gone within a second
-    /// (90 % of its mass discounted per second, about 21 % per 10 Hz scan). By default F 0.5,
-    /// I 0.05, U 0.2, S 0.3, M 0.9 per second (provisional, to be tuned on the benchmark).
+    /// (90 % of its mass discounted per second, about 21 % per 10 Hz scan). By default F 0.5, I
+    /// 0.05, U 0.2, S 0.3, M 0.9 per second (kept by the tuning on simulated drives over
+    /// Helsinki and Kouvola, see docs/tuning.md).
     fn default() -> Self {
         Self {
             free: 0.5,
@@ -472,12 +490,14 @@ pub struct FusionParams {
     /// the benchmark).
     pub set_rate: SetRate,
     /// Discount rate per second of each class, α_1s; a step of `dt` seconds applies
-    /// α(dt) = 1 − (1 − α_1s)^dt. By default F 0.5, I 0.05, U 0.2, S 0.3, M 0.9 (provisional, to be
-    /// tuned on the benchmark).
+    /// α(dt) = 1 − (1 − α_1s)^dt. By default F 0.5, I 0.05, U 0.2, S 0.3, M 0.9 (kept by the tuning
+    /// on simulated drives over Helsinki and Kouvola, see docs/tuning.md).
     #[serde(deserialize_with = "class_rates_from_number_or_table")]
     pub discount_per_second: ClassRates,
     /// Residual conflict policy. By default `to_omega` (SPEC §5 step 4 decision).
     pub residual: ResidualPolicy,
+    /// What happens to cells the scan did not observe. By default `fuse` (SPEC §5).
+    pub unobserved: UnobservedCells,
 }
 
 impl Default for FusionParams {
@@ -487,6 +507,7 @@ impl Default for FusionParams {
             set_rate: SetRate::Max,
             discount_per_second: ClassRates::default(),
             residual: ResidualPolicy::ToOmega,
+            unobserved: UnobservedCells::Fuse,
         }
     }
 }
@@ -495,24 +516,26 @@ impl Default for FusionParams {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct AccumulatorParams {
-    /// δ_inc, added to ζ when the cell is steadily occupied. By default 0.1: ten steadily occupied
-    /// scans make ζ = 1 (provisional, to be tuned on the benchmark).
+    /// δ_inc, added to ζ when the cell is steadily occupied. By default 0.01: a hundred steadily
+    /// occupied scans (10 s at 10 Hz) make ζ = 1 (tuned on simulated drives over Helsinki and
+    /// Kouvola, see docs/tuning.md; 0.1 before tuning). A small ζ already tips {S, M} towards S in
+    /// the decision, while a large one erases the {M} mass of slow or long moving objects.
     pub delta_inc: f64,
-    /// δ_dec, removed from ζ on conflict. By default 0.3 (provisional, to be tuned on the
-    /// benchmark).
+    /// δ_dec, removed from ζ on conflict. By default 0.3 (kept by the tuning on simulated
+    /// drives over Helsinki and Kouvola, see docs/tuning.md).
     pub delta_dec: f64,
-    /// γ_O, the m(O) a cell needs to count as occupied. By default 0.5 (provisional, to be tuned on
-    /// the benchmark).
+    /// γ_O, the m(O) a cell needs to count as occupied. By default 0.5 (kept by the tuning
+    /// on simulated drives over Helsinki and Kouvola, see docs/tuning.md).
     pub gamma_occupied: f64,
-    /// γ_∅, the conflict ∅_FO + ∅_OF above which ζ decreases. By default 0.2 (provisional, to be
-    /// tuned on the benchmark).
+    /// γ_∅, the conflict ∅_FO + ∅_OF above which ζ decreases. By default 0.2 (kept by the tuning
+    /// on simulated drives over Helsinki and Kouvola, see docs/tuning.md).
     pub gamma_conflict: f64,
 }
 
 impl Default for AccumulatorParams {
     fn default() -> Self {
         Self {
-            delta_inc: 0.1,
+            delta_inc: 0.01,
             delta_dec: 0.3,
             gamma_occupied: 0.5,
             gamma_conflict: 0.2,

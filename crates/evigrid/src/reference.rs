@@ -17,7 +17,7 @@
 //! ```
 
 use crate::grids::{N_SETS, OMEGA, class};
-use crate::params::{DiscountMode, MapParams, Params, ResidualPolicy};
+use crate::params::{DiscountMode, MapParams, Params, ResidualPolicy, UnobservedCells};
 use crate::step::rate_for_step;
 use belief::{
     BeliefError, ClassRateDiscount, ClassicalDiscount, Combination, Conjunctive,
@@ -160,6 +160,23 @@ pub(crate) fn reference_step_traced(
             ContextualDiscount::singletons(&rates)?.discount(&previous)?
         }
     };
+    let observed = m_free + m_occupied > 0.0;
+    if fusion.unobserved == UnobservedCells::DiscountOnly && !observed {
+        let occupied = occupied_mass(&discounted);
+        let mut masses = [0.0; N_SETS];
+        masses.copy_from_slice(discounted.values());
+        let cell = CellState {
+            masses,
+            conflict_fo: 0.0,
+            conflict_of: 0.0,
+            ..*state
+        };
+        let trace = Trace {
+            occupied,
+            conflict: 0.0,
+        };
+        return Ok((cell, trace));
+    }
     // 4. Modified conjunctive rule (eq 22-23, 30-31).
     let combined = Conjunctive.combine(&discounted, &sg_prime)?;
     let conflict_fo = discounted.get(set(class::F)) * occupied_mass(&sg_prime);
@@ -194,7 +211,7 @@ pub(crate) fn reference_step_traced(
         zeta,
         conflict_fo,
         conflict_of,
-        seen: state.seen || m_free + m_occupied > 0.0,
+        seen: state.seen || observed,
     };
     Ok((cell, Trace { occupied, conflict }))
 }

@@ -17,7 +17,9 @@
 //! let mut gg = GisGrid::new(2, 1);
 //! sg.m_free[0] = 0.7; // the sensor sees cell 0 free …
 //! gg.context[0] = MapContext::Road; // … on a road
-//! let stats = step(&mut pg, &sg, &gg, &Params::default(), 0.1);
+//! let mut params = Params::default();
+//! params.map.beta_road = 0.8;
+//! let stats = step(&mut pg, &sg, &gg, &params, 0.1);
 //! assert_eq!(stats.observed_cells, 1);
 //! // r(SG) ⊕ GG on a road: {F} 0.7, {F,S,M} 0.8·0.3 = 0.24, Ω 0.06; the vacuous past changes nothing.
 //! assert!((pg.mass(class::F, 0) - 0.7).abs() < 1e-6);
@@ -35,11 +37,11 @@ use crate::decision::{Decision, decide_lanes};
 use crate::grids::{
     GisGrid, N_SETS, OMEGA, PerceptionGrid, PerceptionPlanesMut, SensorGrid, class,
 };
-use crate::params::{DiscountMode, Params, ResidualPolicy, SetRate};
+use crate::params::{DiscountMode, Params, ResidualPolicy, SetRate, UnobservedCells};
 use geodata::MapContext;
 use passes::{
-    BLOCK, BlockMasses, Lanes, TOO_SMALL_TO_RESCALE, add_class, discount_to_omega, occupied_mass,
-    remove_class, restrict_to, sum_sets,
+    BLOCK, BlockMasses, Lanes, TOO_SMALL_TO_RESCALE, add_class, occupied_mass, remove_class,
+    restrict_to, sum_sets,
 };
 use rayon::iter::ParallelIterator;
 
@@ -174,6 +176,7 @@ struct StepConstants {
     gamma_conflict: f32,
     /// SPEC §6: above this m(Ω) a cell is decided unknown.
     unknown_threshold: f32,
+    unobserved: UnobservedCells,
 }
 
 /// The discounting of step 3, as rates for this step's `dt`.
@@ -277,6 +280,7 @@ impl StepConstants {
             gamma_occupied: acc.gamma_occupied as f32,
             gamma_conflict: acc.gamma_conflict as f32,
             unknown_threshold: params.decision.unknown_threshold as f32,
+            unobserved: fusion.unobserved,
         }
     }
 }
@@ -518,28 +522,84 @@ fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
         &block.context,
         k,
     );
-    let sensor = &block.sensor;
-    let m = &mut block.m;
-    // 3. Discount the previous grid, so that old information fades.
-    match &k.discount {
-        Discount::ToOmega(rate_per_set) => discount_to_omega(m, rate_per_set),
+    if k.unobserved == UnobservedCells::Fuse || block.sensor.all_observed {
+        return fuse_block(block, k);
+    }
+    // `discount_only`: cells the scan did not reach are only discounted (step 3).
+    if !block.sensor.any_observed {
+        discount_only(&mut block.m, &k.discount);
+        block.conflict_fo = [0.0; BLOCK];
+        block.conflict_of = [0.0; BLOCK];
+        return StepStats {
+            cells: block.len as u64,
+            ..StepStats::default()
+        };
+    }
+    // Some of each: every cell fused, then the unobserved ones given their discounted past.
+    let (mut discounted, zeta) = (block.m, block.zeta);
+    discount_only(&mut discounted, &k.discount);
+    let stats = fuse_block(block, k);
+    let observed = &block.sensor.observed;
+    for (plane, past) in block.m.iter_mut().zip(&discounted) {
+        for i in 0..BLOCK {
+            plane[i] = if observed[i] != 0 { plane[i] } else { past[i] };
+        }
+    }
+    for i in 0..BLOCK {
+        let keep = observed[i] != 0;
+        block.zeta[i] = if keep { block.zeta[i] } else { zeta[i] };
+        block.conflict_fo[i] = if keep { block.conflict_fo[i] } else { 0.0 };
+        block.conflict_of[i] = if keep { block.conflict_of[i] } else { 0.0 };
+    }
+    stats
+}
+
+/// Step 3 alone: the discounting of every cell of the block.
+#[inline(always)]
+fn discount_only(m: &mut BlockMasses, discount: &Discount) {
+    match discount {
+        Discount::ToOmega(rate_per_set) => {
+            let mut to_omega = [0.0; BLOCK];
+            for set in 0..OMEGA {
+                m[set] = discounted(m, set, rate_per_set, &mut to_omega);
+            }
+            for i in 0..BLOCK {
+                m[OMEGA][i] += to_omega[i];
+            }
+        }
         Discount::Mercier(rate_per_class) => {
             for (bit, &alpha) in rate_per_class.iter().enumerate() {
                 add_class(m, 1 << bit, alpha);
             }
         }
     }
-    // 4. Modified conjunctive rule (eq 22-23, 30-31). c = PG^α ∩ SG' = (PG^α ∩ r(SG) ∩ GG − K·δ_∅)
-    //    / (1 − K): the sensor's three focal sets first, then the map's restriction, then
-    //    Dempster's normalisation of SG' (see `combine_with_refined_sensor` for why this order is
-    //    exact). ∅_FO = m^α({F})·m'(O) and ∅_OF = m^α(O)·m'({F}) are read on the way.
+}
+
+/// Steps 3-7 of SPEC §5 on every cell of the block, with SG' already in `block.sensor`.
+#[inline(always)]
+fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
+    let sensor = &block.sensor;
+    let m = &mut block.m;
+    // 3. Discount the previous grid, so that old information fades; 4. the modified conjunctive
+    //    rule (eq 22-23, 30-31). c = PG^α ∩ SG' = (PG^α ∩ r(SG) ∩ GG − K·Σm·δ_∅) / (1 − K): the
+    //    discounting and the sensor's three focal sets in one pass, then the map's restriction,
+    //    then Dempster's normalisation of SG' (see `discount_and_combine_with_refined_sensor`
+    //    for why this order is exact). ∅_FO = m^α({F})·m'(O) and ∅_OF = m^α(O)·m'({F}) are read
+    //    on the way.
+    let rate_per_set = match &k.discount {
+        Discount::ToOmega(rate_per_set) => rate_per_set,
+        Discount::Mercier(rate_per_class) => {
+            for (bit, &alpha) in rate_per_class.iter().enumerate() {
+                add_class(m, 1 << bit, alpha);
+            }
+            &[0.0; N_SETS]
+        }
+    };
+    let before = discount_and_combine_with_refined_sensor(m, rate_per_set, sensor);
     let mut conflict_fo = [0.0; BLOCK];
-    for i in 0..BLOCK {
-        conflict_fo[i] = m[class::F][i] * sensor.sg_occupied[i];
-    }
-    let before = combine_with_refined_sensor(m, sensor);
     let mut conflict_of = [0.0; BLOCK];
     for i in 0..BLOCK {
+        conflict_fo[i] = before.free[i] * sensor.sg_occupied[i];
         conflict_of[i] = before.occupied[i] * sensor.sg_free[i];
     }
     combine_with_map_prior(m, &block.context, sensor, k);
@@ -579,18 +639,33 @@ fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
         block.seen[i] |= sensor.observed[i];
     }
     let real = block.len;
+    let counted = match k.unobserved {
+        UnobservedCells::Fuse => [1; BLOCK],
+        UnobservedCells::DiscountOnly => sensor.observed,
+    };
     StepStats {
         cells: real as u64,
         observed_cells: count(&sensor.observed[..real]),
         total_map_conflicts: count(&sensor.total_conflict[..real]),
-        normalisation_fallbacks: count(&fallbacks_fusion[..real])
-            + count(&fallbacks_specialisation[..real]),
+        // Under `discount_only` the unobserved cells' fusion is discarded, and so are its events.
+        normalisation_fallbacks: count_where(&fallbacks_fusion[..real], &counted[..real])
+            + count_where(&fallbacks_specialisation[..real], &counted[..real]),
     }
 }
 
 #[inline(always)]
 fn count(flags: &[u8]) -> u64 {
     flags.iter().map(|&f| u64::from(f)).sum()
+}
+
+/// Flags set in both `flags` and `mask`.
+#[inline(always)]
+fn count_where(flags: &[u8], mask: &[u8]) -> u64 {
+    flags
+        .iter()
+        .zip(mask)
+        .map(|(&f, &m)| u64::from(f & m))
+        .sum()
 }
 
 /// SG'_t = r(SG_t) ⊕ GG per cell, in the compact form the fusion needs.
@@ -619,8 +694,9 @@ struct SensorEvidence {
     contexts_present: u8,
     /// Whether K > 0 in any cell of the block (outside building cells it is 0).
     any_sensor_map_conflict: bool,
-    /// Whether any cell of the block has a non-vacuous SensorGrid.
+    /// Whether any cell, or every cell, of the block has a non-vacuous SensorGrid.
     any_observed: bool,
+    all_observed: bool,
 }
 
 impl SensorEvidence {
@@ -639,6 +715,7 @@ impl SensorEvidence {
             contexts_present: 0,
             any_sensor_map_conflict: false,
             any_observed: false,
+            all_observed: false,
         }
     }
 
@@ -710,65 +787,107 @@ impl SensorEvidence {
         // stop the compiler from vectorising it.
         e.any_sensor_map_conflict = e.conflict.iter().any(|&conflict| conflict > 0.0);
         e.any_observed = e.observed.iter().any(|&observed| observed != 0);
+        e.all_observed = e.observed.iter().all(|&observed| observed != 0);
     }
 }
 
-/// What [`combine_with_refined_sensor`] read of the grid before changing it.
+/// What [`discount_and_combine_with_refined_sensor`] read of the discounted grid PG^α before
+/// combining it.
 struct BeforeSensor {
-    /// m(O) = Σ_{∅ ≠ A ⊆ O} m(A), for ∅_OF (eq 23).
+    /// m^α({F}), for ∅_FO (eq 22).
+    free: Lanes,
+    /// m^α(O) = Σ_{∅ ≠ A ⊆ O} m^α(A), for ∅_OF (eq 23).
     occupied: Lanes,
-    /// Σ_A m(A), for Dempster's normalisation of SG'.
+    /// Σ_A m^α(A), for Dempster's normalisation of SG'.
     total: Lanes,
 }
 
-/// m ← m ∩ r(SG_t) in place, in one pass over the pairs (A, A ∪ {F}) with F ∉ A.
+/// m ← m^α ∩ r(SG_t) in place, in one pass over the pairs (A, A ∪ {F}) with F ∉ A.
 ///
-/// m ∩ r(SG) = m_Ω·m + m_O·(m restricted to O) + m_F·(m restricted to {F}). Restricting to O
-/// gives A ⊆ O its own mass and that of A ∪ {F}; restricting to {F} puts pl(F) = Σ_{A∋F} m(A) on
-/// {F} and the rest on ∅. So per pair, A gets m_Ω·m(A) + m_O·(m(A) + m(A ∪ {F})) and A ∪ {F}
-/// keeps m_Ω·m(A ∪ {F}); the pair (∅, {F}) also receives the m_F terms once both sums are known.
+/// Discounting (step 3): every A ≠ Ω keeps 1 − α_A of its mass and gives the rest to Ω
+/// (eq 13-14 with one rate; class-rate discounting with one per set). `rate_per_set` is all 0
+/// when the grid was discounted before (Mercier's discounting is not to Ω): then m^α = m,
+/// exactly.
+///
+/// Combination: m ∩ r(SG) = m_Ω·m + m_O·(m restricted to O) + m_F·(m restricted to {F}).
+/// Restricting to O gives A ⊆ O its own mass and that of A ∪ {F}; restricting to {F} puts
+/// pl(F) = Σ_{A∋F} m(A) on {F} and the rest on ∅. So per pair, A gets m_Ω·m(A) +
+/// m_O·(m(A) + m(A ∪ {F})) and A ∪ {F} keeps m_Ω·m(A ∪ {F}). Ω's pair waits until every set
+/// has given Ω its share, and (∅, {F}) until the sums for the m_F terms are known.
 ///
 /// Combining with SG' = (r(SG) ∩ GG − K·δ_∅) / (1 − K) instead follows by associativity:
 /// m ∩ SG' = (m ∩ r(SG) ∩ GG − K·Σm·δ_∅) / (1 − K), since m ∩ δ_∅ is all of m's mass on ∅
 /// ([`combine_with_map_prior`], then [`remove_sensor_map_conflict`]).
 #[inline(always)]
-fn combine_with_refined_sensor(m: &mut BlockMasses, sensor: &SensorEvidence) -> BeforeSensor {
+fn discount_and_combine_with_refined_sensor(
+    m: &mut BlockMasses,
+    rate_per_set: &[f32; N_SETS],
+    sensor: &SensorEvidence,
+) -> BeforeSensor {
     let (s_free, s_occupied, s_omega) = (&sensor.free, &sensor.occupied, &sensor.omega);
-    // Two partial sums each, so that the additions form two short chains, not one long one.
-    let mut occupied = [[0.0; BLOCK]; 2];
-    let mut with_free = [[0.0; BLOCK]; 2];
+    let mut to_omega = [0.0; BLOCK];
+    let empty = discounted(m, 0, rate_per_set, &mut to_omega);
+    let free = discounted(m, class::F, rate_per_set, &mut to_omega);
+    let mut occupied = [0.0; BLOCK];
+    let mut with_free = free;
     for set in (2..N_SETS).step_by(2) {
-        let (a, a_and_f) = (m[set], m[set | class::F]);
-        let partial = (set / 2) % 2;
+        let a = discounted(m, set, rate_per_set, &mut to_omega);
+        let a_and_f = if set | class::F == OMEGA {
+            // The last pair: every other set has given Ω its share by now.
+            let mut omega = m[OMEGA];
+            for i in 0..BLOCK {
+                omega[i] += to_omega[i];
+            }
+            omega
+        } else {
+            discounted(m, set | class::F, rate_per_set, &mut to_omega)
+        };
         for i in 0..BLOCK {
-            occupied[partial][i] += a[i];
-            with_free[partial][i] += a_and_f[i];
+            occupied[i] += a[i];
+            with_free[i] += a_and_f[i];
         }
-        // A vacuous r(SG) (m_Ω = 1, m_F = m_O = 0) leaves every mass exactly as it is: a block
-        // the scan did not reach needs only the sums.
+        // A vacuous r(SG) (m_Ω = 1, m_F = m_O = 0) leaves every discounted mass exactly as it
+        // is: a block the scan did not reach is only discounted.
         if sensor.any_observed {
             for i in 0..BLOCK {
                 m[set][i] = s_omega[i] * a[i] + s_occupied[i] * (a[i] + a_and_f[i]);
                 m[set | class::F][i] = s_omega[i] * a_and_f[i];
             }
+        } else {
+            m[set] = a;
+            m[set | class::F] = a_and_f;
         }
     }
     let mut before = BeforeSensor {
-        occupied: [0.0; BLOCK],
+        free,
+        occupied,
         total: [0.0; BLOCK],
     };
-    let (empty, free) = (m[0], m[class::F]);
     for i in 0..BLOCK {
-        let occupied = occupied[0][i] + occupied[1][i];
-        let without_free = empty[i] + occupied;
-        let with_free = free[i] + (with_free[0][i] + with_free[1][i]);
+        let without_free = empty[i] + occupied[i];
         m[0][i] =
             s_omega[i] * empty[i] + s_occupied[i] * (empty[i] + free[i]) + s_free[i] * without_free;
-        m[class::F][i] = s_omega[i] * free[i] + s_free[i] * with_free;
-        before.occupied[i] = occupied;
-        before.total[i] = without_free + with_free;
+        m[class::F][i] = s_omega[i] * free[i] + s_free[i] * with_free[i];
+        before.total[i] = without_free + with_free[i];
     }
     before
+}
+
+/// m(A) discounted at A's rate; what it loses is added to `to_omega`.
+#[inline(always)]
+fn discounted(
+    m: &BlockMasses,
+    set: usize,
+    rate_per_set: &[f32; N_SETS],
+    to_omega: &mut Lanes,
+) -> Lanes {
+    let (rate, mut kept) = (rate_per_set[set], m[set]);
+    for i in 0..BLOCK {
+        let moved = rate * kept[i];
+        kept[i] -= moved;
+        to_omega[i] += moved;
+    }
+    kept
 }
 
 /// m ← m ∩ GG in place: for each map context in the block, its restriction to G with share β

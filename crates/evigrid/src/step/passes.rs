@@ -14,16 +14,16 @@
 //!   s = β it is the map prior (eq 34-38).
 //! - [`add_class`]: disjunctive combination with "1 − α on ∅, α on {θ}" (one Mercier context).
 //!   (m ∪ m_α)(B) = (1 − α)·m(B) + α·Σ_{A ∪ {θ} = B} m(A): every A ∌ θ gives α·m(A) to A ∪ {θ}.
-//! - [`discount_to_omega`]: every A ≠ Ω gives a rate of its mass to Ω.
 //!
-//! The refined sensor r(SG) has three focal sets and is combined in one pass of its own
-//! (`combine_with_refined_sensor` in the parent module).
+//! Discounting to Ω and the refined sensor r(SG), whose three focal sets pair each A ∌ F with
+//! A ∪ {F}, make one pass of their own (`discount_and_combine_with_refined_sensor` in the
+//! parent module).
 
 use crate::grids::{N_SETS, OMEGA};
 
 /// Cells per block: 16 lanes of f32 are four SSE or two AVX registers, and a block of 32 planes
 /// (2 KiB) and its copy stay in L1.
-pub(crate) const BLOCK: usize = 32;
+pub(crate) const BLOCK: usize = 64;
 
 /// One value per cell of a block.
 pub(crate) type Lanes = [f32; BLOCK];
@@ -70,42 +70,44 @@ pub(crate) fn add_class(m: &mut BlockMasses, class_bit: usize, alpha: f32) {
     }
 }
 
-/// Discounting by a rate per focal set: every A ≠ Ω gives `rate[A]`·m(A) to Ω (eq 13-14 when all
-/// rates are equal; the class-rate discounting otherwise).
-///
-/// What Ω gains is summed in four partial sums, so that 31 additions are four short dependency
-/// chains instead of one long one.
-#[inline(always)]
-pub(crate) fn discount_to_omega(m: &mut BlockMasses, rate_per_set: &[f32; N_SETS]) {
-    let mut gained = [[0.0; BLOCK]; 4];
-    for (set, &rate) in rate_per_set.iter().enumerate().take(OMEGA) {
-        let plane = &mut m[set];
-        let partial = &mut gained[set % 4];
-        for i in 0..BLOCK {
-            let moved = rate * plane[i];
-            plane[i] -= moved;
-            partial[i] += moved;
-        }
-    }
-    for i in 0..BLOCK {
-        m[OMEGA][i] += (gained[0][i] + gained[1][i]) + (gained[2][i] + gained[3][i]);
-    }
-}
-
 /// m ∩ "s on G, 1 − s on Ω" for a focal set `g` (`s` per cell): every A ⊄ G gives s·m(A) to
 /// A ∩ G (possibly ∅).
 ///
 /// This is the map prior's half of SG' = r(SG) ∩ GG (eq 21, 34-38): (m ∩ m_GG)(B) =
-/// (1 − β)·m(B) + β·Σ_{A ∩ G = B} m(A). Sources (A ⊄ G) and targets (A ∩ G ⊆ G) never coincide,
-/// so one transfer per source set, in any order, is the whole combination; a cell whose `s` is 0
-/// (another map context) is left exactly as it was.
+/// (1 − β)·m(B) + β·Σ_{A ∩ G = B} m(A), and the specialisation (G = Ω∖{M}, s = ζ). Sources
+/// (A ⊄ G) and targets (A ∩ G ⊆ G) never coincide, so the transfers commute. They are made
+/// target by target: the sources of T ⊆ G are T ∪ X' for every non-empty X' ⊆ Ω∖G, and what
+/// they give is summed before T is touched once. A cell whose `s` is 0 (another map context,
+/// ζ = 0) is left exactly as it was.
 #[inline(always)]
 pub(crate) fn restrict_to(m: &mut BlockMasses, g: usize, s: &Lanes) {
-    for set in 0..N_SETS {
-        let target = set & g;
-        if target != set {
-            transfer(m, set, target, s);
+    let excluded = OMEGA & !g;
+    if excluded == 0 {
+        return;
+    }
+    let share = *s;
+    // Subsets of a mask in decreasing order: `subset = (subset − 1) & mask` down to 0.
+    let mut target = g;
+    loop {
+        let mut gained = [0.0; BLOCK];
+        let mut extra = excluded;
+        while extra != 0 {
+            let source = &mut m[target | extra];
+            for i in 0..BLOCK {
+                let moved = share[i] * source[i];
+                source[i] -= moved;
+                gained[i] += moved;
+            }
+            extra = (extra - 1) & excluded;
         }
+        let target_masses = &mut m[target];
+        for i in 0..BLOCK {
+            target_masses[i] += gained[i];
+        }
+        if target == 0 {
+            return;
+        }
+        target = (target - 1) & g;
     }
 }
 
@@ -124,10 +126,17 @@ pub(crate) fn sum_sets(m: &BlockMasses, select: impl Fn(usize) -> bool) -> Lanes
     total
 }
 
-/// Σ of m(A) over the non-empty A ⊆ {I, U, S, M}: m(O) as eq 22-23 define it.
+/// Σ of m(A) over the non-empty A ⊆ {I, U, S, M}: m(O) as eq 22-23 define it. These are the
+/// even sets (F is bit 0) from 2 on, summed in increasing order.
 #[inline(always)]
 pub(crate) fn occupied_mass(m: &BlockMasses) -> Lanes {
-    sum_sets(m, |set| set != 0 && set & crate::grids::class::F == 0)
+    let mut total = [0.0; BLOCK];
+    for plane in m.iter().skip(2).step_by(2) {
+        for i in 0..BLOCK {
+            total[i] += plane[i];
+        }
+    }
+    total
 }
 
 #[cfg(test)]
@@ -176,17 +185,6 @@ mod tests {
         add_class(&mut m, I, 0.6);
         assert!(close(m[F][0], 0.2) && close(m[F | I][0], 0.3));
         assert!(close(m[U][0], 0.2) && close(m[I | U][0], 0.3));
-    }
-
-    #[test]
-    fn discount_to_omega_keeps_the_complement_of_each_rate() {
-        // m(F) = 0.5 at rate 0.2 keeps 0.4; m(O) = 0.5 at rate 0.6 keeps 0.2; Ω gets 0.1 + 0.3.
-        let mut m = block_of(&[(F, 0.5), (O, 0.5)]);
-        let mut rate = [0.0; N_SETS];
-        rate[F] = 0.2;
-        rate[O] = 0.6;
-        discount_to_omega(&mut m, &rate);
-        assert!(close(m[F][0], 0.4) && close(m[O][0], 0.2) && close(m[OMEGA][0], 0.4));
     }
 
     #[test]

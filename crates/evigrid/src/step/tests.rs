@@ -5,7 +5,7 @@
 
 use super::*;
 use crate::grids::class::{F, I, M, O, S, U};
-use crate::params::{ClassRates, Params, ResidualPolicy, SetRate};
+use crate::params::{ClassRates, Params, ResidualPolicy, SetRate, UnobservedCells};
 use crate::reference::{CellState, reference_step_traced};
 use proptest::prelude::*;
 
@@ -68,9 +68,28 @@ fn assert_masses(cell: &Cell, expected: &[(usize, f32)]) {
     }
 }
 
+/// The parameters the hand-computed numbers below assume, pinned so that tuning the defaults
+/// does not change them: β_B 0.9, β_R 0.8, β_T 0.7, and the default rates and accumulator.
+fn hand_params() -> Params {
+    let mut p = Params::default();
+    (p.map.beta_building, p.map.beta_road, p.map.beta_other) = (0.9, 0.8, 0.7);
+    p.fusion.discount_per_second = ClassRates {
+        free: 0.5,
+        mapped_infrastructure: 0.05,
+        unmapped_infrastructure: 0.2,
+        stopped: 0.3,
+        moving: 0.9,
+    };
+    p.fusion.set_rate = SetRate::Max;
+    p.fusion.residual = ResidualPolicy::ToOmega;
+    (p.accumulator.delta_inc, p.accumulator.delta_dec) = (0.1, 0.3);
+    (p.accumulator.gamma_occupied, p.accumulator.gamma_conflict) = (0.5, 0.2);
+    p
+}
+
 /// Parameters that leave ζ at 0 and do not discount, to look at one stage alone.
 fn still_params() -> Params {
-    let mut p = Params::default();
+    let mut p = hand_params();
     p.fusion.discount_per_second = ClassRates::uniform(0.0);
     p.accumulator.delta_inc = 0.0;
     p.accumulator.delta_dec = 0.0;
@@ -264,7 +283,7 @@ fn conflict_fo_goes_to_moving() {
     // Accumulator: conflict 0.48 > γ_∅ = 0.2 → ζ = 0.5 − 0.3 = 0.2.
     // Specialisation ζ = 0.2: {M} 0.48 → 0.384 + ∅ 0.096 (→ Ω under to_omega);
     // O 0.08 → {I,U,S} 0.016 + O 0.064; Ω 0.02 → {F,I,U,S} 0.004 + Ω 0.016 (+ 0.096 = 0.112).
-    let mut p = Params::default();
+    let mut p = hand_params();
     p.fusion.discount_per_second = ClassRates::uniform(0.0);
     let prior = [(F, 0.6), (S, 0.3), (OMEGA, 0.1)];
     let cell = one_step(&prior, 0.5, (0.0, 0.8), MapContext::Unknown, &p, 0.1);
@@ -349,7 +368,7 @@ fn accumulator_increases_when_steadily_occupied() {
     // Past {S} 0.8, Ω 0.2, ζ 0.5; occupied 0.8, no map: {S} 0.8, O 0.16, Ω 0.04, no conflict;
     // m(O) = 0.96 ≥ γ_O → ζ = 0.6. Specialisation 0.6: O → {I,U,S} 0.096 + O 0.064,
     // Ω → {F,I,U,S} 0.024 + Ω 0.016.
-    let mut p = Params::default();
+    let mut p = hand_params();
     p.fusion.discount_per_second = ClassRates::uniform(0.0);
     let prior = [(S, 0.8), (OMEGA, 0.2)];
     let cell = one_step(&prior, 0.5, (0.0, 0.8), MapContext::Unknown, &p, 0.1);
@@ -373,7 +392,7 @@ fn accumulator_increases_when_steadily_occupied() {
 #[test]
 fn accumulator_decreases_on_conflict_floored_at_zero() {
     // As `conflict_fo_goes_to_moving`: conflict 0.48 > 0.2, ζ 0.1 − 0.3 → 0: nothing specialised.
-    let mut p = Params::default();
+    let mut p = hand_params();
     p.fusion.discount_per_second = ClassRates::uniform(0.0);
     let prior = [(F, 0.6), (S, 0.3), (OMEGA, 0.1)];
     let cell = one_step(&prior, 0.1, (0.0, 0.8), MapContext::Unknown, &p, 0.1);
@@ -388,7 +407,7 @@ fn accumulator_decreases_on_conflict_floored_at_zero() {
 fn accumulator_unchanged_otherwise() {
     // Past {F} 0.7, Ω 0.3, ζ 0.4, vacuous sensor: m(O) = 0 < γ_O, no conflict → ζ stays 0.4.
     // Specialisation 0.4 moves Ω → {F,I,U,S} 0.12.
-    let p = Params::default();
+    let p = hand_params();
     let prior = [(F, 0.7), (OMEGA, 0.3)];
     let cell = one_step(&prior, 0.4, NO_SENSOR, MapContext::Unknown, &p, 0.0);
     assert!((cell.zeta - 0.4).abs() < 1e-7);
@@ -470,7 +489,7 @@ fn invalid_sensor_masses_are_clamped_not_propagated() {
 
 #[test]
 fn seen_flag_stays_once_set() {
-    let p = Params::default();
+    let p = hand_params();
     let (mut pg, mut sg, gg) = (
         PerceptionGrid::new(2, 1),
         SensorGrid::new(2, 1),
@@ -490,7 +509,7 @@ fn moving_object_crossing_a_road_cell() {
     // A scenario over many steps: free road, a car arrives (M), stays (ζ grows, mass moves
     // from M to S), leaves (conflict ∅_OF, ζ falls), road free again.
     use crate::decision::{Decision, decide};
-    let p = Params::default();
+    let p = hand_params();
     let (mut pg, mut sg, mut gg) = (
         PerceptionGrid::new(1, 1),
         SensorGrid::new(1, 1),
@@ -526,34 +545,39 @@ fn arb_params() -> impl Strategy<Value = Params> {
         Just(ResidualPolicy::Keep),
         Just(ResidualPolicy::Normalise)
     ];
+    let unobserved = prop_oneof![
+        Just(UnobservedCells::Fuse),
+        Just(UnobservedCells::DiscountOnly)
+    ];
     (
-        modes,
-        set_rates,
-        policies,
+        (modes, set_rates, policies, unobserved),
         prop::array::uniform5(0.0..=1.0_f64),
         prop::array::uniform3(0.0..=0.95_f64),
         prop::array::uniform4(0.0..=1.0_f64),
     )
-        .prop_map(|(mode, set_rate, policy, rates, betas, acc)| {
-            let mut p = Params::default();
-            p.fusion.discount_mode = mode;
-            p.fusion.set_rate = set_rate;
-            p.fusion.residual = policy;
-            p.fusion.discount_per_second = ClassRates {
-                free: rates[0],
-                mapped_infrastructure: rates[1],
-                unmapped_infrastructure: rates[2],
-                stopped: rates[3],
-                moving: rates[4],
-            };
-            (p.map.beta_building, p.map.beta_road, p.map.beta_other) =
-                (betas[0], betas[1], betas[2]);
-            p.accumulator.delta_inc = acc[0];
-            p.accumulator.delta_dec = acc[1];
-            p.accumulator.gamma_occupied = acc[2];
-            p.accumulator.gamma_conflict = acc[3];
-            p
-        })
+        .prop_map(
+            |((mode, set_rate, policy, unobserved), rates, betas, acc)| {
+                let mut p = Params::default();
+                p.fusion.unobserved = unobserved;
+                p.fusion.discount_mode = mode;
+                p.fusion.set_rate = set_rate;
+                p.fusion.residual = policy;
+                p.fusion.discount_per_second = ClassRates {
+                    free: rates[0],
+                    mapped_infrastructure: rates[1],
+                    unmapped_infrastructure: rates[2],
+                    stopped: rates[3],
+                    moving: rates[4],
+                };
+                (p.map.beta_building, p.map.beta_road, p.map.beta_other) =
+                    (betas[0], betas[1], betas[2]);
+                p.accumulator.delta_inc = acc[0];
+                p.accumulator.delta_dec = acc[1];
+                p.accumulator.gamma_occupied = acc[2];
+                p.accumulator.gamma_conflict = acc[3];
+                p
+            },
+        )
 }
 
 /// A random cell: previous masses (sparse), ζ, sensor masses, map context.
