@@ -211,6 +211,12 @@ pub(crate) fn decide_lanes<const N: usize>(
     unknown_threshold: f32,
     out: &mut [Decision],
 ) {
+    // A block no cell of which was ever seen, the usual case far from the vehicle, is unknown
+    // without computing anything.
+    if seen.iter().all(|&seen| seen == 0) {
+        out.fill(Decision::Unknown);
+        return;
+    }
     // betP before the division by 1 − m(∅): per class, the shares of the 16 sets that contain
     // it, added in increasing set order as `betp` does (eq 15).
     let mut p = [[0.0_f32; N]; 5];

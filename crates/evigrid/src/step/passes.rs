@@ -86,23 +86,27 @@ pub(crate) fn restrict_to(m: &mut BlockMasses, g: usize, s: &Lanes) {
         return;
     }
     let share = *s;
+    let mut kept_share = [0.0; BLOCK];
+    for i in 0..BLOCK {
+        kept_share[i] = 1.0 - share[i];
+    }
     // Subsets of a mask in decreasing order: `subset = (subset − 1) & mask` down to 0.
     let mut target = g;
     loop {
-        let mut gained = [0.0; BLOCK];
+        // Each source keeps (1 − s) of its mass; s times their sum goes to the target.
+        let mut sources = [0.0; BLOCK];
         let mut extra = excluded;
         while extra != 0 {
             let source = &mut m[target | extra];
             for i in 0..BLOCK {
-                let moved = share[i] * source[i];
-                source[i] -= moved;
-                gained[i] += moved;
+                sources[i] += source[i];
+                source[i] *= kept_share[i];
             }
             extra = (extra - 1) & excluded;
         }
         let target_masses = &mut m[target];
         for i in 0..BLOCK {
-            target_masses[i] += gained[i];
+            target_masses[i] += share[i] * sources[i];
         }
         if target == 0 {
             return;
