@@ -114,6 +114,21 @@ pub struct WindowReport {
     pub timings: Vec<CaseTiming>,
     /// Paired ratios: median over rounds of `time(a) / time(b)`.
     pub ratios: Vec<(String, f64)>,
+    /// The ratios that have a target ([`target_of`]), with the target and whether it is met.
+    pub checks: Vec<RatioCheck>,
+}
+
+/// A ratio against its target.
+#[derive(Clone, Debug, Serialize)]
+pub struct RatioCheck {
+    /// Ratio name.
+    pub ratio: String,
+    /// Measured value.
+    pub value: f64,
+    /// The target.
+    pub target: Target,
+    /// Whether the value meets it.
+    pub met: bool,
 }
 
 impl WindowReport {
@@ -126,6 +141,48 @@ impl WindowReport {
     pub fn timing(&self, case: &str) -> Option<&CaseTiming> {
         self.timings.iter().find(|t| t.case == case)
     }
+}
+
+/// A target a ratio should meet (issue 5 of the project): at least or at most a bound.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Target {
+    /// `true`: the ratio should be at least `bound`; `false`: at most.
+    pub at_least: bool,
+    /// The bound.
+    pub bound: f64,
+}
+
+impl Target {
+    /// Whether `value` meets the target.
+    pub fn is_met(&self, value: f64) -> bool {
+        if self.at_least {
+            value >= self.bound
+        } else {
+            value <= self.bound
+        }
+    }
+}
+
+impl std::fmt::Display for Target {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let op = if self.at_least { "≥" } else { "≤" };
+        write!(f, "{op} {}", self.bound)
+    }
+}
+
+/// The target of a ratio by name, if it has one: `copy/step@1` ≥ 0.75, `naive/step@1` ≥ 100,
+/// `step@1/step@N` ≥ 1.6, `(sensor+prior)/step@1` ≤ 1, `frame@N/copy@N` ≤ 2. The targets are
+/// stated for 1000 × 1000 cells; smaller windows are shown against them for comparison.
+pub fn target_of(ratio: &str) -> Option<Target> {
+    let (at_least, bound) = match ratio {
+        "copy/step@1" => (true, 0.75),
+        "naive/step@1" => (true, 100.0),
+        "step@1/step@N" => (true, 1.6),
+        "(sensor+prior)/step@1" => (false, 1.0),
+        "frame@N/copy@N" => (false, 2.0),
+        _ => return None,
+    };
+    Some(Target { at_least, bound })
 }
 
 /// A bench run.
@@ -301,7 +358,7 @@ impl<'a> Cases<'a> {
             ),
             ("frame@N/copy@N", format!("frame@{n}"), format!("copy@{n}")),
         ];
-        let ratios = pairs
+        let ratios: Vec<(String, f64)> = pairs
             .iter()
             .filter_map(|(label, a, b)| {
                 let per_round: Vec<f64> = rounds
@@ -332,6 +389,18 @@ impl<'a> Cases<'a> {
             bytes_moved_per_step: floor.bytes_moved(),
             state_bytes_per_cell: state_bytes(&self.pg, &self.sg, &self.gg) as f64 / cells as f64,
             timings,
+            checks: ratios
+                .iter()
+                .filter_map(|(ratio, value)| {
+                    let target = target_of(ratio)?;
+                    Some(RatioCheck {
+                        ratio: ratio.clone(),
+                        value: *value,
+                        target,
+                        met: target.is_met(*value),
+                    })
+                })
+                .collect(),
             ratios,
         }
     }
@@ -408,6 +477,17 @@ mod tests {
         // 32 mass planes, ζ, ∅_FO, ∅_OF (4 B each), seen (1 B); SensorGrid 8 B; GisGrid 1 B.
         assert_eq!(window.state_bytes_per_cell, 150.0);
         Ok(())
+    }
+
+    #[test]
+    fn targets_say_at_least_or_at_most() {
+        let floor = target_of("copy/step@1");
+        assert!(floor.is_some_and(|t| t.is_met(0.75) && !t.is_met(0.74)));
+        let frame = target_of("frame@N/copy@N");
+        assert!(frame.is_some_and(|t| t.is_met(2.0) && !t.is_met(2.01)));
+        assert_eq!(target_of("copy/step@N"), None);
+        let naive = target_of("naive/step@1").map(|t| t.to_string());
+        assert_eq!(naive.as_deref(), Some("≥ 100"));
     }
 
     #[test]

@@ -128,9 +128,14 @@ fn table(report: &BenchReport) -> String {
                 t.case, t.median_ms, t.cells_per_second
             );
         }
-        out += &format!("  {:<24} {:>8}\n", "ratio", "value");
+        out += &format!("  {:<24} {:>8}  {:<8}\n", "ratio", "value", "target");
         for (name, value) in &w.ratios {
-            out += &format!("  {name:<24} {value:>8.3}\n");
+            let target = match evigrid_bench::target_of(name) {
+                Some(t) if t.is_met(*value) => format!("{t:<8} met"),
+                Some(t) => format!("{t:<8} not met"),
+                None => String::new(),
+            };
+            out += &format!("  {name:<24} {value:>8.3}  {target}\n");
         }
         out += "\n";
     }
