@@ -174,6 +174,8 @@ struct StepConstants {
     delta_dec: f32,
     gamma_occupied: f32,
     gamma_conflict: f32,
+    /// SG' of a cell the scan did not reach, per map context.
+    unobserved_evidence: [CellEvidence; 4],
     /// SPEC §6: above this m(Ω) a cell is decided unknown.
     unknown_threshold: f32,
     unobserved: UnobservedCells,
@@ -279,6 +281,7 @@ impl StepConstants {
             delta_dec: acc.delta_dec as f32,
             gamma_occupied: acc.gamma_occupied as f32,
             gamma_conflict: acc.gamma_conflict as f32,
+            unobserved_evidence: map_prior.map(|prior| CellEvidence::unobserved(&prior)),
             unknown_threshold: params.decision.unknown_threshold as f32,
             unobserved: fusion.unobserved,
         }
@@ -558,20 +561,26 @@ fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
 #[inline(always)]
 fn discount_only(m: &mut BlockMasses, discount: &Discount) {
     match discount {
-        Discount::ToOmega(rate_per_set) => {
-            let mut to_omega = [0.0; BLOCK];
-            for set in 0..OMEGA {
-                m[set] = discounted(m, set, rate_per_set, &mut to_omega);
-            }
-            for i in 0..BLOCK {
-                m[OMEGA][i] += to_omega[i];
-            }
-        }
+        Discount::ToOmega(rate_per_set) => discount_to_omega(m, rate_per_set),
         Discount::Mercier(rate_per_class) => {
             for (bit, &alpha) in rate_per_class.iter().enumerate() {
                 add_class(m, 1 << bit, alpha);
             }
         }
+    }
+}
+
+/// Every A ≠ Ω gives `rate[A]`·m(A) to Ω: the discounting of
+/// [`discount_and_combine_with_refined_sensor`] alone, with the same operations in the same
+/// order (so a cell's result does not depend on its block's other cells).
+#[inline(always)]
+fn discount_to_omega(m: &mut BlockMasses, rate_per_set: &[f32; N_SETS]) {
+    let mut to_omega = [0.0; BLOCK];
+    for set in 0..OMEGA {
+        m[set] = discounted(m, set, rate_per_set, &mut to_omega);
+    }
+    for i in 0..BLOCK {
+        m[OMEGA][i] += to_omega[i];
     }
 }
 
@@ -595,7 +604,18 @@ fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
             &[0.0; N_SETS]
         }
     };
-    let before = discount_and_combine_with_refined_sensor(m, rate_per_set, sensor);
+    let before = if sensor.any_observed || sensor.any_sensor_free {
+        discount_and_combine_with_refined_sensor(m, rate_per_set, sensor)
+    } else {
+        // r(SG) is vacuous in every cell, so its combination changes nothing; m_SG'({F}) = 0
+        // makes ∅_OF = 0 and K = 0 needs no Σm.
+        discount_to_omega(m, rate_per_set);
+        BeforeSensor {
+            free: m[class::F],
+            occupied: [0.0; BLOCK],
+            total: [0.0; BLOCK],
+        }
+    };
     let mut conflict_fo = [0.0; BLOCK];
     let mut conflict_of = [0.0; BLOCK];
     for i in 0..BLOCK {
@@ -668,6 +688,74 @@ fn count_where(flags: &[u8], mask: &[u8]) -> u64 {
         .sum()
 }
 
+/// SG'_t = r(SG_t) ⊕ GG of one cell: see [`SensorEvidence`].
+#[derive(Clone, Copy, Debug)]
+struct CellEvidence {
+    free: f32,
+    occupied: f32,
+    omega: f32,
+    beta: f32,
+    conflict: f32,
+    inv_normaliser: f32,
+    sg_free: f32,
+    sg_occupied: f32,
+    observed: bool,
+    total_conflict: bool,
+}
+
+impl CellEvidence {
+    /// From the SensorGrid masses and the map prior's
+    /// `[β, [F ∈ G], [O ∩ G ≠ ∅], [G = {F}], [∅ ≠ G ⊆ O]]`.
+    #[inline(always)]
+    fn new(m_free: f32, m_occupied: f32, prior: [f32; 5]) -> Self {
+        let [beta, in_f, meets_o, is_f, within_o] = prior;
+        // A valid mass function whatever the input: NaN → 0 (`max` ignores NaN), sum ≤ 1.
+        #[allow(clippy::manual_clamp, reason = "clamp keeps NaN; this turns it into 0")]
+        let free = m_free.max(0.0).min(1.0);
+        let occupied = m_occupied.max(0.0).min(1.0 - free);
+        let omega = 1.0 - free - occupied;
+        let conflict = beta * (free * (1.0 - in_f) + occupied * (1.0 - meets_o));
+        let total = conflict >= 1.0 - TOTAL_CONFLICT_MARGIN;
+        let (beta, conflict) = if total { (0.0, 0.0) } else { (beta, conflict) };
+        let inv = 1.0 / (1.0 - conflict);
+        CellEvidence {
+            free,
+            occupied,
+            omega,
+            beta,
+            conflict,
+            inv_normaliser: inv,
+            sg_free: (free * (1.0 - beta) + free * beta * in_f + omega * beta * is_f) * inv,
+            sg_occupied: (occupied * (1.0 - beta)
+                + occupied * beta * meets_o
+                + omega * beta * within_o)
+                * inv,
+            observed: free + occupied > 0.0,
+            total_conflict: total,
+        }
+    }
+
+    /// A cell the scan did not reach, in map context `prior`.
+    fn unobserved(prior: &MapPrior) -> Self {
+        let MapPrior {
+            beta,
+            free_in_g,
+            occupied_meets_g,
+            g_is_free,
+            g_within_occupied,
+            ..
+        } = *prior;
+        let prior = [
+            beta,
+            free_in_g,
+            occupied_meets_g,
+            g_is_free,
+            g_within_occupied,
+        ];
+        CellEvidence::new(0.0, 0.0, prior)
+    }
+}
+
 /// SG'_t = r(SG_t) ⊕ GG per cell, in the compact form the fusion needs.
 ///
 /// r(SG) has mass m_F on {F}, m_O on O = {I,U,S,M}, m_Ω on Ω (eq 16-20). GG has β on G, 1 − β on
@@ -694,6 +782,9 @@ struct SensorEvidence {
     contexts_present: u8,
     /// Whether K > 0 in any cell of the block (outside building cells it is 0).
     any_sensor_map_conflict: bool,
+    /// Whether m_SG'({F}) ≠ 0 in any cell of the block (never where the scan saw nothing, with
+    /// the map contexts there are).
+    any_sensor_free: bool,
     /// Whether any cell, or every cell, of the block has a non-vacuous SensorGrid.
     any_observed: bool,
     all_observed: bool,
@@ -714,6 +805,7 @@ impl SensorEvidence {
             total_conflict: [0; BLOCK],
             contexts_present: 0,
             any_sensor_map_conflict: false,
+            any_sensor_free: false,
             any_observed: false,
             all_observed: false,
         }
@@ -757,35 +849,44 @@ impl SensorEvidence {
             }
         }
         e.contexts_present = present;
-        for i in 0..BLOCK {
-            // A valid mass function whatever the input: NaN → 0 (`max` ignores NaN), sum ≤ 1.
-            #[allow(clippy::manual_clamp, reason = "clamp keeps NaN; this turns it into 0")]
-            let free = m_free[i].max(0.0).min(1.0);
-            let occupied = m_occupied[i].max(0.0).min(1.0 - free);
-            let omega = 1.0 - free - occupied;
-            let beta = beta[i];
-            let conflict = beta * (free * (1.0 - in_f[i]) + occupied * (1.0 - meets_o[i]));
-            let total = conflict >= 1.0 - TOTAL_CONFLICT_MARGIN;
-            let (beta, conflict) = if total { (0.0, 0.0) } else { (beta, conflict) };
-            let inv = 1.0 / (1.0 - conflict);
-            e.free[i] = free;
-            e.occupied[i] = occupied;
-            e.omega[i] = omega;
-            e.beta[i] = beta;
-            e.conflict[i] = conflict;
-            e.inv_normaliser[i] = inv;
-            e.sg_free[i] =
-                (free * (1.0 - beta) + free * beta * in_f[i] + omega * beta * is_f[i]) * inv;
-            e.sg_occupied[i] = (occupied * (1.0 - beta)
-                + occupied * beta * meets_o[i]
-                + omega * beta * within_o[i])
-                * inv;
-            e.observed[i] = u8::from(free + occupied > 0.0);
-            e.total_conflict[i] = u8::from(total);
+        // A block the scan did not reach, inside one context (most blocks of a large window):
+        // every cell has the same SG' = GG, computed once per step.
+        let unobserved = (0..BLOCK).all(|i| !(m_free[i] > 0.0) && !(m_occupied[i] > 0.0));
+        if unobserved && present.is_power_of_two() {
+            let v = &k.unobserved_evidence[present.trailing_zeros() as usize];
+            e.free = [v.free; BLOCK];
+            e.occupied = [v.occupied; BLOCK];
+            e.omega = [v.omega; BLOCK];
+            e.beta = [v.beta; BLOCK];
+            e.conflict = [v.conflict; BLOCK];
+            e.inv_normaliser = [v.inv_normaliser; BLOCK];
+            e.sg_free = [v.sg_free; BLOCK];
+            e.sg_occupied = [v.sg_occupied; BLOCK];
+            e.observed = [0; BLOCK];
+            e.total_conflict = [0; BLOCK];
+        } else {
+            for i in 0..BLOCK {
+                let v = CellEvidence::new(
+                    m_free[i],
+                    m_occupied[i],
+                    [beta[i], in_f[i], meets_o[i], is_f[i], within_o[i]],
+                );
+                e.free[i] = v.free;
+                e.occupied[i] = v.occupied;
+                e.omega[i] = v.omega;
+                e.beta[i] = v.beta;
+                e.conflict[i] = v.conflict;
+                e.inv_normaliser[i] = v.inv_normaliser;
+                e.sg_free[i] = v.sg_free;
+                e.sg_occupied[i] = v.sg_occupied;
+                e.observed[i] = u8::from(v.observed);
+                e.total_conflict[i] = u8::from(v.total_conflict);
+            }
         }
         // Boolean reductions, kept out of the loop above: an in-order float sum there would
         // stop the compiler from vectorising it.
         e.any_sensor_map_conflict = e.conflict.iter().any(|&conflict| conflict > 0.0);
+        e.any_sensor_free = e.sg_free.iter().any(|&free| free != 0.0);
         e.any_observed = e.observed.iter().any(|&observed| observed != 0);
         e.all_observed = e.observed.iter().all(|&observed| observed != 0);
     }
