@@ -851,7 +851,9 @@ impl SensorEvidence {
         e.contexts_present = present;
         // A block the scan did not reach, inside one context (most blocks of a large window):
         // every cell has the same SG' = GG, computed once per step.
-        let unobserved = (0..BLOCK).all(|i| !(m_free[i] > 0.0) && !(m_occupied[i] > 0.0));
+        // (`max` turns NaN and negative masses into 0, as `CellEvidence::new` does.)
+        let unobserved =
+            (0..BLOCK).all(|i| m_free[i].max(0.0) == 0.0 && m_occupied[i].max(0.0) == 0.0);
         if unobserved && present.is_power_of_two() {
             let v = &k.unobserved_evidence[present.trailing_zeros() as usize];
             e.free = [v.free; BLOCK];
