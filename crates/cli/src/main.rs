@@ -35,6 +35,8 @@ enum Command {
     Eval(commands::eval::EvalArgs),
     /// The main job on embedded data, no input needed: drive, perception, views, evaluation.
     Demo(commands::demo::DemoArgs),
+    /// Tunes the parameters on simulated drives and checks them on held-out drives.
+    Tune(commands::tune::TuneArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -47,6 +49,7 @@ fn main() -> std::process::ExitCode {
         Command::Bench(args) => commands::bench::run(args),
         Command::Eval(args) => commands::eval::run(args),
         Command::Demo(args) => commands::demo::run(args),
+        Command::Tune(args) => commands::tune::run(args),
     };
     exit::report(result)
 }

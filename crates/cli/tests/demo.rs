@@ -90,3 +90,49 @@ fn demo_rejects_zero_frames() {
     assert_eq!(output.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&output.stderr).contains("--frames"));
 }
+
+/// The embedded scenario is a minute long and its ego stays on the embedded crop the whole time:
+/// inside the map's extent with room for the scanner to see mapped streets, never inside a
+/// building, and moving (a loop of about 480 m, not a car parked at a snapped waypoint).
+#[test]
+fn demo_drive_is_a_minute_on_the_embedded_map() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    let map_bytes = std::fs::read(dir.join("helsinki-demo.geojson")).unwrap();
+    // The origin of the full Helsinki extract, as `evigrid demo` loads the crop.
+    let options = geodata::LoadOptions {
+        origin: Some((60.171_634_0, 24.944_295_4)),
+    };
+    let map = geodata::load_map_from_bytes(&map_bytes, &options)
+        .unwrap()
+        .map;
+    let text = std::fs::read_to_string(dir.join("demo-scenario.toml")).unwrap();
+    let scenario = sim::Scenario::from_toml(&text).unwrap();
+    assert_eq!(scenario.frame_count(), 600, "one minute at 10 Hz");
+    let mut drive = sim::Drive::new(&map, &scenario).unwrap();
+    let extent = map.extent;
+    let margin_m = 15.0;
+    let mut path_m = 0.0;
+    let mut last = drive.ego_pose().position_m;
+    while drive.next_frame().is_some() {
+        let p = drive.ego_pose().position_m;
+        assert!(
+            p.x > extent.min().x + margin_m
+                && p.x < extent.max().x - margin_m
+                && p.y > extent.min().y + margin_m
+                && p.y < extent.max().y - margin_m,
+            "ego at ({:.1}, {:.1}) leaves the crop {extent:?}",
+            p.x,
+            p.y
+        );
+        assert!(
+            drive.world().building_at(p).is_none(),
+            "ego in a building at {p:?}"
+        );
+        path_m += ((p.x - last.x).powi(2) + (p.y - last.y).powi(2)).sqrt();
+        last = p;
+    }
+    assert!(
+        path_m > 300.0,
+        "the ego drove only {path_m:.0} m in a minute"
+    );
+}

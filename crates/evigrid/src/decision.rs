@@ -139,12 +139,23 @@ const TIE_TOLERANCE: f32 = 1e-6;
 ///   (eq 28-29), so an {S, M} tie means no such evidence yet;
 /// - U before M: a tie of U with M comes from static mass on O with no appearance conflict
 ///   (∅_FO, which would favour M strictly);
-/// - F last: occupied evidence wins a free/occupied tie (the safer error for driving).
+/// - F last, and a tie of F with the best occupied class is not broken at all: the cell is
+///   unknown (see [`decide`]).
 const TIE_ORDER: [usize; 5] = [2, 4, 3, 1, 0];
+
+/// F's index in [`TIE_ORDER`]'s class numbering.
+const FREE: usize = 0;
 
 /// The decided class (SPEC §6): `Unknown` where the cell was never `seen`, where
 /// m(Ω) > `unknown_threshold`, or in total conflict; otherwise the class of largest betP, ties
-/// (within 1e-6) broken in the order U, M, S, I, F (see `TIE_ORDER` for why).
+/// (within 1e-6) among occupied classes broken in the order U, M, S, I (see `TIE_ORDER` for why).
+///
+/// A tie between F and the best occupied class is `Unknown`: the evidence does not say whether
+/// the cell is free. It is what a cell out of view for long becomes under SPEC §5, which fuses the
+/// map prior into it at every step: its own evidence fades, the prior piles up on G = {F,U,S,M}
+/// or {F,S,M}, and betP splits that mass evenly between F and the occupied classes of G. Broken
+/// in favour of an occupied class, every such cell was decided U (pavement) or M (road), a third
+/// of the free cells of a one-minute drive.
 pub fn decide(m: &[f32; N_SETS], seen: bool, unknown_threshold: f64) -> Decision {
     // Compared in f32, the grid's precision: m(Ω) = 0.6_f32 is not above a threshold of 0.6.
     if !seen || m[OMEGA] > unknown_threshold as f32 || 1.0 - m[0] <= MIN_NORMAL_MASS {
@@ -156,6 +167,9 @@ pub fn decide(m: &[f32; N_SETS], seen: bool, unknown_threshold: f64) -> Decision
         if p[k] > p[best] + TIE_TOLERANCE {
             best = k;
         }
+    }
+    if best != FREE && p[FREE] + TIE_TOLERANCE >= p[best] {
+        return Decision::Unknown;
     }
     Decision::from_class(best)
 }
@@ -244,7 +258,12 @@ pub(crate) fn decide_lanes<const N: usize>(
                 best_p = pk;
             }
         }
-        decided[i] = if unknown { 0 } else { best as u8 + 1 };
+        let free_ties = best != FREE && p[FREE][i] / normal + TIE_TOLERANCE >= best_p;
+        decided[i] = if unknown || free_ties {
+            0
+        } else {
+            best as u8 + 1
+        };
     }
     for (out, &index) in out.iter_mut().zip(&decided) {
         *out = DECISIONS[usize::from(index)];
@@ -338,11 +357,20 @@ mod tests {
         is[I | S] = 0.9;
         is[OMEGA] = 0.1;
         assert_eq!(decide(&is, true, 0.5), Decision::S);
-        // {F,M} 0.9: F = M; the occupied class wins.
+        // {F,M} 0.9: F = M; free or occupied is not known.
         let mut fm = [0.0; N_SETS];
         fm[F | M] = 0.9;
         fm[OMEGA] = 0.1;
-        assert_eq!(decide(&fm, true, 0.5), Decision::M);
+        assert_eq!(decide(&fm, true, 0.5), Decision::Unknown);
+        // The map prior alone on pavement, {F,U,S,M} 0.97 (a cell long out of view): F = U = S
+        // = M, unknown; with a trace of {F} left, F.
+        let mut pavement = [0.0; N_SETS];
+        pavement[F | U | S | M] = 0.97;
+        pavement[OMEGA] = 0.03;
+        assert_eq!(decide(&pavement, true, 0.5), Decision::Unknown);
+        pavement[F] = 0.01;
+        pavement[F | U | S | M] = 0.96;
+        assert_eq!(decide(&pavement, true, 0.5), Decision::F);
     }
 
     #[test]

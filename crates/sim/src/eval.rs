@@ -191,6 +191,45 @@ pub fn evaluate(
     config: &EvalConfig,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<EvalReport, SimError> {
+    evaluate_observed(
+        map,
+        scenario,
+        variants,
+        seeds,
+        config,
+        progress,
+        &mut |_| {},
+    )
+}
+
+/// What an observer of [`evaluate_observed`] sees after a pipeline variant has processed a frame.
+#[derive(Clone, Copy)]
+pub struct PipelineFrame<'a> {
+    /// The variant (`full` or `no-map`).
+    pub variant: Variant,
+    /// Index of the seed in the seed list.
+    pub seed_index: usize,
+    /// Index of the frame in the drive.
+    pub frame: usize,
+    /// The pipeline, just after processing the frame: its window, grids and decisions.
+    pub pipeline: &'a Pipeline,
+}
+
+/// [`evaluate`], calling `observer` after every frame of every pipeline variant (`full`,
+/// `no-map`), so that a caller can render the views of the drive it scores without running the
+/// pipeline a second time (`evigrid demo` does).
+///
+/// # Errors
+/// As [`evaluate`].
+pub fn evaluate_observed(
+    map: &LocalMap,
+    scenario: &Scenario,
+    variants: &[Variant],
+    seeds: &[u64],
+    config: &EvalConfig,
+    progress: &mut dyn FnMut(Progress),
+    observer: &mut dyn FnMut(PipelineFrame<'_>),
+) -> Result<EvalReport, SimError> {
     if seeds.is_empty() {
         return Err(SimError::NoSeeds);
     }
@@ -251,6 +290,7 @@ pub fn evaluate(
             seed_index,
             seeds.len(),
             progress,
+            observer,
         )?;
         for (k, r) in runners.into_iter().enumerate() {
             let s = r.seed_confusion.scores();
@@ -322,6 +362,7 @@ fn run_drive(
     seed_index: usize,
     seeds: usize,
     progress: &mut dyn FnMut(Progress),
+    observer: &mut dyn FnMut(PipelineFrame<'_>),
 ) -> Result<f64, SimError> {
     let mut simulation_s = 0.0;
     let (w, h, cell) = (
@@ -405,6 +446,12 @@ fn run_drive(
                     *out = predicted_of(d);
                 }
                 r.seconds += started.elapsed().as_secs_f64();
+                observer(PipelineFrame {
+                    variant: r.variant,
+                    seed_index,
+                    frame: frame.index,
+                    pipeline: p,
+                });
             } else if let Some(b) = r.baseline.as_mut() {
                 for span in &entered_spans {
                     b.reset_range(span.clone());
@@ -583,6 +630,48 @@ mod tests {
         config.params.window.width_cells = 240;
         config.params.window.height_cells = 240;
         config
+    }
+
+    #[test]
+    fn observer_sees_every_frame_of_every_pipeline_variant_and_changes_nothing() {
+        let mut scenario = small_scenario(6);
+        scenario.duration_s = 1.0;
+        let variants = [Variant::Full, Variant::LogOdds, Variant::NoMap];
+        let mut seen = Vec::new();
+        let observed = evaluate_observed(
+            &town(),
+            &scenario,
+            &variants,
+            &[6, 7],
+            &small_config(),
+            &mut |_| {},
+            &mut |f: PipelineFrame<'_>| {
+                assert_eq!(f.pipeline.decisions().len(), 240 * 240);
+                seen.push((f.seed_index, f.frame, f.variant));
+            },
+        )
+        .unwrap();
+        // Per seed, per frame, the pipeline variants in the order asked; baselines are not seen.
+        let mut expected = Vec::new();
+        for seed_index in 0..2 {
+            for frame in 0..10 {
+                expected.push((seed_index, frame, Variant::Full));
+                expected.push((seed_index, frame, Variant::NoMap));
+            }
+        }
+        assert_eq!(seen, expected);
+        let plain = evaluate(
+            &town(),
+            &scenario,
+            &variants,
+            &[6, 7],
+            &small_config(),
+            &mut |_| {},
+        )
+        .unwrap();
+        for (a, b) in observed.variants.iter().zip(&plain.variants) {
+            assert_eq!(a.confusion, b.confusion);
+        }
     }
 
     #[test]

@@ -42,6 +42,7 @@ pub mod roadnet;
 pub mod scenario;
 pub mod sensor;
 pub mod truth;
+pub mod tune;
 pub mod world;
 
 pub use drive::{Drive, Frame};

@@ -7,3 +7,4 @@ pub mod eval;
 pub mod map;
 pub mod mass;
 pub mod run;
+pub mod tune;

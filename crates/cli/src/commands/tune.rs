@@ -1,0 +1,515 @@
+//! `evigrid tune`: tunes the default parameters on simulated drives, and checks the result on
+//! held-out drives.
+//!
+//! ```text
+//! evigrid tune --map city.osm.pbf --scenario a.toml [--map town.osm.pbf --scenario b.toml …] \
+//!     [--holdout-map other.osm.pbf --holdout-scenario c.toml …] [--seeds 2] [--holdout-seeds 2] \
+//!     [--rounds 2] [--config start.toml] --out tune/ [--json]
+//! ```
+//!
+//! Wiring only: reading and checking the inputs, the progress bar, writing the outputs. The search
+//! and the objective are `sim::tune`'s (see its docs and docs/tuning.md).
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::fs;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use evigrid::Params;
+use evigrid::render::write_atomic;
+use geodata::LocalMap;
+use serde::Serialize;
+use sim::eval::Variant;
+use sim::tune::{DriveSet, TuneOptions, TuneProgress, TuneReport, VariantScore};
+use sim::{Scenario, SimError};
+
+use crate::exit::BadInput;
+
+/// Arguments of `evigrid tune`.
+#[derive(Debug, Args)]
+#[command(after_long_help = OUTPUTS_HELP)]
+pub struct TuneArgs {
+    /// Map of the tuning drives (OSM PBF, OSM XML, GeoJSON). Give one for all `--scenario`s, or
+    /// one per `--scenario`, in the same order.
+    #[arg(long, required = true)]
+    map: Vec<PathBuf>,
+    /// Scenario (TOML) of the tuning drives; repeat for several.
+    #[arg(long, required = true)]
+    scenario: Vec<PathBuf>,
+    /// Map of the held-out drives: one for all `--holdout-scenario`s, or one per scenario.
+    #[arg(long)]
+    holdout_map: Vec<PathBuf>,
+    /// Scenario (TOML) of drives never used for tuning, on which the starting and the tuned
+    /// parameters are compared; repeat for several.
+    #[arg(long)]
+    holdout_scenario: Vec<PathBuf>,
+    /// Tuning seeds per scenario: the scenario's seed, seed + 1, … (one drive each).
+    #[arg(long, default_value_t = 2)]
+    seeds: u64,
+    /// Held-out seeds per held-out scenario, taken after the tuning seeds (seed + --seeds, …), so
+    /// that a scenario used for tuning gives other drives when held out.
+    #[arg(long, default_value_t = 2)]
+    holdout_seeds: u64,
+    /// Rounds of the coordinate search; the step halves every round.
+    #[arg(long, default_value_t = 2)]
+    rounds: usize,
+    /// Starting parameters (TOML, any subset of SPEC §7's layout); the defaults otherwise.
+    /// Parameters outside the search space (window, cell size, modes) keep these values.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Output directory (created if missing).
+    #[arg(long)]
+    out: PathBuf,
+    /// Print the whole result as JSON on standard output instead of the tables.
+    #[arg(long)]
+    json: bool,
+}
+
+const OUTPUTS_HELP: &str = "\
+Objective: mean over tuning drives of macro-F1 + 0.25 × moving IoU of the `full` variant, on the
+cells observed at least once (see docs/tuning.md).
+
+Outputs (in --out, each written atomically):
+  tuned.toml    the best parameters, every key (load with --config)
+  tune.json     the search: space, every candidate and its scores, start and best parameters,
+                and the comparison of start and best on the tuning and held-out drives
+  report.md     the same as tables, with the command line";
+
+/// The tuning run and its check, as written to `tune.json`.
+#[derive(Debug, Serialize)]
+struct TuneOutput {
+    /// Tuning drives: scenario name and seeds.
+    tuning_drives: Vec<(String, Vec<u64>)>,
+    /// Held-out drives.
+    holdout_drives: Vec<(String, Vec<u64>)>,
+    /// The search.
+    search: TuneReport,
+    /// Every variant with the starting and the best parameters, on both sets.
+    comparison: Vec<ComparisonRow>,
+}
+
+/// One line of the comparison: a set of drives, a variant, starting against tuned parameters.
+#[derive(Debug, Serialize)]
+struct ComparisonRow {
+    set: &'static str,
+    variant: Variant,
+    start: VariantScore,
+    tuned: VariantScore,
+}
+
+/// Scenarios paired with their maps, as read.
+struct Drives {
+    maps: BTreeMap<PathBuf, LocalMap>,
+    /// (name, map path, scenario)
+    scenarios: Vec<(String, PathBuf, Scenario)>,
+}
+
+/// Runs `evigrid tune`.
+pub fn run(args: TuneArgs) -> Result<()> {
+    let started = Instant::now();
+    // Every input is checked before any work; nothing is written before the search succeeds.
+    if args.seeds == 0 {
+        return Err(BadInput::new("--seeds 0: at least one seed is needed"));
+    }
+    if args.rounds == 0 {
+        return Err(BadInput::new("--rounds 0: at least one round is needed"));
+    }
+    if !args.holdout_scenario.is_empty() && args.holdout_seeds == 0 {
+        return Err(BadInput::new(
+            "--holdout-seeds 0: at least one seed is needed for the held-out scenarios",
+        ));
+    }
+    check_pairs(&args.map, &args.scenario, "--map", "--scenario")?;
+    check_pairs(
+        &args.holdout_map,
+        &args.holdout_scenario,
+        "--holdout-map",
+        "--holdout-scenario",
+    )?;
+    let start = read_params(args.config.as_deref())?;
+    let tuning = read_drives(&args.map, &args.scenario, "--map", "--scenario")?;
+    let holdout = read_drives(
+        &args.holdout_map,
+        &args.holdout_scenario,
+        "--holdout-map",
+        "--holdout-scenario",
+    )?;
+    let tuning_seeds: Vec<Vec<u64>> = seeds_of(&tuning, 0, args.seeds);
+    let holdout_seeds: Vec<Vec<u64>> = seeds_of(&holdout, args.seeds, args.holdout_seeds);
+    let tuning_sets = sets(&tuning, &tuning_seeds);
+    let holdout_sets = sets(&holdout, &holdout_seeds);
+
+    let options = TuneOptions {
+        rounds: args.rounds,
+        ..TuneOptions::default()
+    };
+    // About two candidates per dimension per round; the bar grows if the search needs more.
+    let estimate = 1 + 2 * options.space.len() * options.rounds;
+    let bar = crate::progress::bar(estimate as u64, "tune");
+    let report = sim::tune::tune(&start, &tuning_sets, &options, &mut |p: TuneProgress| {
+        if p.candidates as u64 > bar.length().unwrap_or(0) {
+            bar.set_length(p.candidates as u64);
+        }
+        bar.set_position(p.candidates as u64);
+    })
+    .map_err(|e| search_error(e, &args))?;
+    bar.finish_and_clear();
+
+    // Starting against tuned parameters, every variant, on both sets.
+    let mut comparison = Vec::new();
+    for (set_name, drive_sets) in [("tuning", &tuning_sets), ("held-out", &holdout_sets)] {
+        if drive_sets.is_empty() {
+            continue;
+        }
+        let w = options.moving_iou_weight;
+        let before = sim::tune::score_drives(&report.start, drive_sets, &Variant::ALL, w)
+            .map_err(|e| search_error(e, &args))?;
+        let after = sim::tune::score_drives(&report.best, drive_sets, &Variant::ALL, w)
+            .map_err(|e| search_error(e, &args))?;
+        for (start, tuned) in before.into_iter().zip(after) {
+            comparison.push(ComparisonRow {
+                set: set_name,
+                variant: start.variant,
+                start,
+                tuned,
+            });
+        }
+    }
+
+    let output = TuneOutput {
+        tuning_drives: names_and_seeds(&tuning, &tuning_seeds),
+        holdout_drives: names_and_seeds(&holdout, &holdout_seeds),
+        search: report,
+        comparison,
+    };
+    let seconds = started.elapsed().as_secs_f64();
+    let json = write_outputs(&args.out, &output, seconds)?;
+    if args.json {
+        println!("{json}");
+    } else {
+        println!(
+            "# Best parameters (also in {})",
+            args.out.join("tuned.toml").display()
+        );
+        print!("{}", output.search.best.to_toml_string()?);
+        println!();
+        print!("{}", candidates_table(&output.search));
+        println!();
+        print!("{}", comparison_table(&output.comparison));
+        println!(
+            "{} candidates in {seconds:.1} s; outputs in {}",
+            output.search.candidates.len(),
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+fn read_params(path: Option<&Path>) -> Result<Params> {
+    let Some(path) = path else {
+        return Ok(Params::default());
+    };
+    let text =
+        fs::read_to_string(path).map_err(|e| BadInput::new(format!("{}: {e}", path.display())))?;
+    Params::from_toml_str(&text).map_err(|e| BadInput::new(format!("{}: {e}", path.display())))
+}
+
+/// Checks that maps and scenarios pair up: one map for all scenarios, or one per scenario.
+fn check_pairs(
+    maps: &[PathBuf],
+    scenarios: &[PathBuf],
+    map_flag: &str,
+    scenario_flag: &str,
+) -> Result<()> {
+    if scenarios.is_empty() && !maps.is_empty() {
+        return Err(BadInput::new(format!(
+            "{map_flag} given without {scenario_flag}: a map needs a scenario to drive on it"
+        )));
+    }
+    if maps.len() != 1 && maps.len() != scenarios.len() {
+        return Err(BadInput::new(format!(
+            "{map_flag} given {} times for {} {scenario_flag}: give one map for all scenarios or one per scenario",
+            maps.len(),
+            scenarios.len()
+        )));
+    }
+    Ok(())
+}
+
+/// Pairs maps with scenarios (one map for all, or one each) and reads them, each map once.
+fn read_drives(
+    maps: &[PathBuf],
+    scenarios: &[PathBuf],
+    map_flag: &str,
+    scenario_flag: &str,
+) -> Result<Drives> {
+    check_pairs(maps, scenarios, map_flag, scenario_flag)?;
+    let mut drives = Drives {
+        maps: BTreeMap::new(),
+        scenarios: Vec::new(),
+    };
+    for (k, scenario_path) in scenarios.iter().enumerate() {
+        // check_pairs: one map for all, or one per scenario.
+        let Some(map_path) = maps.get(if maps.len() == 1 { 0 } else { k }) else {
+            return Err(BadInput::new(format!(
+                "{map_flag}: no map for {scenario_flag} {k}"
+            )));
+        };
+        if !drives.maps.contains_key(map_path) {
+            let loaded = geodata::load_map(map_path, &geodata::LoadOptions { origin: None })
+                .map_err(|e| BadInput::new(with_path(map_path, &e.to_string())))?;
+            drives.maps.insert(map_path.clone(), loaded.map);
+        }
+        let text = fs::read_to_string(scenario_path)
+            .map_err(|e| BadInput::new(format!("{}: {e}", scenario_path.display())))?;
+        let scenario = Scenario::from_toml(&text)
+            .map_err(|e| BadInput::new(one_line(&format!("{}: {e}", scenario_path.display()))))?;
+        let name = scenario_path.file_stem().map_or_else(
+            || scenario_path.display().to_string(),
+            |s| s.to_string_lossy().into_owned(),
+        );
+        drives.scenarios.push((name, map_path.clone(), scenario));
+    }
+    Ok(drives)
+}
+
+/// Seeds `seed + skip .. seed + skip + count` of every scenario.
+fn seeds_of(drives: &Drives, skip: u64, count: u64) -> Vec<Vec<u64>> {
+    drives
+        .scenarios
+        .iter()
+        .map(|(_, _, s)| {
+            (0..count)
+                .map(|k| s.seed.wrapping_add(skip).wrapping_add(k))
+                .collect()
+        })
+        .collect()
+}
+
+fn sets<'a>(drives: &'a Drives, seeds: &'a [Vec<u64>]) -> Vec<DriveSet<'a>> {
+    drives
+        .scenarios
+        .iter()
+        .zip(seeds)
+        .filter_map(|((name, map_path, scenario), seeds)| {
+            Some(DriveSet {
+                name,
+                map: drives.maps.get(map_path)?,
+                scenario,
+                seeds,
+            })
+        })
+        .collect()
+}
+
+fn names_and_seeds(drives: &Drives, seeds: &[Vec<u64>]) -> Vec<(String, Vec<u64>)> {
+    drives
+        .scenarios
+        .iter()
+        .zip(seeds)
+        .map(|((name, _, _), s)| (name.clone(), s.clone()))
+        .collect()
+}
+
+/// `message` on one line: the TOML parser's messages quote the offending line below the message.
+fn one_line(message: &str) -> String {
+    message.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Prefixes `message` with the file's path unless it already names it.
+fn with_path(path: &Path, message: &str) -> String {
+    let shown = path.display().to_string();
+    if message.contains(&shown) {
+        message.to_string()
+    } else {
+        format!("{shown}: {message}")
+    }
+}
+
+/// Errors of the search, blamed on the input they come from where one is to blame.
+fn search_error(error: SimError, args: &TuneArgs) -> anyhow::Error {
+    let config = args.config.as_deref().map_or_else(
+        || "default parameters".to_string(),
+        |p| p.display().to_string(),
+    );
+    match error {
+        SimError::NoRoads { .. } => BadInput::new(format!("a --map has no drivable road: {error}")),
+        SimError::Pipeline(_) => BadInput::new(format!("{config}: {error}")),
+        SimError::ScenarioToml { .. }
+        | SimError::InvalidScenario { .. }
+        | SimError::NoEgoRoute { .. } => BadInput::new(format!("a --scenario: {error}")),
+        other => anyhow::Error::new(other).context("tuning failed"),
+    }
+}
+
+/// Writes `tuned.toml`, `tune.json` and `report.md`; returns the JSON.
+fn write_outputs(out: &Path, output: &TuneOutput, seconds: f64) -> Result<String> {
+    fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let toml = output.search.best.to_toml_string()?;
+    write_atomic(&out.join("tuned.toml"), |f| f.write_all(toml.as_bytes()))?;
+    let json = serde_json::to_string_pretty(output)?;
+    write_atomic(&out.join("tune.json"), |f| {
+        f.write_all(json.as_bytes())?;
+        f.write_all(b"\n")
+    })?;
+    let mut md = String::from("# evigrid tune\n\n");
+    let _ = writeln!(
+        md,
+        "Command (wall time {seconds:.1} s):\n\n```sh\n{}\n```\n",
+        command_line()
+    );
+    let _ = writeln!(
+        md,
+        "Tuning drives: {}.\n",
+        drives_text(&output.tuning_drives)
+    );
+    if !output.holdout_drives.is_empty() {
+        let _ = writeln!(
+            md,
+            "Held-out drives: {}.\n",
+            drives_text(&output.holdout_drives)
+        );
+    }
+    md.push_str("## Starting against tuned parameters\n\n");
+    md.push_str(&comparison_markdown(&output.comparison));
+    md.push_str("\n## Candidates\n\n");
+    md.push_str(&candidates_markdown(&output.search));
+    let _ = writeln!(md, "\n## Tuned parameters\n\n```toml\n{toml}```");
+    write_atomic(&out.join("report.md"), |f| f.write_all(md.as_bytes()))?;
+    Ok(json)
+}
+
+fn drives_text(drives: &[(String, Vec<u64>)]) -> String {
+    drives
+        .iter()
+        .map(|(n, s)| format!("`{n}` seeds {s:?}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The candidates as an aligned table: index, round, parameter moved and its new value, scores.
+fn candidates_table(report: &TuneReport) -> String {
+    let mut s = format!(
+        "{:>4} {:>5} {:<30} {:>7} {:>9} {:>8} {:>9}  \n",
+        "#", "round", "moved", "to", "macro-F1", "IoU M", "objective"
+    );
+    for c in &report.candidates {
+        let (moved, to) = moved_and_value(report, c.moved.as_deref(), &c.values);
+        let _ = writeln!(
+            s,
+            "{:>4} {:>5} {:<30} {:>7} {:>9.4} {:>8.4} {:>9.4} {}",
+            c.index,
+            c.round,
+            moved,
+            to,
+            c.macro_f1,
+            c.moving_iou,
+            c.objective,
+            if c.accepted { "*" } else { "" }
+        );
+    }
+    s.push_str("* = accepted (the search moved there)\n");
+    s
+}
+
+fn candidates_markdown(report: &TuneReport) -> String {
+    let mut s = String::from(
+        "`*` marks the candidates the search moved to.\n\n| # | round | moved | to | macro-F1 | IoU M | objective | |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    for c in &report.candidates {
+        let (moved, to) = moved_and_value(report, c.moved.as_deref(), &c.values);
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {} |",
+            c.index,
+            c.round,
+            moved,
+            to,
+            c.macro_f1,
+            c.moving_iou,
+            c.objective,
+            if c.accepted { "*" } else { "" }
+        );
+    }
+    s
+}
+
+fn moved_and_value(report: &TuneReport, moved: Option<&str>, values: &[f64]) -> (String, String) {
+    match moved {
+        None => ("(start)".to_string(), String::new()),
+        Some(name) => {
+            let value = report
+                .parameters
+                .iter()
+                .position(|p| p == name)
+                .and_then(|k| values.get(k))
+                .map_or_else(String::new, |v| format!("{v}"));
+            (name.to_string(), value)
+        }
+    }
+}
+
+fn comparison_table(rows: &[ComparisonRow]) -> String {
+    let mut s = format!(
+        "{:<9} {:<10} {:>15} {:>15} {:>15}\n",
+        "drives", "variant", "macro-F1", "IoU M", "objective"
+    );
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{:<9} {:<10} {:>6.3} → {:>6.3} {:>6.3} → {:>6.3} {:>6.3} → {:>6.3}",
+            r.set,
+            r.variant.name(),
+            r.start.macro_f1,
+            r.tuned.macro_f1,
+            r.start.moving_iou,
+            r.tuned.moving_iou,
+            r.start.objective,
+            r.tuned.objective
+        );
+    }
+    s.push_str("(starting → tuned parameters; mean over drives)\n");
+    s
+}
+
+fn comparison_markdown(rows: &[ComparisonRow]) -> String {
+    let mut s = String::from(
+        "Mean over drives, starting → tuned parameters.\n\n| drives | variant | macro-F1 | IoU M | objective |\n|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.3} → {:.3} | {:.3} → {:.3} | {:.3} → {:.3} |",
+            r.set,
+            r.variant.name(),
+            r.start.macro_f1,
+            r.tuned.macro_f1,
+            r.start.moving_iou,
+            r.tuned.moving_iou,
+            r.start.objective,
+            r.tuned.objective
+        );
+    }
+    s
+}
+
+/// The command line as typed, quoted for a POSIX shell where needed.
+fn command_line() -> String {
+    std::env::args()
+        .map(|a| {
+            let plain = !a.is_empty()
+                && a.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "-_./=,:+@%".contains(c));
+            if plain {
+                a
+            } else {
+                format!("'{}'", a.replace('\'', r"'\''"))
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
