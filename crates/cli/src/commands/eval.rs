@@ -24,6 +24,7 @@ use sim::eval::{EvalConfig, EvalReport, Progress, Variant};
 use sim::{Scenario, SimError, plots};
 
 use crate::exit::BadInput;
+use crate::input::{command_line, one_line, read_params, with_path};
 
 /// Arguments of `evigrid eval`.
 #[derive(Debug, Args)]
@@ -177,32 +178,6 @@ fn parse_variants(names: &[String]) -> Result<Vec<Variant>> {
     Ok(variants)
 }
 
-fn read_params(path: Option<&Path>) -> Result<Params> {
-    let Some(path) = path else {
-        return Ok(Params::default());
-    };
-    let text =
-        fs::read_to_string(path).map_err(|e| BadInput::new(format!("{}: {e}", path.display())))?;
-    let params = Params::from_toml_str(&text)
-        .map_err(|e| BadInput::new(format!("{}: {e}", path.display())))?;
-    Ok(params)
-}
-
-/// `message` on one line: the TOML parser's messages quote the offending line below the message.
-fn one_line(message: &str) -> String {
-    message.split_whitespace().collect::<Vec<_>>().join(" ")
-}
-
-/// Prefixes `message` with the file's path unless it already names it.
-fn with_path(path: &Path, message: &str) -> String {
-    let shown = path.display().to_string();
-    if message.contains(&shown) {
-        message.to_string()
-    } else {
-        format!("{shown}: {message}")
-    }
-}
-
 /// Errors of the evaluation itself, blamed on the input they come from.
 fn evaluation_error(error: SimError, args: &EvalArgs) -> anyhow::Error {
     let config = args.config.as_deref().map_or_else(
@@ -316,21 +291,4 @@ fn report_markdown(
         report.seeds
     );
     Ok(s)
-}
-
-/// The command line as typed, quoted for a POSIX shell where needed.
-fn command_line() -> String {
-    std::env::args()
-        .map(|a| {
-            let plain = !a.is_empty()
-                && a.chars()
-                    .all(|c| c.is_ascii_alphanumeric() || "-_./=,:+@%".contains(c));
-            if plain {
-                a
-            } else {
-                format!("'{}'", a.replace('\'', r"'\''"))
-            }
-        })
-        .collect::<Vec<_>>()
-        .join(" ")
 }

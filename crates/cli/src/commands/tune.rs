@@ -19,7 +19,6 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use evigrid::Params;
 use evigrid::render::write_atomic;
 use geodata::LocalMap;
 use serde::Serialize;
@@ -28,6 +27,7 @@ use sim::tune::{DriveSet, TuneOptions, TuneProgress, TuneReport, VariantScore};
 use sim::{Scenario, SimError};
 
 use crate::exit::BadInput;
+use crate::input::{command_line, one_line, read_params, with_path};
 
 /// Arguments of `evigrid tune`.
 #[derive(Debug, Args)]
@@ -209,15 +209,6 @@ pub fn run(args: TuneArgs) -> Result<()> {
     Ok(())
 }
 
-fn read_params(path: Option<&Path>) -> Result<Params> {
-    let Some(path) = path else {
-        return Ok(Params::default());
-    };
-    let text =
-        fs::read_to_string(path).map_err(|e| BadInput::new(format!("{}: {e}", path.display())))?;
-    Params::from_toml_str(&text).map_err(|e| BadInput::new(format!("{}: {e}", path.display())))
-}
-
 /// Checks that maps and scenarios pair up: one map for all scenarios, or one per scenario.
 fn check_pairs(
     maps: &[PathBuf],
@@ -313,21 +304,6 @@ fn names_and_seeds(drives: &Drives, seeds: &[Vec<u64>]) -> Vec<(String, Vec<u64>
         .zip(seeds)
         .map(|((name, _, _), s)| (name.clone(), s.clone()))
         .collect()
-}
-
-/// `message` on one line: the TOML parser's messages quote the offending line below the message.
-fn one_line(message: &str) -> String {
-    message.split_whitespace().collect::<Vec<_>>().join(" ")
-}
-
-/// Prefixes `message` with the file's path unless it already names it.
-fn with_path(path: &Path, message: &str) -> String {
-    let shown = path.display().to_string();
-    if message.contains(&shown) {
-        message.to_string()
-    } else {
-        format!("{shown}: {message}")
-    }
 }
 
 /// Errors of the search, blamed on the input they come from where one is to blame.
@@ -495,21 +471,4 @@ fn comparison_markdown(rows: &[ComparisonRow]) -> String {
         );
     }
     s
-}
-
-/// The command line as typed, quoted for a POSIX shell where needed.
-fn command_line() -> String {
-    std::env::args()
-        .map(|a| {
-            let plain = !a.is_empty()
-                && a.chars()
-                    .all(|c| c.is_ascii_alphanumeric() || "-_./=,:+@%".contains(c));
-            if plain {
-                a
-            } else {
-                format!("'{}'", a.replace('\'', r"'\''"))
-            }
-        })
-        .collect::<Vec<_>>()
-        .join(" ")
 }
