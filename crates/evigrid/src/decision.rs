@@ -227,7 +227,7 @@ pub(crate) fn decide_lanes<const N: usize>(
 ) {
     // A block no cell of which was ever seen, the usual case far from the vehicle, is unknown
     // without computing anything.
-    if seen.iter().all(|&seen| seen == 0) {
+    if !crate::step::any_lane(seen, |seen| seen != 0) {
         out.fill(Decision::Unknown);
         return;
     }

@@ -646,7 +646,7 @@ fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
     //    the residual policy.
     //    With ζ = 0 in every cell (no cell of the block has been steadily occupied) this moves
     //    nothing, exactly, and is skipped.
-    let fallbacks_specialisation = if block.zeta.iter().any(|&zeta| zeta > 0.0) {
+    let fallbacks_specialisation = if any_lane(&block.zeta, |zeta| zeta > 0.0) {
         remove_class(m, class::M, &block.zeta);
         settle_empty_set(m, k.residual)
     } else {
@@ -671,6 +671,13 @@ fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
         normalisation_fallbacks: count_where(&fallbacks_fusion[..real], &counted[..real])
             + count_where(&fallbacks_specialisation[..real], &counted[..real]),
     }
+}
+
+/// Whether `test` holds for any lane. A fold with `|`, not `Iterator::any`: no early exit, so
+/// the compiler vectorises it.
+#[inline(always)]
+pub(crate) fn any_lane<T: Copy, const N: usize>(lanes: &[T; N], test: impl Fn(T) -> bool) -> bool {
+    lanes.iter().fold(false, |any, &x| any | test(x))
 }
 
 #[inline(always)]
@@ -851,9 +858,8 @@ impl SensorEvidence {
         e.contexts_present = present;
         // A block the scan did not reach, inside one context (most blocks of a large window):
         // every cell has the same SG' = GG, computed once per step.
-        // (`max` turns NaN and negative masses into 0, as `CellEvidence::new` does.)
-        let unobserved =
-            (0..BLOCK).all(|i| m_free[i].max(0.0) == 0.0 && m_occupied[i].max(0.0) == 0.0);
+        // (NaN and negative masses count as 0, as in `CellEvidence::new`.)
+        let unobserved = !any_lane(m_free, |free| free > 0.0) && !any_lane(m_occupied, |o| o > 0.0);
         if unobserved && present.is_power_of_two() {
             let v = &k.unobserved_evidence[present.trailing_zeros() as usize];
             e.free = [v.free; BLOCK];
@@ -887,10 +893,10 @@ impl SensorEvidence {
         }
         // Boolean reductions, kept out of the loop above: an in-order float sum there would
         // stop the compiler from vectorising it.
-        e.any_sensor_map_conflict = e.conflict.iter().any(|&conflict| conflict > 0.0);
-        e.any_sensor_free = e.sg_free.iter().any(|&free| free != 0.0);
-        e.any_observed = e.observed.iter().any(|&observed| observed != 0);
-        e.all_observed = e.observed.iter().all(|&observed| observed != 0);
+        e.any_sensor_map_conflict = any_lane(&e.conflict, |conflict| conflict > 0.0);
+        e.any_sensor_free = any_lane(&e.sg_free, |free| free != 0.0);
+        e.any_observed = any_lane(&e.observed, |observed| observed != 0);
+        e.all_observed = !any_lane(&e.observed, |observed| observed == 0);
     }
 }
 
