@@ -645,13 +645,12 @@ fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
     // 6. Specialise (eq 28-29): every A ∋ M gives ζ·m(A) to A∖{M}; what {M} gives to ∅ follows
     //    the residual policy.
     //    With ζ = 0 in every cell (no cell of the block has been steadily occupied) this moves
-    //    nothing, exactly, and is skipped.
-    let fallbacks_specialisation = if any_lane(&block.zeta, |zeta| zeta > 0.0) {
+    //    nothing, exactly, and is skipped. The residual policy still runs: under `normalise` it
+    //    rescales again, and a cell must get the same bits whatever its neighbours' ζ.
+    if any_lane(&block.zeta, |zeta| zeta > 0.0) {
         remove_class(m, class::M, &block.zeta);
-        settle_empty_set(m, k.residual)
-    } else {
-        [0; BLOCK]
-    };
+    }
+    let fallbacks_specialisation = settle_empty_set(m, k.residual);
     // 7. Keep the conflict masses for display, and whether the sensor ever saw the cell.
     block.conflict_fo = conflict_fo;
     block.conflict_of = conflict_of;

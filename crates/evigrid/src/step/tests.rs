@@ -820,6 +820,89 @@ fn grid_cells_equal_single_cell_steps() {
 }
 
 #[test]
+fn shortcuts_taken_per_block_give_each_cell_what_it_gets_alone() {
+    // Map contexts in runs of 70 cells, a scan that reaches only cells 200..260, ζ = 0 in the
+    // first half: whole blocks take the shortcuts (one context, nothing observed, ζ = 0, never
+    // seen), others not, and a 1×1 grid never does. Every mode must give the same bits.
+    let (mut pg, mut sg, mut gg) = scene(150, 4, 3);
+    let contexts = [
+        MapContext::Road,
+        MapContext::Building,
+        MapContext::Other,
+        MapContext::Unknown,
+    ];
+    for idx in 0..pg.len() {
+        gg.context[idx] = contexts[(idx / 70) % 4];
+        if !(200..260).contains(&idx) {
+            (sg.m_free[idx], sg.m_occupied[idx]) = (0.0, 0.0);
+        }
+        if idx < 300 {
+            pg.zeta_mut()[idx] = 0.0;
+        }
+        // Mass on every focal set, so that the order of every sum shows in the last bits.
+        let mut m = [0.0; N_SETS];
+        let mut state = idx as u64 + 1;
+        for x in m.iter_mut() {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            *x = 0.05 + (state >> 40) as f32 / (1u64 << 24) as f32;
+        }
+        let total: f32 = m.iter().sum();
+        pg.set_cell_masses(idx, &m.map(|x| x / total));
+        pg.seen_mut()[idx] = u8::from(idx % 3 == 0);
+    }
+    let mut variants = vec![hand_params()];
+    for (mode, residual, unobserved) in [
+        (
+            DiscountMode::Mercier,
+            ResidualPolicy::Keep,
+            UnobservedCells::Fuse,
+        ),
+        (
+            DiscountMode::Classical,
+            ResidualPolicy::Normalise,
+            UnobservedCells::Fuse,
+        ),
+        (
+            DiscountMode::ClassRates,
+            ResidualPolicy::ToOmega,
+            UnobservedCells::DiscountOnly,
+        ),
+    ] {
+        let mut p = hand_params();
+        (p.fusion.discount_mode, p.fusion.residual) = (mode, residual);
+        p.fusion.unobserved = unobserved;
+        variants.push(p);
+    }
+    for params in &variants {
+        let mut grid = pg.clone();
+        for _ in 0..2 {
+            step(&mut grid, &sg, &gg, params, 0.1);
+        }
+        for idx in (0..pg.len()).step_by(7) {
+            let mut one = PerceptionGrid::new(1, 1);
+            one.set_cell_masses(0, &pg.cell_masses(idx));
+            one.zeta_mut()[0] = pg.zeta()[idx];
+            let mut s = SensorGrid::new(1, 1);
+            (s.m_free[0], s.m_occupied[0]) = (sg.m_free[idx], sg.m_occupied[idx]);
+            let mut g = GisGrid::new(1, 1);
+            g.context[0] = gg.context[idx];
+            for _ in 0..2 {
+                step(&mut one, &s, &g, params, 0.1);
+            }
+            let mode = &params.fusion;
+            assert_eq!(
+                one.cell_masses(0),
+                grid.cell_masses(idx),
+                "cell {idx}, {mode:?}"
+            );
+            assert_eq!(one.zeta()[0], grid.zeta()[idx], "cell {idx}, {mode:?}");
+        }
+    }
+}
+
+#[test]
 fn the_vector_code_for_this_cpu_equals_the_portable_code_bit_for_bit() {
     // On a CPU with AVX2 `step` runs code compiled for it; `step_blocks` is the portable code.
     // Without FMA contraction both do the same IEEE operations lane by lane.
