@@ -196,7 +196,7 @@ pub fn decide_grid(pg: &PerceptionGrid, unknown_threshold: f64, out: &mut [Decis
             }
             let mut seen = [0; DECIDE_BLOCK];
             seen[..out.len()].copy_from_slice(&pg.seen()[cells]);
-            decide_lanes(&m, &seen, unknown_threshold, out);
+            decide_lanes(&m, u32::MAX, &seen, unknown_threshold, out);
         });
 }
 
@@ -210,7 +210,8 @@ const DECISIONS: [Decision; 6] = [
     Decision::M,
 ];
 
-/// [`decide`] on `N` cells held as lanes (`m[set][lane]`), written to `out` (at most `N` cells):
+/// [`decide`] on `N` cells held as lanes (`m[set][lane]`, +0 on the sets outside the bit mask
+/// `live`), written to `out` (at most `N` cells):
 /// the same operations in the same order per cell, so the same decisions, in loops over lanes
 /// that the compiler vectorises. The fusion step calls it on its block of cells while they are
 /// still in cache.
@@ -221,6 +222,7 @@ const DECISIONS: [Decision; 6] = [
 )]
 pub(crate) fn decide_lanes<const N: usize>(
     m: &[[f32; N]; N_SETS],
+    live: u32,
     seen: &[u8; N],
     unknown_threshold: f32,
     out: &mut [Decision],
@@ -237,7 +239,8 @@ pub(crate) fn decide_lanes<const N: usize>(
     for (pk, sets) in p.iter_mut().zip(&SETS_WITH_CLASS) {
         // A local sum, stored once: the compiler keeps it in registers.
         let mut sum = [0.0_f32; N];
-        for &set in sets {
+        // Sets outside `live` hold +0: adding their share would change nothing.
+        for &set in sets.iter().filter(|&&set| live & (1 << set) != 0) {
             let (plane, inverse) = (&m[usize::from(set)], INVERSE_SIZE[usize::from(set)]);
             for i in 0..N {
                 sum[i] += plane[i] * inverse;

@@ -40,8 +40,8 @@ use crate::grids::{
 use crate::params::{DiscountMode, Params, ResidualPolicy, SetRate, UnobservedCells};
 use geodata::MapContext;
 use passes::{
-    BLOCK, BlockMasses, Lanes, TOO_SMALL_TO_RESCALE, add_class, occupied_mass, remove_class,
-    restrict_to, sum_sets,
+    ALL_SETS, BLOCK, BlockMasses, Lanes, Live, REACHABLE, TOO_SMALL_TO_RESCALE, add_class, is_live,
+    occupied_mass, remove_class, restrict_to, sum_sets,
 };
 use rayon::iter::ParallelIterator;
 
@@ -381,6 +381,7 @@ impl<'a> CellRun<'a> {
                     let m = &block.m;
                     decide_lanes(
                         m,
+                        block.live,
                         &block.seen,
                         k.unknown_threshold,
                         &mut decisions[start..end],
@@ -440,6 +441,8 @@ struct Block {
     sensor: SensorEvidence,
     /// Lanes holding real cells.
     len: usize,
+    /// The focal sets that may hold mass in this block ([`live_sets`]).
+    live: Live,
 }
 
 /// Copies a run of at most [`BLOCK`] values into lanes; a full block is one fixed-size copy,
@@ -481,6 +484,7 @@ impl Block {
             context: [MapContext::Unknown; BLOCK],
             sensor: SensorEvidence::zeroed(),
             len: 0,
+            live: ALL_SETS,
         }
     }
 
@@ -525,12 +529,13 @@ fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
         &block.context,
         k,
     );
+    block.live = live_sets(&block.m, &k.discount);
     if k.unobserved == UnobservedCells::Fuse || block.sensor.all_observed {
         return fuse_block(block, k);
     }
     // `discount_only`: cells the scan did not reach are only discounted (step 3).
     if !block.sensor.any_observed {
-        discount_only(&mut block.m, &k.discount);
+        discount_only(&mut block.m, &k.discount, block.live);
         block.conflict_fo = [0.0; BLOCK];
         block.conflict_of = [0.0; BLOCK];
         return StepStats {
@@ -540,7 +545,7 @@ fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
     }
     // Some of each: every cell fused, then the unobserved ones given their discounted past.
     let (mut discounted, zeta) = (block.m, block.zeta);
-    discount_only(&mut discounted, &k.discount);
+    discount_only(&mut discounted, &k.discount, block.live);
     let stats = fuse_block(block, k);
     let observed = &block.sensor.observed;
     for (plane, past) in block.m.iter_mut().zip(&discounted) {
@@ -557,11 +562,36 @@ fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
     stats
 }
 
+/// The focal sets a step of this block must visit: the 16 [`REACHABLE`] ones when every mass
+/// outside them is +0 and the discounting moves mass to Ω only (Mercier's moves it to any
+/// superset), else all 32. The usual grid, started vacuous, never leaves them.
+#[inline(always)]
+fn live_sets(m: &BlockMasses, discount: &Discount) -> Live {
+    if matches!(discount, Discount::Mercier(_)) {
+        return ALL_SETS;
+    }
+    // The bits of every mass outside, OR-ed: 0 only if all are +0.0 (not -0.0, whose sign bit a
+    // skipped pass could have changed).
+    let mut bits = [0u32; BLOCK];
+    for (set, plane) in m.iter().enumerate() {
+        if !is_live(REACHABLE, set) {
+            for i in 0..BLOCK {
+                bits[i] |= plane[i].to_bits();
+            }
+        }
+    }
+    if any_lane(&bits, |b| b != 0) {
+        ALL_SETS
+    } else {
+        REACHABLE
+    }
+}
+
 /// Step 3 alone: the discounting of every cell of the block.
 #[inline(always)]
-fn discount_only(m: &mut BlockMasses, discount: &Discount) {
+fn discount_only(m: &mut BlockMasses, discount: &Discount, live: Live) {
     match discount {
-        Discount::ToOmega(rate_per_set) => discount_to_omega(m, rate_per_set),
+        Discount::ToOmega(rate_per_set) => discount_to_omega(m, rate_per_set, live),
         Discount::Mercier(rate_per_class) => {
             for (bit, &alpha) in rate_per_class.iter().enumerate() {
                 add_class(m, 1 << bit, alpha);
@@ -574,9 +604,9 @@ fn discount_only(m: &mut BlockMasses, discount: &Discount) {
 /// [`discount_and_combine_with_refined_sensor`] alone, with the same operations in the same
 /// order (so a cell's result does not depend on its block's other cells).
 #[inline(always)]
-fn discount_to_omega(m: &mut BlockMasses, rate_per_set: &[f32; N_SETS]) {
+fn discount_to_omega(m: &mut BlockMasses, rate_per_set: &[f32; N_SETS], live: Live) {
     let mut to_omega = [0.0; BLOCK];
-    for set in 0..OMEGA {
+    for set in (0..OMEGA).filter(|&set| is_live(live, set)) {
         m[set] = discounted(m, set, rate_per_set, &mut to_omega);
     }
     for i in 0..BLOCK {
@@ -605,11 +635,11 @@ fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
         }
     };
     let before = if sensor.any_observed || sensor.any_sensor_free {
-        discount_and_combine_with_refined_sensor(m, rate_per_set, sensor)
+        discount_and_combine_with_refined_sensor(m, rate_per_set, sensor, block.live)
     } else {
         // r(SG) is vacuous in every cell, so its combination changes nothing; m_SG'({F}) = 0
         // makes ∅_OF = 0 and K = 0 needs no Σm.
-        discount_to_omega(m, rate_per_set);
+        discount_to_omega(m, rate_per_set, block.live);
         BeforeSensor {
             free: m[class::F],
             occupied: [0.0; BLOCK],
@@ -622,9 +652,9 @@ fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
         conflict_fo[i] = before.free[i] * sensor.sg_occupied[i];
         conflict_of[i] = before.occupied[i] * sensor.sg_free[i];
     }
-    combine_with_map_prior(m, &block.context, sensor, k);
+    combine_with_map_prior(m, &block.context, sensor, k, block.live);
     if sensor.any_sensor_map_conflict {
-        remove_sensor_map_conflict(m, sensor, &before.total);
+        remove_sensor_map_conflict(m, sensor, &before.total, block.live);
     }
     //    ∅_FO goes to {M} (an object appeared), ∅_OF to Ω (an object left), the residual conflict
     //    to the policy.
@@ -633,11 +663,11 @@ fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
         m[OMEGA][i] += conflict_of[i];
         m[0][i] = (m[0][i] - conflict_fo[i] - conflict_of[i]).max(0.0);
     }
-    let fallbacks_fusion = settle_empty_set(m, k.residual);
+    let fallbacks_fusion = settle_empty_set(m, k.residual, block.live);
     // 5. Update the accumulator ζ with m(O) and ∅_FO + ∅_OF of this step (eq 24-27).
     update_accumulator(
         &mut block.zeta,
-        &occupied_mass(m),
+        &occupied_mass(m, block.live),
         &conflict_fo,
         &conflict_of,
         k,
@@ -648,9 +678,9 @@ fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
     //    nothing, exactly, and is skipped. The residual policy still runs: under `normalise` it
     //    rescales again, and a cell must get the same bits whatever its neighbours' ζ.
     if any_lane(&block.zeta, |zeta| zeta > 0.0) {
-        remove_class(m, class::M, &block.zeta);
+        remove_class(m, class::M, &block.zeta, block.live);
     }
-    let fallbacks_specialisation = settle_empty_set(m, k.residual);
+    let fallbacks_specialisation = settle_empty_set(m, k.residual, block.live);
     // 7. Keep the conflict masses for display, and whether the sensor ever saw the cell.
     block.conflict_fo = conflict_fo;
     block.conflict_of = conflict_of;
@@ -931,6 +961,7 @@ fn discount_and_combine_with_refined_sensor(
     m: &mut BlockMasses,
     rate_per_set: &[f32; N_SETS],
     sensor: &SensorEvidence,
+    live: Live,
 ) -> BeforeSensor {
     let (s_free, s_occupied, s_omega) = (&sensor.free, &sensor.occupied, &sensor.omega);
     let mut to_omega = [0.0; BLOCK];
@@ -939,6 +970,10 @@ fn discount_and_combine_with_refined_sensor(
     let mut occupied = [0.0; BLOCK];
     let mut with_free = free;
     for set in (2..N_SETS).step_by(2) {
+        // A pair that holds no mass stays empty (the last pair, Ω's, always holds some).
+        if !is_live(live, set) && !is_live(live, set | class::F) {
+            continue;
+        }
         let a = discounted(m, set, rate_per_set, &mut to_omega);
         let a_and_f = if set | class::F == OMEGA {
             // The last pair: every other set has given Ω its share by now.
@@ -1007,6 +1042,7 @@ fn combine_with_map_prior(
     context: &[MapContext; BLOCK],
     sensor: &SensorEvidence,
     k: &StepConstants,
+    live: Live,
 ) {
     for (index, prior) in k.map_prior.iter().enumerate() {
         if sensor.contexts_present & (1 << index) == 0 || !prior.is_informative() {
@@ -1020,7 +1056,7 @@ fn combine_with_map_prior(
                 0.0
             };
         }
-        restrict_to(m, prior.g, &share);
+        restrict_to(m, prior.g, &share, live);
     }
 }
 
@@ -1028,11 +1064,20 @@ fn combine_with_map_prior(
 /// divides by 1 − K. K·Σm, not K: equal in exact arithmetic, but with K alone the f32 rounding
 /// in Σm grew by 1/(1 − K) at every step.
 #[inline(always)]
-fn remove_sensor_map_conflict(m: &mut BlockMasses, sensor: &SensorEvidence, total: &Lanes) {
+fn remove_sensor_map_conflict(
+    m: &mut BlockMasses,
+    sensor: &SensorEvidence,
+    total: &Lanes,
+    live: Live,
+) {
     for i in 0..BLOCK {
         m[0][i] -= sensor.conflict[i] * total[i];
     }
-    for plane in m.iter_mut() {
+    for (_, plane) in m
+        .iter_mut()
+        .enumerate()
+        .filter(|(set, _)| is_live(live, *set))
+    {
         for i in 0..BLOCK {
             plane[i] *= sensor.inv_normaliser[i];
         }
@@ -1046,7 +1091,7 @@ fn remove_sensor_map_conflict(m: &mut BlockMasses, sensor: &SensorEvidence, tota
 /// - `keep`: m(∅) stays.
 /// - `normalise`: every other mass is divided by their sum, m(∅) = 0.
 #[inline(always)]
-fn settle_empty_set(m: &mut BlockMasses, policy: ResidualPolicy) -> [u8; BLOCK] {
+fn settle_empty_set(m: &mut BlockMasses, policy: ResidualPolicy, live: Live) -> [u8; BLOCK] {
     let mut fallback = [0; BLOCK];
     match policy {
         ResidualPolicy::ToOmega => {
@@ -1057,7 +1102,7 @@ fn settle_empty_set(m: &mut BlockMasses, policy: ResidualPolicy) -> [u8; BLOCK] 
         }
         ResidualPolicy::Keep => {}
         ResidualPolicy::Normalise => {
-            let rest = sum_sets(m, |set| set != 0);
+            let rest = sum_sets(m, live, |set| set != 0);
             let mut scale = [1.0; BLOCK];
             let mut to_omega = [0.0; BLOCK];
             for i in 0..BLOCK {

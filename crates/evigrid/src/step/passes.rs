@@ -53,8 +53,8 @@ fn transfer(m: &mut BlockMasses, from: usize, to: usize, s: &Lanes) {
 ///
 /// The specialisation of eq 28-29 with θ = M and s = ζ.
 #[inline(always)]
-pub(crate) fn remove_class(m: &mut BlockMasses, class_bit: usize, s: &Lanes) {
-    restrict_to(m, OMEGA ^ class_bit, s);
+pub(crate) fn remove_class(m: &mut BlockMasses, class_bit: usize, s: &Lanes, live: Live) {
+    restrict_to(m, OMEGA ^ class_bit, s, live);
 }
 
 /// m ∪ "1 − α on ∅, α on {θ}": every A ∌ θ gives α·m(A) to A ∪ {θ} (Mercier contextual
@@ -80,7 +80,7 @@ pub(crate) fn add_class(m: &mut BlockMasses, class_bit: usize, alpha: f32) {
 /// they give is summed before T is touched once. A cell whose `s` is 0 (another map context,
 /// ζ = 0) is left exactly as it was.
 #[inline(always)]
-pub(crate) fn restrict_to(m: &mut BlockMasses, g: usize, s: &Lanes) {
+pub(crate) fn restrict_to(m: &mut BlockMasses, g: usize, s: &Lanes, live: Live) {
     let excluded = OMEGA & !g;
     if excluded == 0 {
         return;
@@ -93,20 +93,26 @@ pub(crate) fn restrict_to(m: &mut BlockMasses, g: usize, s: &Lanes) {
     // Subsets of a mask in decreasing order: `subset = (subset − 1) & mask` down to 0.
     let mut target = g;
     loop {
-        // Each source keeps (1 − s) of its mass; s times their sum goes to the target.
-        let mut sources = [0.0; BLOCK];
-        let mut extra = excluded;
-        while extra != 0 {
-            let source = &mut m[target | extra];
-            for i in 0..BLOCK {
-                sources[i] += source[i];
-                source[i] *= kept_share[i];
+        // A set that holds no mass gives nothing; a target outside `live` has only such
+        // sources (`live` is closed under intersection).
+        if is_live(live, target) {
+            // Each source keeps (1 − s) of its mass; s times their sum goes to the target.
+            let mut sources = [0.0; BLOCK];
+            let mut extra = excluded;
+            while extra != 0 {
+                if is_live(live, target | extra) {
+                    let source = &mut m[target | extra];
+                    for i in 0..BLOCK {
+                        sources[i] += source[i];
+                        source[i] *= kept_share[i];
+                    }
+                }
+                extra = (extra - 1) & excluded;
             }
-            extra = (extra - 1) & excluded;
-        }
-        let target_masses = &mut m[target];
-        for i in 0..BLOCK {
-            target_masses[i] += share[i] * sources[i];
+            let target_masses = &mut m[target];
+            for i in 0..BLOCK {
+                target_masses[i] += share[i] * sources[i];
+            }
         }
         if target == 0 {
             return;
@@ -118,10 +124,10 @@ pub(crate) fn restrict_to(m: &mut BlockMasses, g: usize, s: &Lanes) {
 /// Σ of m(A) over the sets A for which `select(A)` holds, per cell, in increasing set order (so
 /// that the result does not depend on how cells are grouped).
 #[inline(always)]
-pub(crate) fn sum_sets(m: &BlockMasses, select: impl Fn(usize) -> bool) -> Lanes {
+pub(crate) fn sum_sets(m: &BlockMasses, live: Live, select: impl Fn(usize) -> bool) -> Lanes {
     let mut total = [0.0; BLOCK];
     for (set, plane) in m.iter().enumerate() {
-        if select(set) {
+        if select(set) && is_live(live, set) {
             for i in 0..BLOCK {
                 total[i] += plane[i];
             }
@@ -133,14 +139,45 @@ pub(crate) fn sum_sets(m: &BlockMasses, select: impl Fn(usize) -> bool) -> Lanes
 /// Σ of m(A) over the non-empty A ⊆ {I, U, S, M}: m(O) as eq 22-23 define it. These are the
 /// even sets (F is bit 0) from 2 on, summed in increasing order.
 #[inline(always)]
-pub(crate) fn occupied_mass(m: &BlockMasses) -> Lanes {
+pub(crate) fn occupied_mass(m: &BlockMasses, live: Live) -> Lanes {
     let mut total = [0.0; BLOCK];
-    for plane in m.iter().skip(2).step_by(2) {
-        for i in 0..BLOCK {
-            total[i] += plane[i];
+    for (set, plane) in m.iter().enumerate().skip(2).step_by(2) {
+        if is_live(live, set) {
+            for i in 0..BLOCK {
+                total[i] += plane[i];
+            }
         }
     }
     total
+}
+
+/// The focal sets that may hold mass in a block, as a bit per set: a pass may skip the others,
+/// whose masses are +0 and stay +0 (adding or scaling them changes no bit of the result).
+pub(crate) type Live = u32;
+
+/// Every focal set.
+pub(crate) const ALL_SETS: Live = u32::MAX;
+
+/// The 16 focal sets that discounting to Ω, the refined sensor ({F}, O, Ω), the four map
+/// priors (G = Ω, {F,U,S,M}, {F,S,M}, {I}), ∅_FO on {M} and the specialisation (A → A∖{M}) can
+/// reach from a vacuous grid: the closure of those sets under intersection and removal of M
+/// (`reachable_sets_are_closed` checks it). A block whose masses all lie on them stays on them,
+/// and every pass skips the other 16.
+pub(crate) const REACHABLE: Live = {
+    const SETS: [usize; 16] = [0, 1, 2, 8, 9, 12, 13, 14, 15, 16, 24, 25, 28, 29, 30, 31];
+    let mut mask = 0;
+    let mut k = 0;
+    while k < SETS.len() {
+        mask |= 1 << SETS[k];
+        k += 1;
+    }
+    mask
+};
+
+/// Whether `set` is in `live`.
+#[inline(always)]
+pub(crate) fn is_live(live: Live, set: usize) -> bool {
+    live & (1 << set) != 0
 }
 
 #[cfg(test)]
@@ -165,7 +202,7 @@ mod tests {
         // m({S,M}) = 0.6, m({M}) = 0.1, m(Ω) = 0.3, s = 0.5 on class M:
         // {S,M} → {S}: 0.3 stays, 0.3 moves; {M} → ∅: 0.05 each; Ω → {F,I,U,S}: 0.15 each.
         let mut m = block_of(&[(S | M, 0.6), (M, 0.1), (OMEGA, 0.3)]);
-        remove_class(&mut m, M, &[0.5; BLOCK]);
+        remove_class(&mut m, M, &[0.5; BLOCK], ALL_SETS);
         assert!(close(m[S | M][0], 0.3) && close(m[S][0], 0.3));
         assert!(close(m[M][0], 0.05) && close(m[0][0], 0.05));
         assert!(close(m[OMEGA][0], 0.15) && close(m[OMEGA ^ M][0], 0.15));
@@ -176,7 +213,7 @@ mod tests {
         let mut m = block_of(&[(F | I, 1.0)]);
         let mut s = [0.0; BLOCK];
         s[3] = 1.0;
-        remove_class(&mut m, F, &s);
+        remove_class(&mut m, F, &s, ALL_SETS);
         assert_eq!((m[F | I][0], m[I][0]), (1.0, 0.0));
         assert_eq!((m[F | I][3], m[I][3]), (0.0, 1.0));
     }
@@ -199,12 +236,27 @@ mod tests {
         let mut m = block_of(&[(I | S, 0.5), (OMEGA, 0.3), (I, 0.2)]);
         let mut s = [0.8; BLOCK];
         s[1] = 0.0; // another context: untouched
-        restrict_to(&mut m, g, &s);
+        restrict_to(&mut m, g, &s, ALL_SETS);
         assert!(close(m[S][0], 0.4) && close(m[I | S][0], 0.1));
         assert!(close(m[g][0], 0.24) && close(m[OMEGA][0], 0.06));
         assert!(close(m[0][0], 0.16) && close(m[I][0], 0.04));
         assert_eq!((m[I | S][1], m[OMEGA][1], m[I][1]), (0.5, 0.3, 0.2));
         assert_eq!((m[S][1], m[g][1], m[0][1]), (0.0, 0.0, 0.0));
+    }
+
+    #[test]
+    fn reachable_sets_are_closed() {
+        let generators = [0, F, O, OMEGA, F | U | S | M, F | S | M, I, M];
+        for g in generators {
+            assert!(is_live(REACHABLE, g), "generator {g:05b}");
+        }
+        for a in (0..N_SETS).filter(|&a| is_live(REACHABLE, a)) {
+            assert!(is_live(REACHABLE, a & !M), "{a:05b} without M");
+            for b in (0..N_SETS).filter(|&b| is_live(REACHABLE, b)) {
+                assert!(is_live(REACHABLE, a & b), "{a:05b} ∩ {b:05b}");
+            }
+        }
+        assert_eq!(REACHABLE.count_ones(), 16);
     }
 
     #[test]
@@ -217,6 +269,6 @@ mod tests {
             (F | M, 0.15),
             (O, 0.2),
         ]);
-        assert!(close(occupied_mass(&m)[0], 0.7));
+        assert!(close(occupied_mass(&m, ALL_SETS)[0], 0.7));
     }
 }
