@@ -38,7 +38,7 @@ pub mod class {
 
 /// The PerceptionGrid: a mass function on Ω_PG per cell, with the accumulator ζ, the last
 /// conflict masses ∅_FO and ∅_OF, and whether the cell was ever observed.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct PerceptionGrid {
     width: usize,
     height: usize,
@@ -49,6 +49,22 @@ pub struct PerceptionGrid {
     conflict_fo: Vec<f32>,
     conflict_of: Vec<f32>,
     seen: Vec<u8>,
+    /// Whether a mass may lie outside the 16 focal sets that a vacuous grid can reach when it is
+    /// discounted to Ω (see `step`): false as long as only vacuous resets and such steps wrote
+    /// the masses, so that a step can leave the other 16 planes untouched.
+    may_leave_reachable: bool,
+}
+
+/// Equal grids hold equal values; `may_leave_reachable` is only a note on how they were written.
+impl PartialEq for PerceptionGrid {
+    fn eq(&self, other: &Self) -> bool {
+        (self.width, self.height) == (other.width, other.height)
+            && self.masses == other.masses
+            && self.zeta == other.zeta
+            && self.conflict_fo == other.conflict_fo
+            && self.conflict_of == other.conflict_of
+            && self.seen == other.seen
+    }
 }
 
 impl PerceptionGrid {
@@ -66,6 +82,7 @@ impl PerceptionGrid {
             conflict_fo: vec![0.0; len],
             conflict_of: vec![0.0; len],
             seen: vec![0; len],
+            may_leave_reachable: false,
         }
     }
 
@@ -145,6 +162,7 @@ impl PerceptionGrid {
     /// # Panics
     /// If `set ≥ 32`.
     pub fn plane_mut(&mut self, set: usize) -> &mut [f32] {
+        self.may_leave_reachable = true;
         let len = self.len();
         &mut self.masses[set * len..(set + 1) * len]
     }
@@ -165,6 +183,16 @@ impl PerceptionGrid {
         for (set, &m) in masses.iter().enumerate() {
             self.plane_mut(set)[idx] = m;
         }
+    }
+
+    /// See the field `may_leave_reachable`.
+    pub(crate) fn may_leave_reachable(&self) -> bool {
+        self.may_leave_reachable
+    }
+
+    /// Notes that a step may have put mass outside the reachable sets.
+    pub(crate) fn note_may_leave_reachable(&mut self) {
+        self.may_leave_reachable = true;
     }
 
     /// The seen flags, writable (to set up a scene or a test).

@@ -150,7 +150,16 @@ fn step_cells(
         "a SensorGrid or GisGrid plane does not hold {len} cells"
     );
     let constants = StepConstants::new(params, dt_s);
+    // A grid that only ever held mass on the 16 reachable sets keeps it there under discounting
+    // to Ω: its other 16 planes are +0 and need not even be read. Mercier's discounting moves
+    // mass anywhere.
+    let to_omega = matches!(constants.discount, Discount::ToOmega(_));
+    let reachable_only = to_omega && !pg.may_leave_reachable();
+    if !to_omega {
+        pg.note_may_leave_reachable();
+    }
     let cells = CellRun {
+        reachable_only,
         pg: pg.planes_mut(),
         m_free: &sg.m_free,
         m_occupied: &sg.m_occupied,
@@ -297,6 +306,8 @@ struct CellRun<'a> {
     /// Where to write the decision of each cell, if wanted.
     decisions: Option<&'a mut [Decision]>,
     width: usize,
+    /// Every mass outside the [`REACHABLE`] sets is +0 (see `step_cells`).
+    reachable_only: bool,
 }
 
 impl<'a> CellRun<'a> {
@@ -325,6 +336,7 @@ impl<'a> CellRun<'a> {
             context: ctx_left,
             decisions: decisions_left,
             width: self.width,
+            reachable_only: self.reachable_only,
         };
         let right = CellRun {
             pg: pg_right,
@@ -333,6 +345,7 @@ impl<'a> CellRun<'a> {
             context: ctx_right,
             decisions: decisions_right,
             width: self.width,
+            reachable_only: self.reachable_only,
         };
         (left, Some(right))
     }
@@ -366,16 +379,18 @@ impl<'a> CellRun<'a> {
     fn step_blocks(mut self, k: &StepConstants) -> StepStats {
         let mut stats = StepStats::default();
         let mut block = Block::vacuous();
+        let known_live = self.reachable_only.then_some(REACHABLE);
+        let planes = known_live.unwrap_or(ALL_SETS);
         let len = self.m_free.len();
         let mut tile_start = 0;
         while tile_start < len {
             let tile_end = (tile_start + TILE).min(len);
-            self.warm(tile_start..tile_end);
+            self.warm(tile_start..tile_end, planes);
             let mut start = tile_start;
             while start < tile_end {
                 let end = (start + BLOCK).min(tile_end);
-                block.load(&self, start..end);
-                let events = step_block(&mut block, k);
+                block.load(&self, start..end, planes);
+                let events = step_block(&mut block, k, known_live);
                 block.store(&mut self, start..end);
                 if let Some(decisions) = self.decisions.as_deref_mut() {
                     let m = &block.m;
@@ -402,10 +417,14 @@ impl<'a> CellRun<'a> {
     /// of the tile then find their lines in cache. The values are summed as bits (integer
     /// additions, no floating-point dependency chain) only so that the reads are not elided.
     #[inline(always)]
-    fn warm(&self, cells: std::ops::Range<usize>) {
+    fn warm(&self, cells: std::ops::Range<usize>, planes: Live) {
         const F32_PER_LINE: usize = 64 / 4;
         let mut checksum = 0u32;
-        let f32_planes = self.pg.masses.iter().map(|plane| &plane[..]).chain([
+        let f32_planes = self.pg.masses.iter().enumerate();
+        let f32_planes = f32_planes
+            .filter(|(set, _)| is_live(planes, *set))
+            .map(|(_, plane)| &plane[..])
+            .chain([
             &self.pg.zeta[..],
             &self.pg.conflict_fo[..],
             &self.pg.conflict_of[..],
@@ -489,15 +508,19 @@ impl Block {
     }
 
     #[inline(always)]
-    fn load(&mut self, run: &CellRun<'_>, cells: std::ops::Range<usize>) {
+    /// Loads the cells' state; mass planes outside `planes` are left as they are (+0, since a
+    /// block that skips them never writes them).
+    fn load(&mut self, run: &CellRun<'_>, cells: std::ops::Range<usize>, planes: Live) {
         self.len = cells.len();
         if self.len < BLOCK {
             // Only the last block of a run: pad with vacuous cells, not the previous block.
             *self = Block::vacuous();
             self.len = cells.len();
         }
-        for (lanes, plane) in self.m.iter_mut().zip(&run.pg.masses) {
-            load_lanes(lanes, &plane[cells.clone()]);
+        for (set, (lanes, plane)) in self.m.iter_mut().zip(&run.pg.masses).enumerate() {
+            if is_live(planes, set) {
+                load_lanes(lanes, &plane[cells.clone()]);
+            }
         }
         load_lanes(&mut self.zeta, &run.pg.zeta[cells.clone()]);
         load_lanes(&mut self.seen, &run.pg.seen[cells.clone()]);
@@ -508,8 +531,12 @@ impl Block {
 
     #[inline(always)]
     fn store(&self, run: &mut CellRun<'_>, cells: std::ops::Range<usize>) {
-        for (lanes, plane) in self.m.iter().zip(run.pg.masses.iter_mut()) {
-            store_lanes(&mut plane[cells.clone()], lanes);
+        // A set outside `live` still holds the +0 it was loaded with: not writing it back keeps
+        // its cache lines clean, so they are never written to memory.
+        for (set, (lanes, plane)) in self.m.iter().zip(run.pg.masses.iter_mut()).enumerate() {
+            if is_live(self.live, set) {
+                store_lanes(&mut plane[cells.clone()], lanes);
+            }
         }
         store_lanes(&mut run.pg.zeta[cells.clone()], &self.zeta);
         store_lanes(&mut run.pg.conflict_fo[cells.clone()], &self.conflict_fo);
@@ -520,7 +547,7 @@ impl Block {
 
 /// SPEC §5 on one block: PG_{t−1}, ζ_{t−1} in the block become PG_t, ζ_t.
 #[inline(always)]
-fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
+fn step_block(block: &mut Block, k: &StepConstants, known_live: Option<Live>) -> StepStats {
     // 1-2. The sensor's evidence, refined to Ω_PG and combined with the map prior by Dempster's
     //      rule: SG'_t = r(SG_t) ⊕ GG (eq 16-21), per cell in compact form.
     block.sensor.fill(
@@ -529,7 +556,7 @@ fn step_block(block: &mut Block, k: &StepConstants) -> StepStats {
         &block.context,
         k,
     );
-    block.live = live_sets(&block.m, &k.discount);
+    block.live = known_live.unwrap_or_else(|| live_sets(&block.m, &k.discount));
     if k.unobserved == UnobservedCells::Fuse || block.sensor.all_observed {
         return fuse_block(block, k);
     }

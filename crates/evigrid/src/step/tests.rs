@@ -951,3 +951,40 @@ fn step_and_decide_decides_as_decide_grid_after_step() {
             .any(|d| *d != crate::Decision::Unknown)
     );
 }
+
+#[test]
+fn a_grid_kept_on_the_reachable_sets_skips_the_others_with_the_same_bits() {
+    // Started vacuous and stepped with discounting to Ω, a grid never holds mass outside the 16
+    // reachable sets, so the step leaves those planes unread. A clone whose planes were handed
+    // out for writing (so the step must check every block) must end with the same bits.
+    let (_, sg, gg) = scene(131, 40, 9);
+    let mut skipping = PerceptionGrid::new(131, 40);
+    let mut checking = skipping.clone();
+    let _ = checking.plane_mut(0);
+    assert!(!skipping.may_leave_reachable() && checking.may_leave_reachable());
+    for policy in [ResidualPolicy::ToOmega, ResidualPolicy::Normalise] {
+        let mut params = hand_params();
+        params.fusion.residual = policy;
+        for _ in 0..4 {
+            step(&mut skipping, &sg, &gg, &params, 0.1);
+            step(&mut checking, &sg, &gg, &params, 0.1);
+        }
+    }
+    assert!(!skipping.may_leave_reachable());
+    for set in 0..N_SETS {
+        let same = skipping
+            .plane(set)
+            .iter()
+            .zip(checking.plane(set))
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(same, "set {set:05b} differs");
+        if !super::passes::is_live(super::passes::REACHABLE, set) {
+            assert!(skipping.plane(set).iter().all(|x| x.to_bits() == 0));
+        }
+    }
+    // Mercier's discounting moves mass to any superset: the grid is then checked block by block.
+    let mut params = hand_params();
+    params.fusion.discount_mode = DiscountMode::Mercier;
+    step(&mut skipping, &sg, &gg, &params, 0.1);
+    assert!(skipping.may_leave_reachable());
+}
