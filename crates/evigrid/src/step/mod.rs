@@ -425,12 +425,12 @@ impl<'a> CellRun<'a> {
             .filter(|(set, _)| is_live(planes, *set))
             .map(|(_, plane)| &plane[..])
             .chain([
-            &self.pg.zeta[..],
-            &self.pg.conflict_fo[..],
-            &self.pg.conflict_of[..],
-            self.m_free,
-            self.m_occupied,
-        ]);
+                &self.pg.zeta[..],
+                &self.pg.conflict_fo[..],
+                &self.pg.conflict_of[..],
+                self.m_free,
+                self.m_occupied,
+            ]);
         for plane in f32_planes {
             for value in plane[cells.clone()].iter().step_by(F32_PER_LINE) {
                 checksum = checksum.wrapping_add(value.to_bits());
