@@ -74,7 +74,7 @@ const MIN_NORMAL_MASS: f32 = 1e-6;
 pub fn betp(m: &[f32; N_SETS]) -> [f32; 5] {
     let mut p = [0.0_f32; 5];
     for (set, &mass) in m.iter().enumerate().skip(1) {
-        let share = mass * inverse_size(set);
+        let share = mass * INVERSE_SIZE[set];
         for (k, pk) in p.iter_mut().enumerate() {
             if set & (1 << k) != 0 {
                 *pk += share;
@@ -88,14 +88,9 @@ pub fn betp(m: &[f32; N_SETS]) -> [f32; 5] {
     p.map(|pk| pk / normal)
 }
 
-/// 1 / |A| for a focal set A ≠ ∅: the pignistic share of each of its classes. A product, not a
-/// division, so that [`decide_lanes`] vectorises cheaply and still gives [`betp`]'s values.
-#[inline(always)]
-fn inverse_size(set: usize) -> f32 {
-    INVERSE_SIZE[set]
-}
-
-/// [`inverse_size`] of every set (0 for ∅).
+/// 1 / |A| for every focal set A (0 for ∅): the pignistic share of each of its classes. A
+/// product, not a division, so that [`decide_lanes`] vectorises cheaply and still gives
+/// [`betp`]'s values.
 const INVERSE_SIZE: [f32; N_SETS] = {
     const INVERSE: [f32; 6] = [0.0, 1.0, 1.0 / 2.0, 1.0 / 3.0, 1.0 / 4.0, 1.0 / 5.0];
     let mut table = [0.0; N_SETS];

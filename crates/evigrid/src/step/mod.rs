@@ -1,11 +1,12 @@
 //! One time step of the fusion (SPEC §5, eq 16-31), for every cell of the window.
 //!
-//! The PerceptionGrid is updated in place. Cells are processed in blocks of 16 loaded from the
-//! 32 mass planes into a small stack buffer; every stage is a pass over the block (module
+//! The PerceptionGrid is updated in place. Cells are processed in blocks of 64 loaded from
+//! the mass planes into a small stack buffer; every stage is a pass over the block (module
 //! `passes`, each derived there), so the work per cell is a fixed sequence of vectorisable
-//! multiply-adds without branches or allocation. Row ranges run in parallel with rayon; each cell
-//! is computed alone and the statistics are integer counts, so the result is bit-identical
-//! whatever the number of threads.
+//! multiply-adds without per-cell branches or allocation. Per-block branches only skip work that
+//! is exactly a no-op. Row ranges run in parallel with rayon; each cell is computed alone and
+//! the statistics are integer counts, so the result is bit-identical whatever the number of
+//! threads (ARCHITECTURE.md, "The fusion kernel").
 //!
 //! ```
 //! use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid, step::step};
