@@ -42,9 +42,9 @@ use crate::params::{DiscountMode, Params, ResidualPolicy, SetRate, UnobservedCel
 use geodata::MapContext;
 use passes::{
     ALL_SETS, BLOCK, BlockMasses, Lanes, Live, REACHABLE, TOO_SMALL_TO_RESCALE, add_class, is_live,
-    occupied_mass, remove_class, restrict_to, sum_sets,
+    occupied_mass, Restriction, sum_sets,
 };
-use rayon::iter::ParallelIterator;
+use rayon::iter::{IndexedParallelIterator, IntoParallelIterator, ParallelIterator};
 
 /// A Dempster conflict K between the sensor and the map at or above `1 − this` counts as total
 /// (K = 1, SPEC §5 step 2): dividing by a smaller 1 − K would only amplify f32 rounding.
@@ -54,8 +54,10 @@ const TOTAL_CONFLICT_MARGIN: f32 = 1e-6;
 /// ([`CellRun::warm`]): 40 planes of 1024 cells are 160 KiB, within L2.
 const TILE: usize = 1024;
 
-/// Parallel tasks hold at least this many cells (whole rows), so that task overhead stays small.
-const MIN_CELLS_PER_TASK: usize = 8192;
+/// Parallel tasks hold about this many cells (whole rows): few enough tasks that their overhead
+/// is small, enough that a thread that finishes early takes work from a busier one (map contexts
+/// and observed cells are not spread evenly over the window).
+const CELLS_PER_TASK: usize = 32 * 1024;
 
 /// What happened during one step, counted over the window.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -168,7 +170,10 @@ fn step_cells(
         decisions,
         width: width.max(1),
     };
-    rayon::iter::split(cells, CellRun::split_rows)
+    cells
+        .into_tasks()
+        .into_par_iter()
+        .with_max_len(1)
         .map(|run| kernel(run, &constants))
         .reduce(StepStats::default, StepStats::merged)
 }
@@ -189,6 +194,8 @@ struct StepConstants {
     /// SPEC §6: above this m(Ω) a cell is decided unknown.
     unknown_threshold: f32,
     unobserved: UnobservedCells,
+    /// The transfers of the specialisation (step 6): A ∋ M to A∖{M}.
+    specialisation: Restrictions,
 }
 
 /// The discounting of step 3, as rates for this step's `dt`.
@@ -206,6 +213,8 @@ enum Discount {
 struct MapPrior {
     /// The focal set G.
     g: usize,
+    /// The transfers of m ∩ GG, for blocks on the reachable sets and for any block.
+    restriction: Restrictions,
     beta: f32,
     /// [F ∈ G], [O ∩ G ≠ ∅], [G = {F}], [∅ ≠ G ⊆ O].
     free_in_g: f32,
@@ -219,6 +228,7 @@ impl MapPrior {
         let indicator = |condition: bool| if condition { 1.0 } else { 0.0 };
         MapPrior {
             g,
+            restriction: Restrictions::new(g),
             beta: beta as f32,
             free_in_g: indicator(g & class::F != 0),
             occupied_meets_g: indicator(g & class::O != 0),
@@ -230,6 +240,33 @@ impl MapPrior {
     /// Whether combining with this prior can change a mass function.
     fn is_informative(&self) -> bool {
         self.g != OMEGA && self.beta > 0.0
+    }
+}
+
+/// The [`Restriction`] to one focal set G, for the two families of live sets a block can have.
+#[derive(Clone, Copy, Debug)]
+struct Restrictions {
+    reachable: Restriction,
+    all: Restriction,
+}
+
+impl Restrictions {
+    fn new(g: usize) -> Self {
+        Restrictions {
+            reachable: Restriction::new(g, REACHABLE),
+            all: Restriction::new(g, ALL_SETS),
+        }
+    }
+
+    /// The transfers for a block whose live sets are `live` (a block has [`REACHABLE`] or
+    /// [`ALL_SETS`]; any other family gets all the transfers, which is never wrong).
+    #[inline(always)]
+    fn for_live(&self, live: Live) -> &Restriction {
+        if live == REACHABLE {
+            &self.reachable
+        } else {
+            &self.all
+        }
     }
 }
 
@@ -294,6 +331,7 @@ impl StepConstants {
             unobserved_evidence: map_prior.map(|prior| CellEvidence::unobserved(&prior)),
             unknown_threshold: params.decision.unknown_threshold as f32,
             unobserved: fusion.unobserved,
+            specialisation: Restrictions::new(OMEGA ^ class::M),
         }
     }
 }
@@ -312,13 +350,23 @@ struct CellRun<'a> {
 }
 
 impl<'a> CellRun<'a> {
-    /// Halves the run on a row boundary while both halves stay large enough.
-    fn split_rows(self) -> (Self, Option<Self>) {
-        let rows = self.m_free.len() / self.width;
-        if rows < 2 || self.m_free.len() < 2 * MIN_CELLS_PER_TASK {
-            return (self, None);
+    /// Cuts the run into tasks of whole rows, about [`CELLS_PER_TASK`] cells each.
+    fn into_tasks(self) -> Vec<Self> {
+        let rows_per_task = (CELLS_PER_TASK / self.width).max(1);
+        let task_cells = rows_per_task * self.width;
+        let mut tasks = Vec::with_capacity(self.m_free.len().div_ceil(task_cells));
+        let mut rest = self;
+        while rest.m_free.len() > task_cells {
+            let (task, after) = rest.split_at(task_cells);
+            tasks.push(task);
+            rest = after;
         }
-        let mid = rows / 2 * self.width;
+        tasks.push(rest);
+        tasks
+    }
+
+    /// The first `mid` cells and the rest.
+    fn split_at(self, mid: usize) -> (Self, Self) {
         let (pg_left, pg_right) = self.pg.split_at(mid);
         let (free_left, free_right) = self.m_free.split_at(mid);
         let (occ_left, occ_right) = self.m_occupied.split_at(mid);
@@ -348,7 +396,7 @@ impl<'a> CellRun<'a> {
             width: self.width,
             reachable_only: self.reachable_only,
         };
-        (left, Some(right))
+        (left, right)
     }
 
     /// Steps every cell of the run, with the widest vector instructions this CPU has.
@@ -471,21 +519,31 @@ struct Block {
 fn load_lanes<T: Copy>(lanes: &mut [T; BLOCK], values: &[T]) {
     match <&[T; BLOCK]>::try_from(values) {
         Ok(full) => *lanes = *full,
-        Err(_) => lanes[..values.len()].copy_from_slice(values),
+        Err(_) => load_partial(lanes, values),
     }
 }
 
 /// The reverse of [`load_lanes`].
 #[inline(always)]
 fn store_lanes<T: Copy>(values: &mut [T], lanes: &[T; BLOCK]) {
-    let n = values.len();
-    if n == BLOCK {
-        if let Ok(full) = <&mut [T; BLOCK]>::try_from(values) {
-            *full = *lanes;
-        }
-    } else {
-        values.copy_from_slice(&lanes[..n]);
+    match <&mut [T; BLOCK]>::try_from(&mut *values) {
+        Ok(full) => *full = *lanes,
+        Err(_) => store_partial(values, lanes),
     }
+}
+
+// The last, partial block of a run, out of line: inlined, its variable-length copy and the full
+// block's fixed one were merged into one `memcpy` call for every plane of every block.
+#[cold]
+#[inline(never)]
+fn load_partial<T: Copy>(lanes: &mut [T; BLOCK], values: &[T]) {
+    lanes[..values.len()].copy_from_slice(values);
+}
+
+#[cold]
+#[inline(never)]
+fn store_partial<T: Copy>(values: &mut [T], lanes: &[T; BLOCK]) {
+    values.copy_from_slice(&lanes[..values.len()]);
 }
 
 impl Block {
@@ -635,7 +693,7 @@ fn discount_only(m: &mut BlockMasses, discount: &Discount, live: Live) {
 fn discount_to_omega(m: &mut BlockMasses, rate_per_set: &[f32; N_SETS], live: Live) {
     let mut to_omega = [0.0; BLOCK];
     for set in (0..OMEGA).filter(|&set| is_live(live, set)) {
-        m[set] = discounted(m, set, rate_per_set, &mut to_omega);
+        discount_in_place(&mut m[set], rate_per_set[set], &mut to_omega);
     }
     for i in 0..BLOCK {
         m[OMEGA][i] += to_omega[i];
@@ -706,7 +764,10 @@ fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
     //    nothing, exactly, and is skipped. The residual policy still runs: under `normalise` it
     //    rescales again, and a cell must get the same bits whatever its neighbours' ζ.
     if any_lane(&block.zeta, |zeta| zeta > 0.0) {
-        remove_class(m, class::M, &block.zeta, block.live);
+        // The restriction to Ω∖{M}: the specialisation is that combination (passes.rs).
+        k.specialisation
+            .for_live(block.live)
+            .apply(m, &block.zeta);
     }
     let fallbacks_specialisation = settle_empty_set(m, k.residual, block.live);
     // 7. Keep the conflict masses for display, and whether the sensor ever saw the cell.
@@ -884,52 +945,47 @@ impl SensorEvidence {
         k: &StepConstants,
     ) {
         let e = self;
-        // The map prior of each cell: one broadcast in a block inside one context (the usual
-        // case), else looked up per cell.
-        let mut beta = [0.0; BLOCK];
-        let mut in_f = [0.0; BLOCK];
-        let mut meets_o = [0.0; BLOCK];
-        let mut is_f = [0.0; BLOCK];
-        let mut within_o = [0.0; BLOCK];
         let mut present = 0u8;
         for &c in context {
             present |= 1 << (c as u8);
         }
-        if present.is_power_of_two() {
-            let prior = &k.map_prior[present.trailing_zeros() as usize];
-            beta = [prior.beta; BLOCK];
-            in_f = [prior.free_in_g; BLOCK];
-            meets_o = [prior.occupied_meets_g; BLOCK];
-            is_f = [prior.g_is_free; BLOCK];
-            within_o = [prior.g_within_occupied; BLOCK];
-        } else {
-            for i in 0..BLOCK {
-                let prior = &k.map_prior[context[i] as usize];
-                beta[i] = prior.beta;
-                in_f[i] = prior.free_in_g;
-                meets_o[i] = prior.occupied_meets_g;
-                is_f[i] = prior.g_is_free;
-                within_o[i] = prior.g_within_occupied;
-            }
-        }
         e.contexts_present = present;
-        // A block the scan did not reach, inside one context (most blocks of a large window):
-        // every cell has the same SG' = GG, computed once per step.
+        let one_context = present.is_power_of_two().then(|| present.trailing_zeros() as usize);
         // (NaN and negative masses count as 0, as in `CellEvidence::new`.)
         let unobserved = !any_lane(m_free, |free| free > 0.0) && !any_lane(m_occupied, |o| o > 0.0);
-        if unobserved && present.is_power_of_two() {
-            let v = &k.unobserved_evidence[present.trailing_zeros() as usize];
-            e.free = [v.free; BLOCK];
-            e.occupied = [v.occupied; BLOCK];
-            e.omega = [v.omega; BLOCK];
-            e.beta = [v.beta; BLOCK];
-            e.conflict = [v.conflict; BLOCK];
-            e.inv_normaliser = [v.inv_normaliser; BLOCK];
-            e.sg_free = [v.sg_free; BLOCK];
-            e.sg_occupied = [v.sg_occupied; BLOCK];
-            e.observed = [0; BLOCK];
-            e.total_conflict = [0; BLOCK];
+        if unobserved {
+            // A block the scan did not reach (most blocks of a large window): every cell has
+            // SG' = GG of its context, computed once per step. A block inside one context takes
+            // it as a broadcast; one across contexts (half the blocks in a city centre) takes each
+            // context's in its cells, a vectorised select.
+            match one_context {
+                Some(c) => e.broadcast(&k.unobserved_evidence[c]),
+                None => {
+                    for (c, evidence) in k.unobserved_evidence.iter().enumerate() {
+                        if present & (1 << c) != 0 {
+                            e.select(&context_mask(context, c), evidence);
+                        }
+                    }
+                }
+            }
         } else {
+            // The map prior of each cell, selected the same way.
+            let mut beta = [0.0; BLOCK];
+            let mut in_f = [0.0; BLOCK];
+            let mut meets_o = [0.0; BLOCK];
+            let mut is_f = [0.0; BLOCK];
+            let mut within_o = [0.0; BLOCK];
+            for (c, prior) in k.map_prior.iter().enumerate() {
+                if present & (1 << c) == 0 {
+                    continue;
+                }
+                let mask = context_mask(context, c);
+                select(&mut beta, &mask, prior.beta);
+                select(&mut in_f, &mask, prior.free_in_g);
+                select(&mut meets_o, &mask, prior.occupied_meets_g);
+                select(&mut is_f, &mask, prior.g_is_free);
+                select(&mut within_o, &mask, prior.g_within_occupied);
+            }
             for i in 0..BLOCK {
                 let v = CellEvidence::new(
                     m_free[i],
@@ -954,6 +1010,72 @@ impl SensorEvidence {
         e.any_sensor_free = any_lane(&e.sg_free, |free| free != 0.0);
         e.any_observed = any_lane(&e.observed, |observed| observed != 0);
         e.all_observed = !any_lane(&e.observed, |observed| observed == 0);
+    }
+}
+
+impl SensorEvidence {
+    /// Every lane set to the evidence `v`.
+    #[inline(always)]
+    fn broadcast(&mut self, v: &CellEvidence) {
+        let e = self;
+        e.free = [v.free; BLOCK];
+        e.occupied = [v.occupied; BLOCK];
+        e.omega = [v.omega; BLOCK];
+        e.beta = [v.beta; BLOCK];
+        e.conflict = [v.conflict; BLOCK];
+        e.inv_normaliser = [v.inv_normaliser; BLOCK];
+        e.sg_free = [v.sg_free; BLOCK];
+        e.sg_occupied = [v.sg_occupied; BLOCK];
+        e.observed = [u8::from(v.observed); BLOCK];
+        e.total_conflict = [u8::from(v.total_conflict); BLOCK];
+    }
+
+    /// The lanes of `mask` set to the evidence `v`, the others left.
+    #[inline(always)]
+    fn select(&mut self, mask: &Mask, v: &CellEvidence) {
+        let e = self;
+        select(&mut e.free, mask, v.free);
+        select(&mut e.occupied, mask, v.occupied);
+        select(&mut e.omega, mask, v.omega);
+        select(&mut e.beta, mask, v.beta);
+        select(&mut e.conflict, mask, v.conflict);
+        select(&mut e.inv_normaliser, mask, v.inv_normaliser);
+        select(&mut e.sg_free, mask, v.sg_free);
+        select(&mut e.sg_occupied, mask, v.sg_occupied);
+        select_flag(&mut e.observed, mask, v.observed);
+        select_flag(&mut e.total_conflict, mask, v.total_conflict);
+    }
+}
+
+/// All bits set in the lanes chosen, none in the others.
+type Mask = [u32; BLOCK];
+
+/// The lanes whose map context is `c`.
+#[inline(always)]
+fn context_mask(context: &[MapContext; BLOCK], c: usize) -> Mask {
+    let mut mask = [0; BLOCK];
+    for i in 0..BLOCK {
+        mask[i] = if context[i] as u8 == c as u8 { u32::MAX } else { 0 };
+    }
+    mask
+}
+
+/// `lanes[i] = value` where `mask` is set: a select on the bits, which the compiler vectorises
+/// (an `if` on each lane became a scalar loop).
+#[inline(always)]
+fn select(lanes: &mut Lanes, mask: &Mask, value: f32) {
+    let value = value.to_bits();
+    for i in 0..BLOCK {
+        lanes[i] = f32::from_bits((value & mask[i]) | (lanes[i].to_bits() & !mask[i]));
+    }
+}
+
+#[inline(always)]
+fn select_flag(lanes: &mut [u8; BLOCK], mask: &Mask, value: bool) {
+    let value = u8::from(value);
+    for i in 0..BLOCK {
+        let chosen = mask[i] != 0;
+        lanes[i] = (value & u8::from(chosen)) | (lanes[i] & u8::from(!chosen));
     }
 }
 
@@ -1044,6 +1166,17 @@ fn discount_and_combine_with_refined_sensor(
     before
 }
 
+/// m(A) discounted at `rate`, in place (a copy returned and stored back costs a `memcpy`); what
+/// it loses is added to `to_omega`. The same operations as [`discounted`].
+#[inline(always)]
+fn discount_in_place(masses: &mut Lanes, rate: f32, to_omega: &mut Lanes) {
+    for i in 0..BLOCK {
+        let moved = rate * masses[i];
+        masses[i] -= moved;
+        to_omega[i] += moved;
+    }
+}
+
 /// m(A) discounted at A's rate; what it loses is added to `to_omega`.
 #[inline(always)]
 fn discounted(
@@ -1062,7 +1195,7 @@ fn discounted(
 }
 
 /// m ← m ∩ GG in place: for each map context in the block, its restriction to G with share β
-/// in that context's cells and 0 elsewhere ([`restrict_to`]). A block inside one context, the
+/// in that context's cells and 0 elsewhere ([`Restriction`]). A block inside one context, the
 /// usual case, makes one pass; cells where the map says nothing (G = Ω) make none.
 #[inline(always)]
 fn combine_with_map_prior(
@@ -1076,15 +1209,21 @@ fn combine_with_map_prior(
         if sensor.contexts_present & (1 << index) == 0 || !prior.is_informative() {
             continue;
         }
+        let restriction = prior.restriction.for_live(live);
+        if sensor.contexts_present == 1 << index {
+            // Every cell is in this context.
+            restriction.apply(m, &sensor.beta);
+            continue;
+        }
         let mut share = [0.0; BLOCK];
         for i in 0..BLOCK {
-            share[i] = if context[i] as usize == index {
+            share[i] = if context[i] as u8 == index as u8 {
                 sensor.beta[i]
             } else {
                 0.0
             };
         }
-        restrict_to(m, prior.g, &share, live);
+        restriction.apply(m, &share);
     }
 }
 

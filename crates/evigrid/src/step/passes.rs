@@ -53,7 +53,7 @@ fn transfer(m: &mut BlockMasses, from: usize, to: usize, s: &Lanes) {
 /// m ∩ "s on Ω∖{θ}, 1 − s on Ω": every A ∋ θ gives s·m(A) to A∖{θ} (`class_bit` = θ's bit).
 ///
 /// The specialisation of eq 28-29 with θ = M and s = ζ.
-#[inline(always)]
+#[cfg(test)]
 pub(crate) fn remove_class(m: &mut BlockMasses, class_bit: usize, s: &Lanes, live: Live) {
     restrict_to(m, OMEGA ^ class_bit, s, live);
 }
@@ -72,7 +72,14 @@ pub(crate) fn add_class(m: &mut BlockMasses, class_bit: usize, alpha: f32) {
 }
 
 /// m ∩ "s on G, 1 − s on Ω" for a focal set `g` (`s` per cell): every A ⊄ G gives s·m(A) to
-/// A ∩ G (possibly ∅).
+/// A ∩ G (possibly ∅). The kernel keeps the [`Restriction`] of each G it uses; this builds it.
+#[cfg(test)]
+pub(crate) fn restrict_to(m: &mut BlockMasses, g: usize, s: &Lanes, live: Live) {
+    Restriction::new(g, live).apply(m, s);
+}
+
+/// The transfers of m ∩ "s on G, 1 − s on Ω" for one focal set G, listed once for the sets that
+/// may hold mass, so that a pass visits nothing else.
 ///
 /// This is the map prior's half of SG' = r(SG) ∩ GG (eq 21, 34-38): (m ∩ m_GG)(B) =
 /// (1 − β)·m(B) + β·Σ_{A ∩ G = B} m(A), and the specialisation (G = Ω∖{M}, s = ζ). Sources
@@ -80,45 +87,95 @@ pub(crate) fn add_class(m: &mut BlockMasses, class_bit: usize, alpha: f32) {
 /// target by target: the sources of T ⊆ G are T ∪ X' for every non-empty X' ⊆ Ω∖G, and what
 /// they give is summed before T is touched once. A cell whose `s` is 0 (another map context,
 /// ζ = 0) is left exactly as it was.
-#[inline(always)]
-pub(crate) fn restrict_to(m: &mut BlockMasses, g: usize, s: &Lanes, live: Live) {
-    let excluded = OMEGA & !g;
-    if excluded == 0 {
-        return;
-    }
-    let share = *s;
-    let mut kept_share = [0.0; BLOCK];
-    for i in 0..BLOCK {
-        kept_share[i] = 1.0 - share[i];
-    }
-    // Subsets of a mask in decreasing order: `subset = (subset − 1) & mask` down to 0.
-    let mut target = g;
-    loop {
-        // A set that holds no mass gives nothing; a target outside `live` has only such
-        // sources (`live` is closed under intersection).
-        if is_live(live, target) {
-            // Each source keeps (1 − s) of its mass; s times their sum goes to the target.
-            let mut sources = [0.0; BLOCK];
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Restriction {
+    /// (target, index of its first source in `sources`, number of sources), for every target
+    /// with a live source.
+    targets: [(u8, u8, u8); N_SETS / 2],
+    target_count: u8,
+    sources: [u8; N_SETS],
+}
+
+impl Restriction {
+    /// The transfers to A ∩ G from the sets of `live` (a family closed under intersection, so
+    /// a target outside it has no live source).
+    pub(crate) fn new(g: usize, live: Live) -> Self {
+        let mut plan = Restriction {
+            targets: [(0, 0, 0); N_SETS / 2],
+            target_count: 0,
+            sources: [0; N_SETS],
+        };
+        let excluded = OMEGA & !g;
+        if excluded == 0 {
+            return plan;
+        }
+        let mut source_count = 0;
+        // Subsets of a mask in decreasing order: `subset = (subset − 1) & mask` down to 0.
+        let mut target = g;
+        loop {
+            let first = source_count;
             let mut extra = excluded;
             while extra != 0 {
-                if is_live(live, target | extra) {
-                    let source = &mut m[target | extra];
-                    for i in 0..BLOCK {
-                        sources[i] += source[i];
-                        source[i] *= kept_share[i];
-                    }
+                if is_live(live, target | extra) && is_live(live, target) {
+                    plan.sources[source_count] = (target | extra) as u8;
+                    source_count += 1;
                 }
                 extra = (extra - 1) & excluded;
             }
-            let target_masses = &mut m[target];
+            if source_count > first {
+                plan.targets[usize::from(plan.target_count)] =
+                    (target as u8, first as u8, (source_count - first) as u8);
+                plan.target_count += 1;
+            }
+            if target == 0 {
+                return plan;
+            }
+            target = (target - 1) & g;
+        }
+    }
+
+    /// Applies the transfers with share `s` per cell. Each source keeps (1 − s) of its mass; s
+    /// times the sum of a target's sources goes to it. The sum starts from the first source
+    /// itself (the same value as 0 + it), and a target with one source takes it directly.
+    #[inline(always)]
+    pub(crate) fn apply(&self, m: &mut BlockMasses, s: &Lanes) {
+        let share = *s;
+        let mut kept_share = [0.0; BLOCK];
+        for i in 0..BLOCK {
+            kept_share[i] = 1.0 - share[i];
+        }
+        for &(target, first, count) in &self.targets[..usize::from(self.target_count)] {
+            let sources = &self.sources[usize::from(first)..usize::from(first + count)];
+            let target = usize::from(target);
+            if let [only] = sources {
+                let (mut source, mut masses) = (m[usize::from(*only)], m[target]);
+                for i in 0..BLOCK {
+                    masses[i] += share[i] * source[i];
+                    source[i] *= kept_share[i];
+                }
+                m[usize::from(*only)] = source;
+                m[target] = masses;
+                continue;
+            }
+            let mut sum = [0.0; BLOCK];
+            for (k, &set) in sources.iter().enumerate() {
+                let source = &mut m[usize::from(set)];
+                if k == 0 {
+                    sum = *source;
+                } else {
+                    for i in 0..BLOCK {
+                        sum[i] += source[i];
+                    }
+                }
+                for i in 0..BLOCK {
+                    source[i] *= kept_share[i];
+                }
+            }
+            let masses = &mut m[target];
             for i in 0..BLOCK {
-                target_masses[i] += share[i] * sources[i];
+                masses[i] += share[i] * sum[i];
             }
         }
-        if target == 0 {
-            return;
-        }
-        target = (target - 1) & g;
     }
 }
 
