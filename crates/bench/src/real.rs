@@ -153,6 +153,7 @@ impl RealCases {
         });
 
         let frame_one = one_thread.install(|| self.frame(0))?;
+        crate::wake_threads();
         let frame_all = self.frame(1)?;
         Ok(vec![
             ("sensor@1".into(), sensor),

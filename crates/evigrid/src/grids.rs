@@ -49,13 +49,37 @@ pub struct PerceptionGrid {
     conflict_fo: Vec<f32>,
     conflict_of: Vec<f32>,
     seen: Vec<u8>,
+    /// Per block of [`CELLS_PER_BLOCK`] storage cells, the planes that may hold a value other
+    /// than +0 there: bit `set` for m(set), then [`ZETA_BIT`], [`CONFLICT_FO_BIT`] and
+    /// [`CONFLICT_OF_BIT`]. A clear bit is a promise that the plane is +0 in every cell of the
+    /// block, so that a step neither reads nor writes it there: far from the sensor a cell holds
+    /// mass on two or three of the 32 sets.
+    nonzero: Vec<PlaneBits>,
     /// Whether a mass may lie outside the 16 focal sets that a vacuous grid can reach when it is
     /// discounted to Ω (see `step`): false as long as only vacuous resets and such steps wrote
     /// the masses, so that a step can leave the other 16 planes untouched.
     may_leave_reachable: bool,
 }
 
-/// Equal grids hold equal values; `may_leave_reachable` is only a note on how they were written.
+/// Cells per block of [`PerceptionGrid`]'s non-zero plane bits (and the step's unit of work).
+pub(crate) const CELLS_PER_BLOCK: usize = 64;
+
+/// A set of planes of a [`PerceptionGrid`]: bit `set` for m(set), then ζ, ∅_FO, ∅_OF.
+pub(crate) type PlaneBits = u64;
+
+/// The bit of m(Ω).
+pub(crate) const OMEGA_BIT: PlaneBits = 1 << OMEGA;
+/// The bits of the 32 mass planes.
+pub(crate) const MASS_BITS: PlaneBits = (1 << N_SETS) - 1;
+/// The bit of ζ.
+pub(crate) const ZETA_BIT: PlaneBits = 1 << N_SETS;
+/// The bit of ∅_FO.
+pub(crate) const CONFLICT_FO_BIT: PlaneBits = 1 << (N_SETS + 1);
+/// The bit of ∅_OF.
+pub(crate) const CONFLICT_OF_BIT: PlaneBits = 1 << (N_SETS + 2);
+
+/// Equal grids hold equal values; `nonzero` and `may_leave_reachable` are only notes on how they
+/// were written.
 impl PartialEq for PerceptionGrid {
     fn eq(&self, other: &Self) -> bool {
         (self.width, self.height) == (other.width, other.height)
@@ -82,6 +106,7 @@ impl PerceptionGrid {
             conflict_fo: vec![0.0; len],
             conflict_of: vec![0.0; len],
             seen: vec![0; len],
+            nonzero: vec![OMEGA_BIT; len.div_ceil(CELLS_PER_BLOCK)],
             may_leave_reachable: false,
         }
     }
@@ -132,7 +157,24 @@ impl PerceptionGrid {
         self.zeta[range.clone()].fill(0.0);
         self.conflict_fo[range.clone()].fill(0.0);
         self.conflict_of[range.clone()].fill(0.0);
-        self.seen[range].fill(0);
+        self.seen[range.clone()].fill(0);
+        if range.is_empty() {
+            return;
+        }
+        // A block wholly inside the range is now vacuous; one it only overlaps gained m(Ω).
+        let (first, last) = (
+            range.start / CELLS_PER_BLOCK,
+            (range.end - 1) / CELLS_PER_BLOCK,
+        );
+        for (block, bits) in self.nonzero[first..=last].iter_mut().enumerate() {
+            let start = (first + block) * CELLS_PER_BLOCK;
+            let end = (start + CELLS_PER_BLOCK).min(len);
+            if range.start <= start && end <= range.end {
+                *bits = OMEGA_BIT;
+            } else {
+                *bits |= OMEGA_BIT;
+            }
+        }
     }
 
     /// Makes every cell vacuous again.
@@ -162,7 +204,11 @@ impl PerceptionGrid {
     /// # Panics
     /// If `set ≥ 32`.
     pub fn plane_mut(&mut self, set: usize) -> &mut [f32] {
+        assert!(set < N_SETS, "no focal set {set} in a frame of 5 classes");
         self.may_leave_reachable = true;
+        for bits in &mut self.nonzero {
+            *bits |= 1 << set;
+        }
         let len = self.len();
         &mut self.masses[set * len..(set + 1) * len]
     }
@@ -180,9 +226,27 @@ impl PerceptionGrid {
     /// # Panics
     /// If `idx ≥ len`.
     pub fn set_cell_masses(&mut self, idx: usize, masses: &[f32; N_SETS]) {
+        let len = self.len();
+        assert!(idx < len, "cell {idx} outside a grid of {len} cells");
+        self.may_leave_reachable = true;
         for (set, &m) in masses.iter().enumerate() {
-            self.plane_mut(set)[idx] = m;
+            self.masses[set * len + idx] = m;
+            if m.to_bits() != 0 {
+                self.nonzero[idx / CELLS_PER_BLOCK] |= 1 << set;
+            }
         }
+    }
+
+    /// The non-zero plane bits of every block (see the field `nonzero`).
+    #[cfg(test)]
+    pub(crate) fn nonzero_bits(&self) -> &[PlaneBits] {
+        &self.nonzero
+    }
+
+    /// Makes every plane of every block count as possibly non-zero: nothing is skipped.
+    #[cfg(test)]
+    pub(crate) fn mark_every_plane_nonzero(&mut self) {
+        self.nonzero.fill(PlaneBits::MAX);
     }
 
     /// See the field `may_leave_reachable`.
@@ -193,6 +257,17 @@ impl PerceptionGrid {
     /// Notes that a step may have put mass outside the reachable sets.
     pub(crate) fn note_may_leave_reachable(&mut self) {
         self.may_leave_reachable = true;
+    }
+
+    /// Bytes of state the grid holds: 32 mass planes, ζ, ∅_FO, ∅_OF (4 bytes a cell each), the
+    /// seen flags (1 byte a cell) and 8 bytes of non-zero plane bits per 64 cells.
+    pub fn state_bytes(&self) -> usize {
+        std::mem::size_of_val(self.masses.as_slice())
+            + std::mem::size_of_val(self.zeta.as_slice())
+            + std::mem::size_of_val(self.conflict_fo.as_slice())
+            + std::mem::size_of_val(self.conflict_of.as_slice())
+            + std::mem::size_of_val(self.seen.as_slice())
+            + std::mem::size_of_val(self.nonzero.as_slice())
     }
 
     /// The seen flags, writable (to set up a scene or a test).
@@ -207,6 +282,9 @@ impl PerceptionGrid {
 
     /// The accumulator ζ, writable.
     pub fn zeta_mut(&mut self) -> &mut [f32] {
+        for bits in &mut self.nonzero {
+            *bits |= ZETA_BIT;
+        }
         &mut self.zeta
     }
 
@@ -241,6 +319,7 @@ impl PerceptionGrid {
             conflict_fo: &mut self.conflict_fo,
             conflict_of: &mut self.conflict_of,
             seen: &mut self.seen,
+            nonzero: &mut self.nonzero,
         }
     }
 }
@@ -252,6 +331,8 @@ pub(crate) struct PerceptionPlanesMut<'a> {
     pub(crate) conflict_fo: &'a mut [f32],
     pub(crate) conflict_of: &'a mut [f32],
     pub(crate) seen: &'a mut [u8],
+    /// The non-zero plane bits of the run's blocks (see [`PerceptionGrid`]).
+    pub(crate) nonzero: &'a mut [PlaneBits],
 }
 
 impl<'a> PerceptionPlanesMut<'a> {
@@ -262,7 +343,15 @@ impl<'a> PerceptionPlanesMut<'a> {
     }
 
     /// Splits the run into cells `..mid` and `mid..`.
+    ///
+    /// # Panics
+    /// If `mid` is not a multiple of [`CELLS_PER_BLOCK`]: a block's bits belong to one run.
     pub(crate) fn split_at(self, mid: usize) -> (Self, Self) {
+        assert!(
+            mid.is_multiple_of(CELLS_PER_BLOCK),
+            "a run split inside a block"
+        );
+        let (nonzero_l, nonzero_r) = self.nonzero.split_at_mut(mid / CELLS_PER_BLOCK);
         let mut left: [&'a mut [f32]; N_SETS] = Default::default();
         let mut right: [&'a mut [f32]; N_SETS] = Default::default();
         for ((l, r), plane) in left.iter_mut().zip(right.iter_mut()).zip(self.masses) {
@@ -279,6 +368,7 @@ impl<'a> PerceptionPlanesMut<'a> {
                 conflict_fo: fo_l,
                 conflict_of: of_l,
                 seen: seen_l,
+                nonzero: nonzero_l,
             },
             Self {
                 masses: right,
@@ -286,6 +376,7 @@ impl<'a> PerceptionPlanesMut<'a> {
                 conflict_fo: fo_r,
                 conflict_of: of_r,
                 seen: seen_r,
+                nonzero: nonzero_r,
             },
         )
     }
@@ -412,14 +503,35 @@ mod tests {
 
     #[test]
     fn planes_split_into_disjoint_runs() {
-        let mut pg = PerceptionGrid::new(5, 1);
+        let mut pg = PerceptionGrid::new(130, 1);
         let planes = pg.planes_mut();
-        let (left, right) = planes.split_at(2);
-        assert_eq!((left.len(), right.len()), (2, 3));
-        assert!(left.masses.iter().all(|p| p.len() == 2));
-        assert!(right.masses.iter().all(|p| p.len() == 3));
+        let (left, right) = planes.split_at(64);
+        assert_eq!((left.len(), right.len()), (64, 66));
+        assert!(left.masses.iter().all(|p| p.len() == 64));
+        assert!(right.masses.iter().all(|p| p.len() == 66));
+        assert_eq!((left.nonzero.len(), right.nonzero.len()), (1, 2));
         right.masses[OMEGA][0] = 0.25;
-        assert_eq!(pg.mass(OMEGA, 2), 0.25);
+        assert_eq!(pg.mass(OMEGA, 64), 0.25);
+    }
+
+    #[test]
+    fn nonzero_bits_cover_every_plane_that_holds_mass() {
+        let mut pg = PerceptionGrid::new(100, 2);
+        assert!(pg.nonzero.iter().all(|&bits| bits == OMEGA_BIT));
+        let mut m = [0.0; N_SETS];
+        m[class::S] = 0.5;
+        m[OMEGA] = 0.5;
+        pg.set_cell_masses(70, &m);
+        assert_eq!(pg.nonzero[1], OMEGA_BIT | 1 << class::S);
+        // Cells 64..128 are block 1: a reset of part of it keeps its bits, of all of it clears them.
+        pg.reset_range(60..100);
+        assert_eq!(pg.nonzero[1], OMEGA_BIT | 1 << class::S);
+        pg.reset_range(64..128);
+        assert_eq!(pg.nonzero[1], OMEGA_BIT);
+        pg.zeta_mut()[0] = 0.25;
+        assert!(pg.nonzero.iter().all(|&bits| bits & ZETA_BIT != 0));
+        pg.plane_mut(class::F)[199] = 1.0;
+        assert!(pg.nonzero.iter().all(|&bits| bits & (1 << class::F) != 0));
     }
 
     #[test]

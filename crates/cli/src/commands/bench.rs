@@ -109,12 +109,14 @@ fn table(report: &BenchReport) -> String {
     let mut out = String::new();
     for w in &report.windows {
         out += &format!(
-            "window {0}×{0} ({1} cells), {2} threads; state {3:.0} B/cell; a step moves {4:.1} MB\n",
+            "window {0}×{0} ({1} cells), {2} threads; state {3:.1} B/cell; copying it all moves \
+             {4:.1} MB, the step moved {5:.1} MB\n",
             w.size,
             w.cells,
             w.threads,
             w.state_bytes_per_cell,
-            w.bytes_moved_per_step as f64 / 1e6
+            w.bytes_moved_per_step as f64 / 1e6,
+            w.bytes_step_moved as f64 / 1e6
         );
         out += &format!(
             "  step inputs: {} ({:.0}% of cells observed)\n",

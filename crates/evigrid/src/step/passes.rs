@@ -24,7 +24,7 @@ use crate::grids::{N_SETS, OMEGA};
 /// Cells per block: 64 lanes of f32 are eight AVX registers per plane, so each pass's loop
 /// overhead is spread over enough work, and a block of 32 planes (8 KiB) with its scratch stays
 /// in L1. (Measured with `evigrid bench`: 32 was as fast, 128 slower.)
-pub(crate) const BLOCK: usize = 64;
+pub(crate) const BLOCK: usize = crate::grids::CELLS_PER_BLOCK;
 
 /// One value per cell of a block.
 pub(crate) type Lanes = [f32; BLOCK];
