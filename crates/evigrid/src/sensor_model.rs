@@ -613,15 +613,20 @@ impl SplitMix64 {
 /// on an even sample, then two least-squares refits `z = a·x + b·y + c` on all inliers within
 /// `band_m`. `None` if no level plane gathers enough points.
 pub fn fit_ground_plane(levelled: &[[f64; 3]], band_m: f64) -> Option<GroundPlane> {
-    let candidates: Vec<[f64; 3]> = {
-        let near: Vec<[f64; 3]> = levelled
-            .iter()
-            .copied()
-            .filter(|q| horizontal_range(*q) <= GROUND_FIT_RANGE_M)
-            .collect();
-        let stride = near.len().div_ceil(RANSAC_SAMPLE).max(1);
-        near.into_iter().step_by(stride).collect()
-    };
+    // Every stride-th near point, counted first so that the near points are never copied.
+    let is_near = |q: &&[f64; 3]| horizontal_range(**q) <= GROUND_FIT_RANGE_M;
+    let stride = levelled
+        .iter()
+        .filter(is_near)
+        .count()
+        .div_ceil(RANSAC_SAMPLE)
+        .max(1);
+    let candidates: Vec<[f64; 3]> = levelled
+        .iter()
+        .filter(is_near)
+        .step_by(stride)
+        .copied()
+        .collect();
     if candidates.len() < 3 {
         return None;
     }

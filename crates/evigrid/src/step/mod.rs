@@ -262,11 +262,11 @@ impl Restrictions {
         }
     }
 
-    /// The transfers for a block whose live sets are `live` (a block has [`REACHABLE`] or
-    /// [`ALL_SETS`]; any other family gets all the transfers, which is never wrong).
+    /// The transfers for a block whose live sets are `live`: those among the [`REACHABLE`] sets
+    /// if `live` lies within them, else all.
     #[inline(always)]
     fn for_live(&self, live: Live) -> &Restriction {
-        if live == REACHABLE {
+        if live & !REACHABLE == 0 {
             &self.reachable
         } else {
             &self.all
@@ -491,31 +491,31 @@ impl<'a> CellRun<'a> {
     /// there.
     #[inline(always)]
     fn prefetch_block(&self, start: usize, planes: PlaneBits, prefetch: &impl Fn(*const i8)) {
-        const F32_PER_LINE: usize = 64 / 4;
         let Some(&stored) = self.pg.nonzero.get(start / BLOCK) else {
             return;
         };
-        let end = (start + BLOCK).min(self.m_free.len());
+        let cells = start..(start + BLOCK).min(self.m_free.len());
         let pg = &self.pg;
-        let bits = stored & planes;
-        let state = [
-            (ZETA_BIT, &pg.zeta[..]),
-            (CONFLICT_FO_BIT, &pg.conflict_fo[..]),
-            (CONFLICT_OF_BIT, &pg.conflict_of[..]),
-        ];
-        let f32_planes = (pg.masses.iter().enumerate())
-            .map(|(set, plane)| (1 << set, &plane[..]))
-            .chain(state)
-            .filter(|(bit, _)| bits & bit != 0)
-            .map(|(_, plane)| plane)
-            .chain([self.m_free, self.m_occupied]);
-        for plane in f32_planes {
-            for line in plane[start..end].chunks(F32_PER_LINE) {
-                prefetch(line.as_ptr().cast());
+        let lines = |plane: &[f32]| {
+            let cells = &plane[cells.clone()];
+            for line in (0..cells.len()).step_by(64 / 4) {
+                prefetch(cells.as_ptr().wrapping_add(line).cast());
+            }
+        };
+        for_each_bit(stored & planes & MASS_BITS, |set| lines(pg.masses[set]));
+        for (bit, plane) in [
+            (ZETA_BIT, &pg.zeta),
+            (CONFLICT_FO_BIT, &pg.conflict_fo),
+            (CONFLICT_OF_BIT, &pg.conflict_of),
+        ] {
+            if stored & planes & bit != 0 {
+                lines(plane);
             }
         }
-        prefetch(pg.seen[start..end].as_ptr().cast());
-        prefetch(self.context[start..end].as_ptr().cast());
+        lines(self.m_free);
+        lines(self.m_occupied);
+        prefetch(pg.seen[cells.clone()].as_ptr().cast());
+        prefetch(self.context[cells].as_ptr().cast());
     }
 
     /// Reads one value per cache line of every plane in `cells`, one plane after the other.
@@ -573,6 +573,8 @@ struct Block {
     live: Live,
     /// The planes of `m` and `zeta` that may not be +0 in the buffer (from the last block).
     buffered: PlaneBits,
+    /// The block's non-zero plane bits before the step.
+    stored_masses: PlaneBits,
 }
 
 /// Copies a run of at most [`BLOCK`] values into lanes; a full block is one fixed-size copy,
@@ -626,6 +628,7 @@ impl Block {
             len: 0,
             live: ALL_SETS,
             buffered: OMEGA_BIT,
+            stored_masses: MASS_BITS,
         }
     }
 
@@ -647,14 +650,13 @@ impl Block {
             self.len = cells.len();
             planes |= MASS_BITS | ZETA_BIT;
         }
-        let stale = self.buffered & !planes;
-        for (set, (lanes, plane)) in self.m.iter_mut().zip(&run.pg.masses).enumerate() {
-            if planes & (1 << set) != 0 {
-                load_lanes(lanes, &plane[cells.clone()]);
-            } else if stale & (1 << set) != 0 {
-                *lanes = [0.0; BLOCK];
-            }
-        }
+        self.stored_masses = planes & MASS_BITS;
+        for_each_bit(planes & MASS_BITS, |set| {
+            load_lanes(&mut self.m[set], &run.pg.masses[set][cells.clone()]);
+        });
+        for_each_bit(self.buffered & !planes & MASS_BITS, |set| {
+            self.m[set] = [0.0; BLOCK];
+        });
         if planes & ZETA_BIT != 0 {
             load_lanes(&mut self.zeta, &run.pg.zeta[cells.clone()]);
         } else {
@@ -675,11 +677,11 @@ impl Block {
     fn nonzero(&mut self, before: PlaneBits) -> PlaneBits {
         let live = PlaneBits::from(self.live);
         let mut bits = before & MASS_BITS & !live;
-        for (set, lanes) in self.m.iter().enumerate() {
-            if live & (1 << set) != 0 && any_bits(lanes) {
+        for_each_bit(live, |set| {
+            if any_bits(&self.m[set]) {
                 bits |= 1 << set;
             }
-        }
+        });
         for (bit, lanes) in [
             (ZETA_BIT, &self.zeta),
             (CONFLICT_FO_BIT, &self.conflict_fo),
@@ -703,11 +705,9 @@ impl Block {
         planes: PlaneBits,
     ) -> u64 {
         let planes = planes & (PlaneBits::from(self.live) | !MASS_BITS);
-        for (set, (lanes, plane)) in self.m.iter().zip(run.pg.masses.iter_mut()).enumerate() {
-            if planes & (1 << set) != 0 {
-                store_lanes(&mut plane[cells.clone()], lanes);
-            }
-        }
+        for_each_bit(planes & MASS_BITS, |set| {
+            store_lanes(&mut run.pg.masses[set][cells.clone()], &self.m[set]);
+        });
         if planes & ZETA_BIT != 0 {
             store_lanes(&mut run.pg.zeta[cells.clone()], &self.zeta);
         }
@@ -739,6 +739,11 @@ fn step_block(block: &mut Block, k: &StepConstants, known_live: Option<Live>) ->
         k,
     );
     block.live = known_live.unwrap_or_else(|| live_sets(&block.m, &k.discount));
+    if !block.sensor.any_observed && matches!(k.discount, Discount::ToOmega(_)) {
+        // Far from the sensor a block holds mass on a few sets, and the step can only reach a
+        // few more: passes visit those alone.
+        block.live &= reachable_this_step(block.stored_masses, &block.sensor, k);
+    }
     if k.unobserved == UnobservedCells::Fuse || block.sensor.all_observed {
         return fuse_block(block, k);
     }
@@ -769,6 +774,31 @@ fn step_block(block: &mut Block, k: &StepConstants, known_live: Option<Live>) ->
         block.conflict_of[i] = if keep { block.conflict_of[i] } else { 0.0 };
     }
     stats
+}
+
+/// The focal sets that can hold mass after a step of a block the scan did not reach, whose
+/// masses before lie on `before` (its non-zero plane bits), with discounting to Ω.
+///
+/// Those sets, Ω (discounting, ∅_OF), A ∩ G for the map context's G (the map prior), ∅ and {M}
+/// (the conflicts), then A∖{M} of all of these (the specialisation). A pass may skip every
+/// other set: its mass is +0 before and after.
+#[inline(always)]
+fn reachable_this_step(before: PlaneBits, sensor: &SensorEvidence, k: &StepConstants) -> Live {
+    let mut live = (before & MASS_BITS) as Live | 1 << OMEGA;
+    let mut restricted = live;
+    for (c, prior) in k.map_prior.iter().enumerate() {
+        if sensor.contexts_present & (1 << c) != 0 && prior.is_informative() {
+            for_each_bit(PlaneBits::from(live), |set| {
+                restricted |= 1 << (set & prior.g)
+            });
+        }
+    }
+    live = restricted | 1 << class::M | 1;
+    let mut specialised = live;
+    for_each_bit(PlaneBits::from(live), |set| {
+        specialised |= 1 << (set & !class::M)
+    });
+    specialised
 }
 
 /// The focal sets a step of this block must visit: the 16 [`REACHABLE`] ones when every mass
@@ -815,9 +845,9 @@ fn discount_only(m: &mut BlockMasses, discount: &Discount, live: Live) {
 #[inline(always)]
 fn discount_to_omega(m: &mut BlockMasses, rate_per_set: &[f32; N_SETS], live: Live) {
     let mut to_omega = [0.0; BLOCK];
-    for set in (0..OMEGA).filter(|&set| is_live(live, set)) {
+    for_each_bit(PlaneBits::from(live & !(1 << OMEGA)), |set| {
         discount_in_place(&mut m[set], rate_per_set[set], &mut to_omega);
-    }
+    });
     for i in 0..BLOCK {
         m[OMEGA][i] += to_omega[i];
     }
@@ -888,7 +918,9 @@ fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
     //    rescales again, and a cell must get the same bits whatever its neighbours' ζ.
     if any_lane(&block.zeta, |zeta| zeta > 0.0) {
         // The restriction to Ω∖{M}: the specialisation is that combination (passes.rs).
-        k.specialisation.for_live(block.live).apply(m, &block.zeta);
+        k.specialisation
+            .for_live(block.live)
+            .apply(m, &block.zeta, block.live);
     }
     let fallbacks_specialisation = settle_empty_set(m, k.residual, block.live);
     // 7. Keep the conflict masses for display, and whether the sensor ever saw the cell.
@@ -902,13 +934,28 @@ fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
         UnobservedCells::Fuse => [1; BLOCK],
         UnobservedCells::DiscountOnly => sensor.observed,
     };
+    // Only observed cells are counted or in total conflict (K needs sensor mass), and only
+    // `normalise` falls back.
+    let (observed, total_conflicts) = if sensor.any_observed {
+        (
+            count(&sensor.observed[..real]),
+            count(&sensor.total_conflict[..real]),
+        )
+    } else {
+        (0, 0)
+    };
+    let fallbacks = if k.residual == ResidualPolicy::Normalise {
+        // Under `discount_only` the unobserved cells' fusion is discarded, and so are its events.
+        count_where(&fallbacks_fusion[..real], &counted[..real])
+            + count_where(&fallbacks_specialisation[..real], &counted[..real])
+    } else {
+        0
+    };
     StepStats {
         cells: real as u64,
-        observed_cells: count(&sensor.observed[..real]),
-        total_map_conflicts: count(&sensor.total_conflict[..real]),
-        // Under `discount_only` the unobserved cells' fusion is discarded, and so are its events.
-        normalisation_fallbacks: count_where(&fallbacks_fusion[..real], &counted[..real])
-            + count_where(&fallbacks_specialisation[..real], &counted[..real]),
+        observed_cells: observed,
+        total_map_conflicts: total_conflicts,
+        normalisation_fallbacks: fallbacks,
         state_bytes_moved: 0,
     }
 }
@@ -918,6 +965,15 @@ fn fuse_block(block: &mut Block, k: &StepConstants) -> StepStats {
 #[inline(always)]
 pub(crate) fn any_lane<T: Copy, const N: usize>(lanes: &[T; N], test: impl Fn(T) -> bool) -> bool {
     lanes.iter().fold(false, |any, &x| any | test(x))
+}
+
+/// Calls `f` with the index of every set bit of `bits`, lowest first.
+#[inline(always)]
+fn for_each_bit(mut bits: PlaneBits, mut f: impl FnMut(usize)) {
+    while bits != 0 {
+        f(bits.trailing_zeros() as usize);
+        bits &= bits - 1;
+    }
 }
 
 /// Whether any lane is not +0 (a -0 counts): the bits OR-ed eight lanes at a time, which the
@@ -1097,13 +1153,7 @@ impl SensorEvidence {
             // context's in its cells, a vectorised select.
             match one_context {
                 Some(c) => e.broadcast(&k.unobserved_evidence[c]),
-                None => {
-                    for (c, evidence) in k.unobserved_evidence.iter().enumerate() {
-                        if present & (1 << c) != 0 {
-                            e.select(&context_mask(context, c), evidence);
-                        }
-                    }
-                }
+                None => e.select_unobserved(context, present, &k.unobserved_evidence),
             }
         } else {
             // The map prior of each cell, selected the same way.
@@ -1167,20 +1217,45 @@ impl SensorEvidence {
         e.total_conflict = [u8::from(v.total_conflict); BLOCK];
     }
 
-    /// The lanes of `mask` set to the evidence `v`, the others left.
+    /// Each lane set to the evidence of a cell the scan did not reach in its map context, for
+    /// a block whose cells are in the contexts of `present`.
+    ///
+    /// Without sensor mass, SG' = GG: m_F = m_O = K = 0, m_Ω = 1 and 1/(1 − K) = 1 in every
+    /// context ([`CellEvidence::unobserved`] computes exactly these), so only β, m_SG'({F}) and
+    /// m_SG'(O) can differ from cell to cell, and each is selected per context only where the
+    /// contexts present disagree on it.
     #[inline(always)]
-    fn select(&mut self, mask: &Mask, v: &CellEvidence) {
+    fn select_unobserved(
+        &mut self,
+        context: &[MapContext; BLOCK],
+        present: u8,
+        evidence: &[CellEvidence; 4],
+    ) {
         let e = self;
-        select(&mut e.free, mask, v.free);
-        select(&mut e.occupied, mask, v.occupied);
-        select(&mut e.omega, mask, v.omega);
-        select(&mut e.beta, mask, v.beta);
-        select(&mut e.conflict, mask, v.conflict);
-        select(&mut e.inv_normaliser, mask, v.inv_normaliser);
-        select(&mut e.sg_free, mask, v.sg_free);
-        select(&mut e.sg_occupied, mask, v.sg_occupied);
-        select_flag(&mut e.observed, mask, v.observed);
-        select_flag(&mut e.total_conflict, mask, v.total_conflict);
+        let any = &evidence[present.trailing_zeros() as usize];
+        e.broadcast(any);
+        let contexts = || (0..4).filter(move |&c| present & (1 << c) != 0);
+        // Each varying value, as the context's value and the lanes that hold it.
+        let values = |v: &CellEvidence| [v.beta, v.sg_free, v.sg_occupied];
+        for field in 0..3 {
+            let differs = contexts()
+                .any(|c| values(&evidence[c])[field].to_bits() != values(any)[field].to_bits());
+            if !differs {
+                continue;
+            }
+            for c in contexts() {
+                let lanes = match field {
+                    0 => &mut e.beta,
+                    1 => &mut e.sg_free,
+                    _ => &mut e.sg_occupied,
+                };
+                select(
+                    lanes,
+                    &context_mask(context, c),
+                    values(&evidence[c])[field],
+                );
+            }
+        }
     }
 }
 
@@ -1208,15 +1283,6 @@ fn select(lanes: &mut Lanes, mask: &Mask, value: f32) {
     let value = value.to_bits();
     for i in 0..BLOCK {
         lanes[i] = f32::from_bits((value & mask[i]) | (lanes[i].to_bits() & !mask[i]));
-    }
-}
-
-#[inline(always)]
-fn select_flag(lanes: &mut [u8; BLOCK], mask: &Mask, value: bool) {
-    let value = u8::from(value);
-    for i in 0..BLOCK {
-        let chosen = mask[i] != 0;
-        lanes[i] = (value & u8::from(chosen)) | (lanes[i] & u8::from(!chosen));
     }
 }
 
@@ -1353,7 +1419,7 @@ fn combine_with_map_prior(
         let restriction = prior.restriction.for_live(live);
         if sensor.contexts_present == 1 << index {
             // Every cell is in this context.
-            restriction.apply(m, &sensor.beta);
+            restriction.apply(m, &sensor.beta, live);
             continue;
         }
         let mut share = [0.0; BLOCK];
@@ -1364,7 +1430,7 @@ fn combine_with_map_prior(
                 0.0
             };
         }
-        restriction.apply(m, &share);
+        restriction.apply(m, &share, live);
     }
 }
 

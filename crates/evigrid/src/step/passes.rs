@@ -75,7 +75,7 @@ pub(crate) fn add_class(m: &mut BlockMasses, class_bit: usize, alpha: f32) {
 /// A ∩ G (possibly ∅). The kernel keeps the [`Restriction`] of each G it uses; this builds it.
 #[cfg(test)]
 pub(crate) fn restrict_to(m: &mut BlockMasses, g: usize, s: &Lanes, live: Live) {
-    Restriction::new(g, live).apply(m, s);
+    Restriction::new(g, live).apply(m, s, live);
 }
 
 /// The transfers of m ∩ "s on G, 1 − s on Ω" for one focal set G, listed once for the sets that
@@ -134,11 +134,13 @@ impl Restriction {
         }
     }
 
-    /// Applies the transfers with share `s` per cell. Each source keeps (1 − s) of its mass; s
-    /// times the sum of a target's sources goes to it. The sum starts from the first source
-    /// itself (the same value as 0 + it), and a target with one source takes it directly.
+    /// Applies the transfers with share `s` per cell, from the sources in `live` (a subset of
+    /// the family the plan was made for: the others hold +0 and give nothing). Each source
+    /// keeps (1 − s) of its mass; s times the sum of a target's sources goes to it. The sum
+    /// starts from the first source itself (the same value as 0 + it), and a target with one
+    /// source takes it directly.
     #[inline(always)]
-    pub(crate) fn apply(&self, m: &mut BlockMasses, s: &Lanes) {
+    pub(crate) fn apply(&self, m: &mut BlockMasses, s: &Lanes, live: Live) {
         let share = *s;
         let mut kept_share = [0.0; BLOCK];
         for i in 0..BLOCK {
@@ -148,32 +150,43 @@ impl Restriction {
             let sources = &self.sources[usize::from(first)..usize::from(first + count)];
             let target = usize::from(target);
             if let [only] = sources {
-                let (mut source, mut masses) = (m[usize::from(*only)], m[target]);
+                let only = usize::from(*only);
+                if !is_live(live, only) {
+                    continue;
+                }
+                let (mut source, mut masses) = (m[only], m[target]);
                 for i in 0..BLOCK {
                     masses[i] += share[i] * source[i];
                     source[i] *= kept_share[i];
                 }
-                m[usize::from(*only)] = source;
+                m[only] = source;
                 m[target] = masses;
                 continue;
             }
             let mut sum = [0.0; BLOCK];
-            for (k, &set) in sources.iter().enumerate() {
-                let source = &mut m[usize::from(set)];
-                if k == 0 {
-                    sum = *source;
-                } else {
+            let mut any_source = false;
+            for set in sources.iter().map(|&set| usize::from(set)) {
+                if !is_live(live, set) {
+                    continue;
+                }
+                let source = &mut m[set];
+                if any_source {
                     for i in 0..BLOCK {
                         sum[i] += source[i];
                     }
+                } else {
+                    sum = *source;
+                    any_source = true;
                 }
                 for i in 0..BLOCK {
                     source[i] *= kept_share[i];
                 }
             }
-            let masses = &mut m[target];
-            for i in 0..BLOCK {
-                masses[i] += share[i] * sum[i];
+            if any_source {
+                let masses = &mut m[target];
+                for i in 0..BLOCK {
+                    masses[i] += share[i] * sum[i];
+                }
             }
         }
     }

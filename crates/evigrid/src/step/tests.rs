@@ -1055,3 +1055,24 @@ fn a_grid_kept_on_the_reachable_sets_skips_the_others_with_the_same_bits() {
     step(&mut skipping, &sg, &gg, &params, 0.1);
     assert!(skipping.may_leave_reachable());
 }
+
+#[test]
+fn the_evidence_of_an_unobserved_cell_differs_between_contexts_in_three_values_only() {
+    // `SensorEvidence::select_unobserved` broadcasts one context's evidence and selects only β,
+    // m_SG'({F}) and m_SG'(O) per context: the other values must be the same in every context.
+    for beta in [0.0, 0.3, 1.0] {
+        let mut params = Params::default();
+        params.map.beta_other = beta;
+        params.map.beta_road = beta;
+        params.map.beta_building = beta;
+        let k = StepConstants::new(&params, 0.1);
+        for v in &k.unobserved_evidence {
+            let same = [v.free, v.occupied, v.omega, v.conflict, v.inv_normaliser];
+            assert_eq!(
+                same.map(f32::to_bits),
+                [0.0f32, 0.0, 1.0, 0.0, 1.0].map(f32::to_bits)
+            );
+            assert!(!v.observed && !v.total_conflict);
+        }
+    }
+}
