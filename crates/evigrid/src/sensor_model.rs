@@ -164,10 +164,11 @@ pub struct SensorModel {
     obstacle_range: Vec<f64>,
     /// Horizontal range of the farthest ground return per sector (0 if none).
     ground_range: Vec<f64>,
-    /// Storage index of every obstacle cell of the current scan.
-    obstacle_cells: Vec<usize>,
-    /// Storage index, sector and range of every ground return of the current scan.
-    ground_cells: Vec<(usize, u32, f64)>,
+    /// What each chunk of the current scan's points gave, in point order; kept between scans
+    /// so that the chunks' buffers are not allocated again.
+    classified: Vec<Classified>,
+    /// Indices of the ground plane's inliers (scratch of the fit).
+    inliers: Vec<usize>,
 }
 
 /// Fixed RANSAC seed: the same scan always gives the same plane.
@@ -193,8 +194,8 @@ impl SensorModel {
             levelled: Vec::new(),
             obstacle_range: Vec::new(),
             ground_range: Vec::new(),
-            obstacle_cells: Vec::new(),
-            ground_cells: Vec::new(),
+            classified: Vec::new(),
+            inliers: Vec::new(),
         }
     }
 
@@ -258,7 +259,11 @@ impl SensorModel {
         let plane = match self.params.ground_model {
             GroundModel::None => None,
             GroundModel::Plane => {
-                let plane = fit_ground_plane(&self.levelled, self.params.ground_band_m);
+                let plane = fit_ground_plane_into(
+                    &self.levelled,
+                    self.params.ground_band_m,
+                    &mut self.inliers,
+                );
                 stats.ground_plane = plane;
                 if plane.is_none() {
                     stats.unclassified_points = self.levelled.len();
@@ -285,18 +290,18 @@ impl SensorModel {
             window,
             sensor_xy: (sensor_x, sensor_y),
         };
-        let chunks: Vec<Classified> = self
-            .levelled
+        let chunk_count = self.levelled.len().div_ceil(CLASSIFY_CHUNK);
+        self.classified
+            .resize_with(chunk_count, Classified::default);
+        self.levelled
             .par_chunks(CLASSIFY_CHUNK)
-            .map(|points| classify.chunk(points))
-            .collect();
+            .zip(self.classified.par_iter_mut())
+            .for_each(|(points, out)| classify.chunk(points, out));
         self.obstacle_range.clear();
         self.obstacle_range.resize(sectors, f64::INFINITY);
         self.ground_range.clear();
         self.ground_range.resize(sectors, 0.0);
-        self.obstacle_cells.clear();
-        self.ground_cells.clear();
-        for chunk in chunks {
+        for chunk in &self.classified {
             stats.ground_points += chunk.ground_points;
             stats.unclassified_points += chunk.unclassified_points;
             stats.obstacle_points += chunk.obstacle_cells.len();
@@ -307,8 +312,6 @@ impl SensorModel {
             for (all, this) in self.obstacle_range.iter_mut().zip(&chunk.obstacle_range) {
                 *all = all.min(*this);
             }
-            self.ground_cells.extend_from_slice(&chunk.ground_cells);
-            self.obstacle_cells.extend_from_slice(&chunk.obstacle_cells);
         }
 
         let mu_free = self.params.mu_free as f32;
@@ -346,7 +349,8 @@ impl SensorModel {
         }
         // A ground return's own cell was seen free, if it lies within its sector's free range
         // (a ray may enter that cell just after the return's range, or miss its corner).
-        for &(idx, s, range_m) in &self.ground_cells {
+        let ground_cells = self.classified.iter().flat_map(|c| &c.ground_cells);
+        for &(idx, s, range_m) in ground_cells {
             let s = s as usize;
             if range_m < self.obstacle_range[s] {
                 free_cells += usize::from(out.m_free[idx] != mu_free);
@@ -354,7 +358,7 @@ impl SensorModel {
             }
         }
         let mut occupied_cells = 0;
-        for &idx in &self.obstacle_cells {
+        for &idx in self.classified.iter().flat_map(|c| &c.obstacle_cells) {
             if out.m_occupied[idx] != mu_occupied {
                 occupied_cells += 1;
                 free_cells -= usize::from(out.m_free[idx] == mu_free && mu_free != 0.0);
@@ -385,6 +389,7 @@ struct PointClassifier<'a> {
 }
 
 /// What one chunk of points gives.
+#[derive(Clone, Debug, Default)]
 struct Classified {
     ground_points: usize,
     unclassified_points: usize,
@@ -398,16 +403,17 @@ struct Classified {
 }
 
 impl PointClassifier<'_> {
-    fn chunk(&self, points: &[[f64; 3]]) -> Classified {
-        let mut out = Classified {
-            ground_points: 0,
-            unclassified_points: 0,
-            dropped_outside_window: 0,
-            ground_range: vec![0.0; self.sectors],
-            obstacle_range: vec![f64::INFINITY; self.sectors],
-            ground_cells: Vec::new(),
-            obstacle_cells: Vec::new(),
-        };
+    /// Classifies `points` into `out`, whose buffers are cleared and reused.
+    fn chunk(&self, points: &[[f64; 3]], out: &mut Classified) {
+        out.ground_points = 0;
+        out.unclassified_points = 0;
+        out.dropped_outside_window = 0;
+        out.ground_range.clear();
+        out.ground_range.resize(self.sectors, 0.0);
+        out.obstacle_range.clear();
+        out.obstacle_range.resize(self.sectors, f64::INFINITY);
+        out.ground_cells.clear();
+        out.obstacle_cells.clear();
         let (sensor_x, sensor_y) = self.sensor_xy;
         for &q in points {
             let is_obstacle = match self.plane {
@@ -446,7 +452,6 @@ impl PointClassifier<'_> {
                 None => out.dropped_outside_window += 1,
             }
         }
-        out
     }
 }
 
@@ -613,6 +618,15 @@ impl SplitMix64 {
 /// on an even sample, then two least-squares refits `z = a·x + b·y + c` on all inliers within
 /// `band_m`. `None` if no level plane gathers enough points.
 pub fn fit_ground_plane(levelled: &[[f64; 3]], band_m: f64) -> Option<GroundPlane> {
+    fit_ground_plane_into(levelled, band_m, &mut Vec::new())
+}
+
+/// [`fit_ground_plane`] with a buffer for the inliers' indices, kept between scans.
+fn fit_ground_plane_into(
+    levelled: &[[f64; 3]],
+    band_m: f64,
+    inlier_indices: &mut Vec<usize>,
+) -> Option<GroundPlane> {
     // Every stride-th near point, counted first so that the near points are never copied.
     let is_near = |q: &&[f64; 3]| horizontal_range(**q) <= GROUND_FIT_RANGE_M;
     let stride = levelled
@@ -668,7 +682,7 @@ pub fn fit_ground_plane(levelled: &[[f64; 3]], band_m: f64) -> Option<GroundPlan
     let (mut normal, mut offset, _) = best?;
     let mut inliers = 0;
     for _ in 0..2 {
-        let (fit, count) = least_squares_plane(levelled, normal, offset, band_m)?;
+        let (fit, count) = least_squares_plane(levelled, normal, offset, band_m, inlier_indices)?;
         inliers = count;
         (normal, offset) = fit;
     }
@@ -686,22 +700,28 @@ fn least_squares_plane(
     normal: [f64; 3],
     offset: f64,
     band_m: f64,
+    inliers: &mut Vec<usize>,
 ) -> Option<(([f64; 3], f64), usize)> {
-    // Centred sums for conditioning: coordinates are tens of metres, heights centimetres.
-    let inlier = |q: &&[f64; 3]| (dot(normal, **q) - offset).abs() <= band_m;
-    let (mut n, mut mean) = (0usize, [0.0f64; 3]);
-    for q in levelled.iter().filter(inlier) {
-        n += 1;
-        for k in 0..3 {
-            mean[k] += q[k];
+    // Centred sums for conditioning: coordinates are tens of metres, heights centimetres. The
+    // first pass notes the inliers, so that the second reads only them.
+    inliers.clear();
+    let mut mean = [0.0f64; 3];
+    for (index, q) in levelled.iter().enumerate() {
+        if (dot(normal, *q) - offset).abs() <= band_m {
+            inliers.push(index);
+            for k in 0..3 {
+                mean[k] += q[k];
+            }
         }
     }
+    let n = inliers.len();
     if n < MIN_GROUND_INLIERS {
         return None;
     }
     let mean = mean.map(|v| v / n as f64);
     let (mut sxx, mut sxy, mut syy, mut sxz, mut syz) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for q in levelled.iter().filter(inlier) {
+    for &index in inliers.iter() {
+        let q = levelled[index];
         let (x, y, z) = (q[0] - mean[0], q[1] - mean[1], q[2] - mean[2]);
         sxx += x * x;
         sxy += x * y;

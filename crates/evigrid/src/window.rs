@@ -114,6 +114,15 @@ pub struct Window {
 /// any useful cell size; refusing such positions keeps every conversion exact.
 const MAX_CELL_INDEX: f64 = (1u64 << 52) as f64;
 
+/// ⌊v⌋ for |v| < 2^52, where truncation to an integer is exact. `f64::floor` is a call into the
+/// maths library on x86_64's baseline (rounding instructions came with SSE4.1), and this runs
+/// for every point of a scan.
+#[inline]
+fn floor_below_2_52(v: f64) -> i64 {
+    let truncated = v as i64;
+    truncated - i64::from(truncated as f64 > v)
+}
+
 impl Window {
     /// A window of `width × height` cells of side `cell_size_m` whose first (south-west) cell is
     /// global cell (0, 0).
@@ -192,16 +201,15 @@ impl Window {
     /// `None` if a coordinate is NaN or infinite, or so far away (beyond 2^52 cells) that `f64`
     /// can no longer resolve cell boundaries.
     pub fn cell_of_point(&self, x_m: f64, y_m: f64) -> Option<GlobalCell> {
-        let col = (x_m / self.cell_size_m).floor();
-        let row = (y_m / self.cell_size_m).floor();
+        let (x, y) = (x_m / self.cell_size_m, y_m / self.cell_size_m);
         // `!(a < b)` rather than `a >= b` so that NaN is refused too.
-        if !(col.abs() < MAX_CELL_INDEX && row.abs() < MAX_CELL_INDEX) {
+        if !(x.abs() < MAX_CELL_INDEX && y.abs() < MAX_CELL_INDEX) {
             return None;
         }
-        Some(GlobalCell {
-            col: col as i64,
-            row: row as i64,
-        })
+        let (col, row) = (floor_below_2_52(x), floor_below_2_52(y));
+        // floor(−2^52 + ε) = −2^52 is refused too, as its magnitude is not below 2^52.
+        let limit = MAX_CELL_INDEX as i64;
+        (col.abs() < limit && row.abs() < limit).then_some(GlobalCell { col, row })
     }
 
     /// Centre of a global cell in metres: `((col + ½)·s, (row + ½)·s)`.
@@ -383,6 +391,28 @@ impl Window {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn floor_without_the_maths_library_is_floor() {
+        for v in [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            2.999,
+            -2.999,
+            1e15 + 0.5,
+            -1e15 - 0.5,
+        ] {
+            assert_eq!(floor_below_2_52(v), v.floor() as i64, "{v}");
+        }
+        let w = Window::new(10, 10, 1.0).unwrap();
+        let edge = MAX_CELL_INDEX - 0.5;
+        assert_eq!(w.cell_of_point(-edge, 0.0), None);
+        assert!(w.cell_of_point(edge - 1.0, 0.0).is_some());
+    }
 
     #[test]
     fn cell_of_point_uses_floor_and_half_open_cells() {
