@@ -596,6 +596,29 @@ fn store_lanes<T: Copy>(values: &mut [T], lanes: &[T; BLOCK]) {
     }
 }
 
+/// Writes `lanes` over `values` if any bit differs; returns whether it wrote. A cache line that
+/// is only read stays clean and is never written back to memory: far from the sensor a block
+/// often reaches its fixed point (the map prior, discounted), and its planes stop changing.
+#[inline(always)]
+fn store_if_changed(values: &mut [f32], lanes: &Lanes) -> bool {
+    let Ok(full) = <&mut Lanes>::try_from(&mut *values) else {
+        store_partial(values, lanes);
+        return true;
+    };
+    // The differing bits, OR-ed eight lanes at a time (one vector register).
+    let mut differ = [0u32; 8];
+    for (old, new) in full.chunks_exact(8).zip(lanes.chunks_exact(8)) {
+        for ((acc, a), b) in differ.iter_mut().zip(old).zip(new) {
+            *acc |= a.to_bits() ^ b.to_bits();
+        }
+    }
+    if differ.iter().fold(0, |all, &d| all | d) == 0 {
+        return false;
+    }
+    *full = *lanes;
+    true
+}
+
 // The last, partial block of a run, out of line: inlined, its variable-length copy and the full
 // block's fixed one were merged into one `memcpy` call for every plane of every block.
 #[cold]
@@ -695,8 +718,8 @@ impl Block {
         bits
     }
 
-    /// Writes back the planes named in `planes` (those that were or became non-zero), and the
-    /// seen flags if the scan reached the block; returns the bytes written.
+    /// Writes back the planes named in `planes` (those that were or became non-zero) where they
+    /// changed, and the seen flags if the scan reached the block; returns the bytes written.
     #[inline(always)]
     fn store(
         &self,
@@ -705,25 +728,28 @@ impl Block {
         planes: PlaneBits,
     ) -> u64 {
         let planes = planes & (PlaneBits::from(self.live) | !MASS_BITS);
+        let mut written = 0u32;
         for_each_bit(planes & MASS_BITS, |set| {
-            store_lanes(&mut run.pg.masses[set][cells.clone()], &self.m[set]);
+            let plane = &mut run.pg.masses[set][cells.clone()];
+            written += u32::from(store_if_changed(plane, &self.m[set]));
         });
-        if planes & ZETA_BIT != 0 {
-            store_lanes(&mut run.pg.zeta[cells.clone()], &self.zeta);
-        }
-        if planes & CONFLICT_FO_BIT != 0 {
-            store_lanes(&mut run.pg.conflict_fo[cells.clone()], &self.conflict_fo);
-        }
-        if planes & CONFLICT_OF_BIT != 0 {
-            store_lanes(&mut run.pg.conflict_of[cells.clone()], &self.conflict_of);
+        let pg = &mut run.pg;
+        for (bit, plane, lanes) in [
+            (ZETA_BIT, &mut pg.zeta, &self.zeta),
+            (CONFLICT_FO_BIT, &mut pg.conflict_fo, &self.conflict_fo),
+            (CONFLICT_OF_BIT, &mut pg.conflict_of, &self.conflict_of),
+        ] {
+            if planes & bit != 0 {
+                written += u32::from(store_if_changed(&mut plane[cells.clone()], lanes));
+            }
         }
         // `seen` only changes where the scan saw a cell.
         let seen_written = self.sensor.any_observed;
         if seen_written {
-            store_lanes(&mut run.pg.seen[cells.clone()], &self.seen);
+            store_lanes(&mut pg.seen[cells.clone()], &self.seen);
         }
         let cells = cells.len() as u64;
-        cells * (4 * u64::from(planes.count_ones()) + u64::from(seen_written))
+        cells * (4 * u64::from(written) + u64::from(seen_written))
     }
 }
 
