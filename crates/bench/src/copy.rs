@@ -1,11 +1,13 @@
-//! The floor: a STREAM-like pass over exactly the bytes one step reads and writes.
+//! The floor: a STREAM-like pass over the bytes of a step that reads and writes the whole state.
 //!
-//! The step reads and writes every PerceptionGrid plane in place (32 mass planes, ζ, ∅_FO, ∅_OF
-//! and the seen flags) and reads the SensorGrid and GisGrid planes. [`CopyFloor::run`] does the
-//! same traffic with the least possible work: every written plane is scaled in place by a factor
-//! the compiler cannot see (so the store cannot be elided), and every read-only plane is summed.
-//! No fusion kernel can move those bytes faster, so `copy / step` is the fraction of the memory
-//! floor the kernel reaches.
+//! A step over the whole state reads and writes every PerceptionGrid plane in place (32 mass
+//! planes, ζ, ∅_FO, ∅_OF and the seen flags) and reads the SensorGrid and GisGrid planes.
+//! [`CopyFloor::run`] does that traffic with the least possible work: every written plane is
+//! scaled in place by a factor the compiler cannot see (so the store cannot be elided), and every
+//! read-only plane is summed. No kernel that touches the whole state can be faster, so
+//! `copy / step` is the fraction of that floor the kernel reaches. The library's step skips the
+//! planes it knows hold +0 (`StepStats::state_bytes_moved`, shown beside the floor's traffic), so
+//! it can go below the floor.
 
 use rayon::prelude::*;
 use std::hint::black_box;

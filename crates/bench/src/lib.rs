@@ -2,8 +2,9 @@
 //!
 //! A perception grid is only useful if it keeps up with the sensor. This crate measures, in one
 //! process and on one machine state, the library's step against two baselines:
-//! - [`copy`]: the memory floor, a STREAM-like pass over exactly the bytes one step reads and
-//!   writes;
+//! - [`copy`]: the memory floor, a STREAM-like pass over the bytes of a step that reads and
+//!   writes the whole state (the library's step skips planes it knows hold +0, and reports the
+//!   bytes it did move);
 //! - [`naive`]: SPEC §5 written plainly (array of structs, dense loops over all pairs of focal
 //!   sets), checked against the library before it is timed.
 //!

@@ -491,6 +491,7 @@ impl<'a> CellRun<'a> {
     /// there.
     #[inline(always)]
     fn prefetch_block(&self, start: usize, planes: PlaneBits, prefetch: &impl Fn(*const i8)) {
+        const F32_PER_LINE: usize = 64 / 4;
         let Some(&stored) = self.pg.nonzero.get(start / BLOCK) else {
             return;
         };
@@ -498,8 +499,8 @@ impl<'a> CellRun<'a> {
         let pg = &self.pg;
         let lines = |plane: &[f32]| {
             let cells = &plane[cells.clone()];
-            for line in (0..cells.len()).step_by(64 / 4) {
-                prefetch(cells.as_ptr().wrapping_add(line).cast());
+            for line in 0..cells.len().div_ceil(F32_PER_LINE) {
+                prefetch(cells.as_ptr().wrapping_add(line * F32_PER_LINE).cast());
             }
         };
         for_each_bit(stored & planes & MASS_BITS, |set| lines(pg.masses[set]));
@@ -596,15 +597,20 @@ fn store_lanes<T: Copy>(values: &mut [T], lanes: &[T; BLOCK]) {
     }
 }
 
-/// Writes `lanes` over `values` if any bit differs; returns whether it wrote. A cache line that
-/// is only read stays clean and is never written back to memory: far from the sensor a block
-/// often reaches its fixed point (the map prior, discounted), and its planes stop changing.
+/// Writes `lanes` over `values`, if `compare` only where a bit differs; returns whether it
+/// wrote. A cache line that is only read stays clean and is never written back to memory: far
+/// from the sensor a block often reaches its fixed point (the map prior, discounted), and its
+/// planes stop changing.
 #[inline(always)]
-fn store_if_changed(values: &mut [f32], lanes: &Lanes) -> bool {
+fn store_if_changed(values: &mut [f32], lanes: &Lanes, compare: bool) -> bool {
     let Ok(full) = <&mut Lanes>::try_from(&mut *values) else {
         store_partial(values, lanes);
         return true;
     };
+    if !compare {
+        *full = *lanes;
+        return true;
+    }
     // The differing bits, OR-ed eight lanes at a time (one vector register).
     let mut differ = [0u32; 8];
     for (old, new) in full.chunks_exact(8).zip(lanes.chunks_exact(8)) {
@@ -728,10 +734,12 @@ impl Block {
         planes: PlaneBits,
     ) -> u64 {
         let planes = planes & (PlaneBits::from(self.live) | !MASS_BITS);
+        // A block the scan reached changes: comparing first would only cost.
+        let compare = !self.sensor.any_observed;
         let mut written = 0u32;
         for_each_bit(planes & MASS_BITS, |set| {
             let plane = &mut run.pg.masses[set][cells.clone()];
-            written += u32::from(store_if_changed(plane, &self.m[set]));
+            written += u32::from(store_if_changed(plane, &self.m[set], compare));
         });
         let pg = &mut run.pg;
         for (bit, plane, lanes) in [
@@ -740,7 +748,7 @@ impl Block {
             (CONFLICT_OF_BIT, &mut pg.conflict_of, &self.conflict_of),
         ] {
             if planes & bit != 0 {
-                written += u32::from(store_if_changed(&mut plane[cells.clone()], lanes));
+                written += u32::from(store_if_changed(&mut plane[cells.clone()], lanes, compare));
             }
         }
         // `seen` only changes where the scan saw a cell.
@@ -1183,22 +1191,22 @@ impl SensorEvidence {
             }
         } else {
             // The map prior of each cell, selected the same way.
-            let mut beta = [0.0; BLOCK];
-            let mut in_f = [0.0; BLOCK];
-            let mut meets_o = [0.0; BLOCK];
-            let mut is_f = [0.0; BLOCK];
-            let mut within_o = [0.0; BLOCK];
-            for (c, prior) in k.map_prior.iter().enumerate() {
-                if present & (1 << c) == 0 {
-                    continue;
-                }
-                let mask = context_mask(context, c);
-                select(&mut beta, &mask, prior.beta);
-                select(&mut in_f, &mask, prior.free_in_g);
-                select(&mut meets_o, &mask, prior.occupied_meets_g);
-                select(&mut is_f, &mask, prior.g_is_free);
-                select(&mut within_o, &mask, prior.g_within_occupied);
-            }
+            // The map prior of each cell: a broadcast inside one context, else a lookup in the
+            // four contexts' values by the two bits of the context (three selects a value).
+            let table = |field: fn(&MapPrior) -> f32| k.map_prior.map(|prior| field(&prior));
+            let bits = match one_context {
+                Some(_) => [[0; BLOCK]; 2],
+                None => context_bits(context),
+            };
+            let lanes = |values: [f32; 4]| match one_context {
+                Some(c) => [values[c]; BLOCK],
+                None => lookup_by_context(&bits, values),
+            };
+            let beta = lanes(table(|p| p.beta));
+            let in_f = lanes(table(|p| p.free_in_g));
+            let meets_o = lanes(table(|p| p.occupied_meets_g));
+            let is_f = lanes(table(|p| p.g_is_free));
+            let within_o = lanes(table(|p| p.g_within_occupied));
             for i in 0..BLOCK {
                 let v = CellEvidence::new(
                     m_free[i],
@@ -1261,25 +1269,19 @@ impl SensorEvidence {
         let any = &evidence[present.trailing_zeros() as usize];
         e.broadcast(any);
         let contexts = || (0..4).filter(move |&c| present & (1 << c) != 0);
-        // Each varying value, as the context's value and the lanes that hold it.
+        let bits = context_bits(context);
+        // Each value that can vary, looked up by context where the contexts present disagree.
         let values = |v: &CellEvidence| [v.beta, v.sg_free, v.sg_occupied];
         for field in 0..3 {
             let differs = contexts()
                 .any(|c| values(&evidence[c])[field].to_bits() != values(any)[field].to_bits());
-            if !differs {
-                continue;
-            }
-            for c in contexts() {
-                let lanes = match field {
-                    0 => &mut e.beta,
-                    1 => &mut e.sg_free,
-                    _ => &mut e.sg_occupied,
-                };
-                select(
-                    lanes,
-                    &context_mask(context, c),
-                    values(&evidence[c])[field],
-                );
+            if differs {
+                let lanes = lookup_by_context(&bits, evidence.each_ref().map(|v| values(v)[field]));
+                match field {
+                    0 => e.beta = lanes,
+                    1 => e.sg_free = lanes,
+                    _ => e.sg_occupied = lanes,
+                }
             }
         }
     }
@@ -1288,28 +1290,30 @@ impl SensorEvidence {
 /// All bits set in the lanes chosen, none in the others.
 type Mask = [u32; BLOCK];
 
-/// The lanes whose map context is `c`.
+/// The two bits of each lane's map context (`MapContext` discriminants are 0 to 3), as masks.
 #[inline(always)]
-fn context_mask(context: &[MapContext; BLOCK], c: usize) -> Mask {
-    let mut mask = [0; BLOCK];
+fn context_bits(context: &[MapContext; BLOCK]) -> [Mask; 2] {
+    let mut bits = [[0; BLOCK]; 2];
     for i in 0..BLOCK {
-        mask[i] = if context[i] as u8 == c as u8 {
-            u32::MAX
-        } else {
-            0
-        };
+        let c = context[i] as u8;
+        bits[0][i] = if c & 1 != 0 { u32::MAX } else { 0 };
+        bits[1][i] = if c & 2 != 0 { u32::MAX } else { 0 };
     }
-    mask
+    bits
 }
 
-/// `lanes[i] = value` where `mask` is set: a select on the bits, which the compiler vectorises
-/// (an `if` on each lane became a scalar loop).
+/// `values[context]` in each lane, with `bits` from [`context_bits`]: three bit selects.
 #[inline(always)]
-fn select(lanes: &mut Lanes, mask: &Mask, value: f32) {
-    let value = value.to_bits();
+fn lookup_by_context(bits: &[Mask; 2], values: [f32; 4]) -> Lanes {
+    let v = values.map(f32::to_bits);
+    let pick = |mask: u32, set: u32, clear: u32| (set & mask) | (clear & !mask);
+    let mut lanes = [0.0; BLOCK];
     for i in 0..BLOCK {
-        lanes[i] = f32::from_bits((value & mask[i]) | (lanes[i].to_bits() & !mask[i]));
+        let (low, high) = (bits[0][i], bits[1][i]);
+        let value = pick(high, pick(low, v[3], v[2]), pick(low, v[1], v[0]));
+        lanes[i] = f32::from_bits(value);
     }
+    lanes
 }
 
 /// What [`discount_and_combine_with_refined_sensor`] read of the discounted grid PG^α before
