@@ -258,6 +258,8 @@ struct Cases<'a> {
     real: Option<real::RealCases>,
     /// `StepStats::state_bytes_moved` of the last timed step.
     step_bytes_moved: u64,
+    /// One grid and one single-thread pool per thread, for `apart@N`.
+    apart: Vec<(PerceptionGrid, rayon::ThreadPool)>,
 }
 
 impl<'a> Cases<'a> {
@@ -286,6 +288,15 @@ impl<'a> Cases<'a> {
         };
         let pg = PerceptionGrid::new(size, size);
         let naive = naive::NaiveGrid::from_perception(&pg);
+        let apart = (0..threads)
+            .map(|_| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(1)
+                    .build()
+                    .map_err(|e| BenchError::ThreadPool(e.to_string()))?;
+                Ok((pg.clone(), pool))
+            })
+            .collect::<Result<_, BenchError>>()?;
         Ok(Cases {
             size,
             threads,
@@ -297,6 +308,7 @@ impl<'a> Cases<'a> {
             floor: copy::CopyFloor::new(size * size),
             real,
             step_bytes_moved: 0,
+            apart,
         })
     }
 
@@ -330,6 +342,10 @@ impl<'a> Cases<'a> {
         times.push((
             format!("step@{n}"),
             time(|| evigrid::step(pg, sg, gg, params, 0.1)),
+        ));
+        times.push((
+            format!("apart@{n}"),
+            step_apart(&mut self.apart, sg, gg, params),
         ));
         if with_naive {
             let naive = &mut self.naive;
@@ -366,6 +382,7 @@ impl<'a> Cases<'a> {
             ("copy/step@N", format!("copy@{n}"), format!("step@{n}")),
             ("naive/step@1", "naive@1".into(), "step@1".into()),
             ("step@1/step@N", "step@1".into(), format!("step@{n}")),
+            ("apart@N/step@1", format!("apart@{n}"), "step@1".into()),
             (
                 "(sensor+prior)/step@1",
                 "sensor+prior@1".into(),
@@ -434,6 +451,38 @@ fn lookup(round: &[(String, f64)], name: &str) -> Option<f64> {
     round.iter().find(|(n, _)| n == name).map(|(_, t)| *t)
 }
 
+/// Seconds of the slowest of N one-thread steps run at once, each on its own grid and thread.
+///
+/// Nothing is shared but the machine, so `apart@N / step@1` says how much slower one step runs
+/// when every core runs one: 1 where memory keeps up with all cores, and a bound on what
+/// `step@N` can gain where it does not.
+fn step_apart(
+    grids: &mut [(PerceptionGrid, rayon::ThreadPool)],
+    sg: &evigrid::SensorGrid,
+    gg: &evigrid::GisGrid,
+    params: &Params,
+) -> f64 {
+    let start = std::sync::Barrier::new(grids.len());
+    std::thread::scope(|scope| {
+        let runs: Vec<_> = grids
+            .iter_mut()
+            .map(|(grid, pool)| {
+                let start = &start;
+                scope.spawn(move || {
+                    start.wait();
+                    pool.install(|| time(|| evigrid::step(grid, sg, gg, params, 0.1)))
+                })
+            })
+            .collect();
+        runs.into_iter()
+            .map(|run| {
+                run.join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+            })
+            .fold(0.0, f64::max)
+    })
+}
+
 /// Runs a no-op on every thread of the current pool and returns once all have run it, so that
 /// the next parallel case starts with its threads awake.
 ///
@@ -490,7 +539,12 @@ mod tests {
         for case in ["copy@1", "step@1", "naive@1"] {
             assert!(window.timing(case).is_some(), "missing {case}");
         }
-        for ratio in ["copy/step@1", "naive/step@1", "step@1/step@N"] {
+        for ratio in [
+            "copy/step@1",
+            "naive/step@1",
+            "step@1/step@N",
+            "apart@N/step@1",
+        ] {
             let value = window.ratio(ratio);
             assert!(value.is_some_and(|r| r > 0.0), "{ratio}: {value:?}");
         }
