@@ -7,8 +7,9 @@
 //! (F = bit 0, I = bit 1, U = bit 2, S = bit 3, M = bit 4; plane 0 is ∅).
 //!
 //! Memory per cell: PerceptionGrid 32 mass planes + ζ + ∅_FO + ∅_OF (4 bytes each) + the seen
-//! flag (1 byte) = 141 bytes; SensorGrid 8 bytes; GisGrid 1 byte: 150 bytes in all. The step
-//! updates the PerceptionGrid in place, so there is no second copy.
+//! flag (1 byte) + 8 bytes of non-zero plane bits per 64 cells = 141.125 bytes; SensorGrid
+//! 8 bytes; GisGrid 1 byte: 150.125 bytes in all. The step updates the PerceptionGrid in place,
+//! so there is no second copy.
 
 use geodata::MapContext;
 use std::ops::Range;
