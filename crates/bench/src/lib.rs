@@ -403,9 +403,9 @@ impl<'a> Cases<'a> {
         let floor = &self.floor;
         let observed = self
             .sg
-            .m_free
+            .m_free()
             .iter()
-            .zip(&self.sg.m_occupied)
+            .zip(self.sg.m_occupied())
             .filter(|(free, occupied)| **free + **occupied > 0.0)
             .count();
         WindowReport {
@@ -442,8 +442,8 @@ impl<'a> Cases<'a> {
 /// Bytes the three grids of the pipeline hold.
 fn state_bytes(pg: &PerceptionGrid, sg: &evigrid::SensorGrid, gg: &evigrid::GisGrid) -> usize {
     pg.state_bytes()
-        + std::mem::size_of_val(sg.m_free.as_slice())
-        + std::mem::size_of_val(sg.m_occupied.as_slice())
+        + std::mem::size_of_val(sg.m_free())
+        + std::mem::size_of_val(sg.m_occupied())
         + std::mem::size_of_val(gg.context.as_slice())
 }
 

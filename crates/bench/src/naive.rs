@@ -71,8 +71,8 @@ impl NaiveGrid {
         for (idx, cell) in self.cells.iter_mut().enumerate() {
             step_cell(
                 cell,
-                sg.m_free[idx],
-                sg.m_occupied[idx],
+                sg.m_free()[idx],
+                sg.m_occupied()[idx],
                 gg.context[idx],
                 params,
                 &rates,

@@ -43,8 +43,8 @@ pub fn random_sensor_grid(width: usize, height: usize, rng: &mut SplitMix64) -> 
             }
             _ => (0.0, 0.0),
         };
-        sg.m_free[idx] = free;
-        sg.m_occupied[idx] = occupied;
+        sg.m_free_mut()[idx] = free;
+        sg.m_occupied_mut()[idx] = occupied;
     }
     sg
 }

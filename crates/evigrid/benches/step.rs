@@ -21,8 +21,8 @@ fn scene(width: usize, height: usize) -> (PerceptionGrid, SensorGrid, GisGrid) {
     let mut gg = GisGrid::new(width, height);
     for idx in 0..width * height {
         match idx % 6 {
-            0 | 1 => sg.m_free[idx] = 0.7,
-            2 => sg.m_occupied[idx] = 0.8,
+            0 | 1 => sg.m_free_mut()[idx] = 0.7,
+            2 => sg.m_occupied_mut()[idx] = 0.8,
             _ => {}
         }
         gg.context[idx] = match (idx / 7) % 4 {
@@ -131,9 +131,9 @@ fn naive_step(cells: &mut [NaiveCell], sg: &SensorGrid, gg: &GisGrid, p: &Params
         .collect();
     for (idx, cell) in cells.iter_mut().enumerate() {
         let mut r_sg = [0.0; N_SETS];
-        r_sg[class::F] = sg.m_free[idx];
-        r_sg[class::O] = sg.m_occupied[idx];
-        r_sg[OMEGA] = 1.0 - sg.m_free[idx] - sg.m_occupied[idx];
+        r_sg[class::F] = sg.m_free()[idx];
+        r_sg[class::O] = sg.m_occupied()[idx];
+        r_sg[OMEGA] = 1.0 - sg.m_free()[idx] - sg.m_occupied()[idx];
         let (g, beta) = match gg.context[idx] {
             MapContext::Unknown => (OMEGA, 0.0),
             MapContext::Other => (

@@ -387,16 +387,30 @@ impl<'a> PerceptionPlanesMut<'a> {
 ///
 /// m(Ω) = 1 − m(F) − m(O) is not stored. The step reads masses outside `[0, 1]`, a sum above 1
 /// or a NaN as the nearest valid mass function (NaN counts as 0).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct SensorGrid {
     /// Number of columns.
     pub width: usize,
     /// Number of rows.
     pub height: usize,
     /// m({F}) per cell, `width · height` values.
-    pub m_free: Vec<f32>,
+    m_free: Vec<f32>,
     /// m({O}) per cell, `width · height` values.
-    pub m_occupied: Vec<f32>,
+    m_occupied: Vec<f32>,
+    /// Per block of [`CELLS_PER_BLOCK`] cells, whether a cell may hold sensor mass: false only
+    /// where the grid was cleared and nothing wrote since, so that the step need not read the
+    /// block's planes (a scan reaches a few percent of a large window). Writes through
+    /// [`SensorGrid::m_free_mut`] and [`SensorGrid::m_occupied_mut`] set every block.
+    may_hold_mass: Vec<bool>,
+}
+
+/// Equal grids hold equal masses; `may_hold_mass` is only a note on how they were written.
+impl PartialEq for SensorGrid {
+    fn eq(&self, other: &Self) -> bool {
+        (self.width, self.height) == (other.width, other.height)
+            && self.m_free == other.m_free
+            && self.m_occupied == other.m_occupied
+    }
 }
 
 impl SensorGrid {
@@ -408,6 +422,7 @@ impl SensorGrid {
             height,
             m_free: vec![0.0; len],
             m_occupied: vec![0.0; len],
+            may_hold_mass: vec![false; len.div_ceil(CELLS_PER_BLOCK)],
         }
     }
 
@@ -421,6 +436,48 @@ impl SensorGrid {
         self.len() == 0
     }
 
+    /// m({F}) of every cell.
+    pub fn m_free(&self) -> &[f32] {
+        &self.m_free
+    }
+
+    /// m({O}) of every cell.
+    pub fn m_occupied(&self) -> &[f32] {
+        &self.m_occupied
+    }
+
+    /// m({F}) of every cell, writable. The next step reads every cell's masses.
+    pub fn m_free_mut(&mut self) -> &mut [f32] {
+        self.may_hold_mass.fill(true);
+        &mut self.m_free
+    }
+
+    /// m({O}) of every cell, writable. The next step reads every cell's masses.
+    pub fn m_occupied_mut(&mut self) -> &mut [f32] {
+        self.may_hold_mass.fill(true);
+        &mut self.m_occupied
+    }
+
+    /// Sets m({F}) of one cell, noting its block (for the sensor model, which writes a few
+    /// percent of a large window).
+    #[inline]
+    pub(crate) fn set_free(&mut self, idx: usize, mass: f32) {
+        self.m_free[idx] = mass;
+        self.may_hold_mass[idx / CELLS_PER_BLOCK] = true;
+    }
+
+    /// Sets m({O}) of one cell, noting its block.
+    #[inline]
+    pub(crate) fn set_occupied(&mut self, idx: usize, mass: f32) {
+        self.m_occupied[idx] = mass;
+        self.may_hold_mass[idx / CELLS_PER_BLOCK] = true;
+    }
+
+    /// Per block of 64 cells, whether a cell may hold sensor mass (false: all its masses are 0).
+    pub(crate) fn may_hold_mass(&self) -> &[bool] {
+        &self.may_hold_mass
+    }
+
     /// Makes every cell vacuous, ready for the next scan.
     pub fn clear(&mut self) {
         use rayon::prelude::*;
@@ -430,6 +487,7 @@ impl SensorGrid {
                 .par_chunks_mut(1 << 16)
                 .for_each(|chunk| chunk.fill(0.0));
         }
+        self.may_hold_mass.fill(false);
     }
 }
 
@@ -548,8 +606,8 @@ mod tests {
     #[test]
     fn sensor_grid_clear_makes_it_vacuous() {
         let mut sg = SensorGrid::new(2, 2);
-        sg.m_free[1] = 0.7;
-        sg.m_occupied[2] = 0.8;
+        sg.m_free_mut()[1] = 0.7;
+        sg.m_occupied_mut()[2] = 0.8;
         sg.clear();
         assert_eq!(sg, SensorGrid::new(2, 2));
     }

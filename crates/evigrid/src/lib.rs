@@ -20,12 +20,12 @@
 //! let (mut pg, mut sg, mut gg) = (PerceptionGrid::new(1, 1), SensorGrid::new(1, 1), GisGrid::new(1, 1));
 //! gg.context[0] = MapContext::Road;
 //! // A road cell seen free, then occupied: the object appeared, so its mass goes to M.
-//! sg.m_free[0] = 0.7;
+//! sg.m_free_mut()[0] = 0.7;
 //! for _ in 0..3 {
 //!     evigrid::step::step(&mut pg, &sg, &gg, &params, 0.1);
 //! }
-//! sg.m_free[0] = 0.0;
-//! sg.m_occupied[0] = 0.8;
+//! sg.m_free_mut()[0] = 0.0;
+//! sg.m_occupied_mut()[0] = 0.8;
 //! evigrid::step::step(&mut pg, &sg, &gg, &params, 0.1);
 //! let decided = decide(&pg.cell_masses(0), pg.seen()[0] != 0, params.decision.unknown_threshold);
 //! assert_eq!(decided, Decision::M);

@@ -597,7 +597,7 @@ mod tests {
         // One step with the sensor seeing the cell free, no map: m(F) = 0.7, m(Ω) = 0.3, so
         // betP = F 0.76, and 0.06 for each of I, U, S, M.
         let mut sg = crate::grids::SensorGrid::new(1, 1);
-        sg.m_free[0] = 0.7;
+        sg.m_free_mut()[0] = 0.7;
         let gg = crate::grids::GisGrid::new(1, 1);
         crate::step::step(&mut pg, &sg, &gg, &crate::Params::default(), 0.1);
         // R = 0.06·(20 + 40 + 140 + 230) = 25.8; G = 0.76·190 + 0.06·(30 + 100 + 200) = 164.2;

@@ -145,7 +145,7 @@ impl Drive {
             .filter(|&idx| {
                 let cell = window.cell_of_storage(idx).unwrap();
                 let (x, y) = window.cell_centre(cell.col, cell.row);
-                sensor.m_occupied[idx] > 0.0
+                sensor.m_occupied()[idx] > 0.0
                     && (region.min[0]..=region.max[0]).contains(&x)
                     && (region.min[1]..=region.max[1]).contains(&y)
             })

@@ -412,7 +412,7 @@ fn run_drive(
         for ((o, now), (&f, &m)) in observed
             .iter_mut()
             .zip(observed_now.iter_mut())
-            .zip(sensor_grid.m_free.iter().zip(&sensor_grid.m_occupied))
+            .zip(sensor_grid.m_free().iter().zip(sensor_grid.m_occupied()))
         {
             *now = f > 0.0 || m > 0.0;
             *o |= *now;

@@ -198,8 +198,8 @@ fn simulate(
     gg.context[0] = context;
     let mut records = Vec::with_capacity(observations.len());
     for (k, observation) in observations.iter().enumerate() {
-        sg.m_free[0] = observation.free as f32;
-        sg.m_occupied[0] = observation.occupied as f32;
+        sg.m_free_mut()[0] = observation.free as f32;
+        sg.m_occupied_mut()[0] = observation.occupied as f32;
         evigrid::step::step(&mut pg, &sg, &gg, params, dt_s);
         let masses = pg.cell_masses(0);
         let p = betp(&masses);

@@ -16,7 +16,7 @@
 //! let mut pg = PerceptionGrid::new(2, 1);
 //! let mut sg = SensorGrid::new(2, 1);
 //! let mut gg = GisGrid::new(2, 1);
-//! sg.m_free[0] = 0.7; // the sensor sees cell 0 free …
+//! sg.m_free_mut()[0] = 0.7; // the sensor sees cell 0 free …
 //! gg.context[0] = MapContext::Road; // … on a road
 //! let mut params = Params::default();
 //! params.map.beta_road = 0.8;
@@ -154,7 +154,7 @@ fn step_cells(
         gg.height
     );
     assert!(
-        sg.m_free.len() == len && sg.m_occupied.len() == len && gg.context.len() == len,
+        sg.m_free().len() == len && sg.m_occupied().len() == len && gg.context.len() == len,
         "a SensorGrid or GisGrid plane does not hold {len} cells"
     );
     let constants = StepConstants::new(params, dt_s);
@@ -169,8 +169,9 @@ fn step_cells(
     let cells = CellRun {
         reachable_only,
         pg: pg.planes_mut(),
-        m_free: &sg.m_free,
-        m_occupied: &sg.m_occupied,
+        m_free: sg.m_free(),
+        m_occupied: sg.m_occupied(),
+        sensor_blocks: sg.may_hold_mass(),
         context: &gg.context,
         decisions,
     };
@@ -345,6 +346,9 @@ struct CellRun<'a> {
     pg: PerceptionPlanesMut<'a>,
     m_free: &'a [f32],
     m_occupied: &'a [f32],
+    /// Per block, whether the SensorGrid may hold mass there (false: its planes are 0 and are
+    /// not read).
+    sensor_blocks: &'a [bool],
     context: &'a [MapContext],
     /// Where to write the decision of each cell, if wanted.
     decisions: Option<&'a mut [Decision]>,
@@ -373,6 +377,7 @@ impl<'a> CellRun<'a> {
         let (free_left, free_right) = self.m_free.split_at(mid);
         let (occ_left, occ_right) = self.m_occupied.split_at(mid);
         let (ctx_left, ctx_right) = self.context.split_at(mid);
+        let (blocks_left, blocks_right) = self.sensor_blocks.split_at(mid / BLOCK);
         let (decisions_left, decisions_right) = match self.decisions {
             Some(decisions) => {
                 let (left, right) = decisions.split_at_mut(mid);
@@ -384,6 +389,7 @@ impl<'a> CellRun<'a> {
             pg: pg_left,
             m_free: free_left,
             m_occupied: occ_left,
+            sensor_blocks: blocks_left,
             context: ctx_left,
             decisions: decisions_left,
             reachable_only: self.reachable_only,
@@ -392,6 +398,7 @@ impl<'a> CellRun<'a> {
             pg: pg_right,
             m_free: free_right,
             m_occupied: occ_right,
+            sensor_blocks: blocks_right,
             context: ctx_right,
             decisions: decisions_right,
             reachable_only: self.reachable_only,
@@ -513,8 +520,10 @@ impl<'a> CellRun<'a> {
                 lines(plane);
             }
         }
-        lines(self.m_free);
-        lines(self.m_occupied);
+        if self.sensor_blocks[start / BLOCK] {
+            lines(self.m_free);
+            lines(self.m_occupied);
+        }
         prefetch(pg.seen[cells.clone()].as_ptr().cast());
         prefetch(self.context[cells].as_ptr().cast());
     }
@@ -692,11 +701,19 @@ impl Block {
             self.zeta = [0.0; BLOCK];
         }
         load_lanes(&mut self.seen, &run.pg.seen[cells.clone()]);
-        load_lanes(&mut self.sensor_free, &run.m_free[cells.clone()]);
-        load_lanes(&mut self.sensor_occupied, &run.m_occupied[cells.clone()]);
+        // A block the SensorGrid knows to be vacuous is not read.
+        let sensor_read = run.sensor_blocks[cells.start / BLOCK];
+        if sensor_read {
+            load_lanes(&mut self.sensor_free, &run.m_free[cells.clone()]);
+            load_lanes(&mut self.sensor_occupied, &run.m_occupied[cells.clone()]);
+        } else {
+            self.sensor_free = [0.0; BLOCK];
+            self.sensor_occupied = [0.0; BLOCK];
+        }
         load_lanes(&mut self.context, &run.context[cells.clone()]);
-        // The state planes named, the two SensorGrid planes; seen and the context, a byte each.
-        let f32_planes = (planes & (MASS_BITS | ZETA_BIT)).count_ones() + 2;
+        // The state planes named, the SensorGrid planes if read; seen and the context, a byte each.
+        let f32_planes =
+            (planes & (MASS_BITS | ZETA_BIT)).count_ones() + 2 * u32::from(sensor_read);
         cells.len() as u64 * (4 * u64::from(f32_planes) + 2)
     }
 

@@ -36,7 +36,7 @@ fn one_step(
     pg.set_cell_masses(0, &m);
     pg.zeta_mut()[0] = zeta;
     let mut sg = SensorGrid::new(1, 1);
-    (sg.m_free[0], sg.m_occupied[0]) = sensor;
+    (sg.m_free_mut()[0], sg.m_occupied_mut()[0]) = sensor;
     let mut gg = GisGrid::new(1, 1);
     gg.context[0] = context;
     let stats = step(&mut pg, &sg, &gg, params, dt_s);
@@ -495,7 +495,7 @@ fn seen_flag_stays_once_set() {
         SensorGrid::new(2, 1),
         GisGrid::new(2, 1),
     );
-    sg.m_occupied[1] = 0.8;
+    sg.m_occupied_mut()[1] = 0.8;
     let stats = step(&mut pg, &sg, &gg, &p, 0.1);
     assert_eq!((stats.cells, stats.observed_cells), (2, 1));
     assert_eq!(pg.seen(), &[0, 1]);
@@ -517,8 +517,8 @@ fn moving_object_crossing_a_road_cell() {
     );
     gg.context[0] = MapContext::Road;
     let mut run = |pg: &mut PerceptionGrid, free: f32, occupied: f32, n: usize| {
-        sg.m_free[0] = free;
-        sg.m_occupied[0] = occupied;
+        sg.m_free_mut()[0] = free;
+        sg.m_occupied_mut()[0] = occupied;
         for _ in 0..n {
             step(pg, &sg, &gg, &p, 0.1);
         }
@@ -655,8 +655,8 @@ proptest! {
             }
             pg.set_cell_masses(idx, &masses);
             pg.zeta_mut()[idx] = cell.zeta;
-            sg.m_free[idx] = cell.m_free;
-            sg.m_occupied[idx] = cell.m_occupied;
+            sg.m_free_mut()[idx] = cell.m_free;
+            sg.m_occupied_mut()[idx] = cell.m_occupied;
             gg.context[idx] = cell.context;
         }
         let before = pg.clone();
@@ -710,8 +710,8 @@ proptest! {
         let mut sg = SensorGrid::new(width, 1);
         let mut gg = GisGrid::new(width, 1);
         for (idx, cell) in cells.iter().enumerate() {
-            sg.m_free[idx] = cell.m_free;
-            sg.m_occupied[idx] = cell.m_occupied;
+            sg.m_free_mut()[idx] = cell.m_free;
+            sg.m_occupied_mut()[idx] = cell.m_occupied;
             gg.context[idx] = cell.context;
         }
         for _ in 0..steps {
@@ -742,7 +742,7 @@ fn scene(width: usize, height: usize, seed: u64) -> (PerceptionGrid, SensorGrid,
     let mut gg = GisGrid::new(width, height);
     for idx in 0..width * height {
         let r = next();
-        (sg.m_free[idx], sg.m_occupied[idx]) = if r < 0.3 {
+        (sg.m_free_mut()[idx], sg.m_occupied_mut()[idx]) = if r < 0.3 {
             (0.7, 0.0)
         } else if r < 0.5 {
             (0.0, 0.8)
@@ -809,8 +809,8 @@ fn grid_cells_equal_single_cell_steps() {
         one.set_cell_masses(0, &before.cell_masses(idx));
         one.zeta_mut()[0] = before.zeta()[idx];
         let mut s = SensorGrid::new(1, 1);
-        s.m_free[0] = sg.m_free[idx];
-        s.m_occupied[0] = sg.m_occupied[idx];
+        s.m_free_mut()[0] = sg.m_free()[idx];
+        s.m_occupied_mut()[0] = sg.m_occupied()[idx];
         let mut g = GisGrid::new(1, 1);
         g.context[0] = gg.context[idx];
         step(&mut one, &s, &g, &params, 0.1);
@@ -834,7 +834,7 @@ fn shortcuts_taken_per_block_give_each_cell_what_it_gets_alone() {
     for idx in 0..pg.len() {
         gg.context[idx] = contexts[(idx / 70) % 4];
         if !(200..260).contains(&idx) {
-            (sg.m_free[idx], sg.m_occupied[idx]) = (0.0, 0.0);
+            (sg.m_free_mut()[idx], sg.m_occupied_mut()[idx]) = (0.0, 0.0);
         }
         if idx < 300 {
             pg.zeta_mut()[idx] = 0.0;
@@ -890,7 +890,7 @@ fn shortcuts_taken_per_block_give_each_cell_what_it_gets_alone() {
             one.set_cell_masses(0, &pg.cell_masses(idx));
             one.zeta_mut()[0] = pg.zeta()[idx];
             let mut s = SensorGrid::new(1, 1);
-            (s.m_free[0], s.m_occupied[0]) = (sg.m_free[idx], sg.m_occupied[idx]);
+            (s.m_free_mut()[0], s.m_occupied_mut()[0]) = (sg.m_free()[idx], sg.m_occupied()[idx]);
             let mut g = GisGrid::new(1, 1);
             g.context[0] = gg.context[idx];
             for _ in 0..2 {
@@ -945,7 +945,7 @@ fn planes_skipped_as_zero_give_the_same_bits_as_planes_read() {
             // The sensor sees a disc; the map is in bands of 50 columns, as streets are.
             let (dx, dy) = (col as f32 - 150.0, row as f32 - 60.0);
             if dx * dx + dy * dy > 40.0 * 40.0 {
-                (sg.m_free[idx], sg.m_occupied[idx]) = (0.0, 0.0);
+                (sg.m_free_mut()[idx], sg.m_occupied_mut()[idx]) = (0.0, 0.0);
             }
             gg.context[idx] = [
                 MapContext::Other,
@@ -1075,4 +1075,40 @@ fn the_evidence_of_an_unobserved_cell_differs_between_contexts_in_three_values_o
             assert!(!v.observed && !v.total_conflict);
         }
     }
+}
+
+#[test]
+fn sensor_blocks_known_vacuous_are_skipped_with_the_same_bits() {
+    // A SensorGrid written through `set_free`/`set_occupied` (as the sensor model writes) knows
+    // which blocks hold no mass, and the step does not read them; one written through
+    // `m_free_mut` is read everywhere. Both must give the same grid.
+    let (width, height) = (300, 50);
+    let mut noted = SensorGrid::new(width, height);
+    for idx in (0..width * height).filter(|idx| idx % 97 < 3 && idx / width < 20) {
+        noted.set_free(idx, 0.7);
+        if idx % 2 == 0 {
+            noted.set_occupied(idx, 0.2);
+        }
+    }
+    assert!(noted.may_hold_mass().iter().any(|&b| b) && noted.may_hold_mass().iter().any(|&b| !b));
+    for block in (0..noted.may_hold_mass().len()).filter(|&b| !noted.may_hold_mass()[b]) {
+        let cells = block * 64..((block + 1) * 64).min(width * height);
+        assert!(noted.m_free()[cells.clone()].iter().all(|&m| m == 0.0));
+        assert!(noted.m_occupied()[cells].iter().all(|&m| m == 0.0));
+    }
+    let mut read = noted.clone();
+    let _ = read.m_free_mut();
+    assert!(read.may_hold_mass().iter().all(|&b| b));
+    let (_, _, gg) = scene(width, height, 23);
+    let params = hand_params();
+    let mut skipping = PerceptionGrid::new(width, height);
+    let mut reading = skipping.clone();
+    for _ in 0..3 {
+        let skipped = step(&mut skipping, &noted, &gg, &params, 0.1);
+        let all = step(&mut reading, &read, &gg, &params, 0.1);
+        assert!(skipped.state_bytes_moved < all.state_bytes_moved);
+    }
+    assert_eq!(skipping, reading);
+    noted.clear();
+    assert!(noted.may_hold_mass().iter().all(|&b| !b));
 }

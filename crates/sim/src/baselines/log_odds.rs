@@ -111,7 +111,7 @@ impl Baseline for LogOdds {
             .iter_mut()
             .zip(self.state.iter_mut())
             .zip(self.moving_left.iter_mut())
-            .zip(sensor.m_free.iter().zip(&sensor.m_occupied));
+            .zip(sensor.m_free().iter().zip(sensor.m_occupied()));
         for (((l, state), left), (&sf, &so)) in cells {
             let (sf, so) = (
                 if sf.is_nan() { 0.0 } else { sf },
@@ -155,12 +155,10 @@ mod tests {
     use approx::assert_relative_eq;
 
     fn sg(f: f32, o: f32) -> SensorGrid {
-        SensorGrid {
-            width: 1,
-            height: 1,
-            m_free: vec![f],
-            m_occupied: vec![o],
-        }
+        let mut sg = SensorGrid::new(1, 1);
+        sg.m_free_mut()[0] = f;
+        sg.m_occupied_mut()[0] = o;
+        sg
     }
 
     #[test]

@@ -107,7 +107,7 @@ impl Baseline for Moras2011 {
             .zip(self.m_occupied.iter_mut())
             .zip(self.conflict_fo.iter_mut())
             .zip(self.seen.iter_mut())
-            .zip(sensor.m_free.iter().zip(&sensor.m_occupied));
+            .zip(sensor.m_free().iter().zip(sensor.m_occupied()));
         for ((((mf, mo), cfo), seen), (&sf, &so)) in cells {
             let (sf, so) = sanitise(sf, so);
             let sw = 1.0 - sf - so;
@@ -148,12 +148,10 @@ mod tests {
     use approx::assert_relative_eq;
 
     fn sg(f: f32, o: f32) -> SensorGrid {
-        SensorGrid {
-            width: 1,
-            height: 1,
-            m_free: vec![f],
-            m_occupied: vec![o],
-        }
+        let mut sg = SensorGrid::new(1, 1);
+        sg.m_free_mut()[0] = f;
+        sg.m_occupied_mut()[0] = o;
+        sg
     }
 
     #[test]
