@@ -8,7 +8,7 @@
 //!
 //! Memory per cell: PerceptionGrid 32 mass planes + ζ + ∅_FO + ∅_OF (4 bytes each) + the seen
 //! flag (1 byte) + 8 bytes of non-zero plane bits per 64 cells = 141.125 bytes; SensorGrid
-//! 8 bytes; GisGrid 1 byte: 150.125 bytes in all. The step updates the PerceptionGrid in place,
+//! 8 bytes + 1 byte per 64 cells; GisGrid 1 byte: 150.14 bytes in all. The step updates the PerceptionGrid in place,
 //! so there is no second copy.
 
 use geodata::MapContext;
@@ -471,6 +471,14 @@ impl SensorGrid {
     pub(crate) fn set_occupied(&mut self, idx: usize, mass: f32) {
         self.m_occupied[idx] = mass;
         self.may_hold_mass[idx / CELLS_PER_BLOCK] = true;
+    }
+
+    /// Bytes of state the grid holds: two planes of 4 bytes a cell and one byte per 64 cells
+    /// noting the blocks that may hold mass.
+    pub fn state_bytes(&self) -> usize {
+        std::mem::size_of_val(self.m_free.as_slice())
+            + std::mem::size_of_val(self.m_occupied.as_slice())
+            + std::mem::size_of_val(self.may_hold_mass.as_slice())
     }
 
     /// Per block of 64 cells, whether a cell may hold sensor mass (false: all its masses are 0).
