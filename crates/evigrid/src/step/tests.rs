@@ -729,6 +729,11 @@ proptest! {
 // ---- parallelism ----
 
 /// A pseudo-random scene (an LCG: deterministic and dependency-free).
+/// Whether two planes hold the same bits (+0 and -0 differ, NaNs compare).
+fn same_bits(a: &[f32], b: &[f32]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
 fn scene(width: usize, height: usize, seed: u64) -> (PerceptionGrid, SensorGrid, GisGrid) {
     let mut state = seed;
     let mut next = move || {
@@ -787,12 +792,7 @@ fn result_is_bit_identical_whatever_the_thread_count() -> Result<(), rayon::Thre
         let b: Vec<u32> = many.plane(set).iter().map(|x| x.to_bits()).collect();
         assert!(a == b, "plane {set} differs");
     }
-    assert!(
-        one.zeta()
-            .iter()
-            .zip(many.zeta())
-            .all(|(a, b)| a.to_bits() == b.to_bits())
-    );
+    assert!(same_bits(one.zeta(), many.zeta()));
     Ok(())
 }
 
@@ -921,12 +921,10 @@ fn the_vector_code_for_this_cpu_equals_the_portable_code_bit_for_bit() {
         });
     }
     for set in 0..N_SETS {
-        let same = dispatched
-            .plane(set)
-            .iter()
-            .zip(portable.plane(set))
-            .all(|(a, b)| a.to_bits() == b.to_bits());
-        assert!(same, "set {set} differs");
+        assert!(
+            same_bits(dispatched.plane(set), portable.plane(set)),
+            "set {set} differs"
+        );
     }
     assert_eq!(dispatched.zeta(), portable.zeta());
 }
@@ -970,11 +968,8 @@ fn planes_skipped_as_zero_give_the_same_bits_as_planes_read() {
             }
             let case = format!("{unobserved:?}, {residual:?}");
             assert_eq!(skipping, reading, "{case}");
-            let same_bits = (0..N_SETS).all(|set| {
-                let (a, b) = (skipping.plane(set), reading.plane(set));
-                a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
-            });
-            assert!(same_bits, "{case}");
+            let same = (0..N_SETS).all(|set| same_bits(skipping.plane(set), reading.plane(set)));
+            assert!(same, "{case}");
             for (block, &bits) in skipping.nonzero_bits().iter().enumerate() {
                 let cells = block * 64..((block + 1) * 64).min(width * height);
                 let zero = |plane: &[f32]| plane[cells.clone()].iter().all(|x| x.to_bits() == 0);
@@ -1039,12 +1034,10 @@ fn a_grid_kept_on_the_reachable_sets_skips_the_others_with_the_same_bits() {
     }
     assert!(!skipping.may_leave_reachable());
     for set in 0..N_SETS {
-        let same = skipping
-            .plane(set)
-            .iter()
-            .zip(checking.plane(set))
-            .all(|(a, b)| a.to_bits() == b.to_bits());
-        assert!(same, "set {set:05b} differs");
+        assert!(
+            same_bits(skipping.plane(set), checking.plane(set)),
+            "set {set:05b} differs"
+        );
         if !super::passes::is_live(super::passes::REACHABLE, set) {
             assert!(skipping.plane(set).iter().all(|x| x.to_bits() == 0));
         }
