@@ -343,10 +343,12 @@ impl<'a> Cases<'a> {
             format!("step@{n}"),
             time(|| evigrid::step(pg, sg, gg, params, 0.1)),
         ));
+        let apart = step_apart(&mut self.apart, sg, gg, params);
         times.push((
             format!("apart@{n}"),
-            step_apart(&mut self.apart, sg, gg, params),
+            apart.iter().copied().fold(0.0, f64::max),
         ));
+        times.push((format!("ideal@{n}"), ideal_parallel_time(&apart)));
         if with_naive {
             let naive = &mut self.naive;
             times.push(("naive@1".into(), time(|| naive.step(sg, gg, params, 0.1))));
@@ -383,6 +385,8 @@ impl<'a> Cases<'a> {
             ("naive/step@1", "naive@1".into(), "step@1".into()),
             ("step@1/step@N", "step@1".into(), format!("step@{n}")),
             ("apart@N/step@1", format!("apart@{n}"), "step@1".into()),
+            ("step@1/ideal@N", "step@1".into(), format!("ideal@{n}")),
+            ("ideal@N/step@N", format!("ideal@{n}"), format!("step@{n}")),
             (
                 "(sensor+prior)/step@1",
                 "sensor+prior@1".into(),
@@ -448,17 +452,18 @@ fn lookup(round: &[(String, f64)], name: &str) -> Option<f64> {
     round.iter().find(|(n, _)| n == name).map(|(_, t)| *t)
 }
 
-/// Seconds of the slowest of N one-thread steps run at once, each on its own grid and thread.
+/// Seconds each of N one-thread steps took, run at once, each on its own grid and thread.
 ///
-/// Nothing is shared but the machine, so `apart@N / step@1` says how much slower one step runs
-/// when every core runs one: 1 where memory keeps up with all cores, and a bound on what
-/// `step@N` can gain where it does not.
+/// Nothing is shared but the machine, so the slowest of them over `step@1` (`apart@N/step@1`)
+/// says how much slower one step runs when every core runs one: 1 where memory and the cores
+/// keep up, more where they are shared (with each other, or with other tenants of a virtual
+/// machine). [`ideal_parallel_time`] turns the N times into the bound of `step@N`.
 fn step_apart(
     grids: &mut [(PerceptionGrid, rayon::ThreadPool)],
     sg: &evigrid::SensorGrid,
     gg: &evigrid::GisGrid,
     params: &Params,
-) -> f64 {
+) -> Vec<f64> {
     let start = std::sync::Barrier::new(grids.len());
     std::thread::scope(|scope| {
         let runs: Vec<_> = grids
@@ -476,8 +481,22 @@ fn step_apart(
                 run.join()
                     .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
             })
-            .fold(0.0, f64::max)
+            .collect()
     })
+}
+
+/// The time of one step shared among cores that each step a whole grid in `apart[k]` seconds
+/// when all run at once: each core takes the share of the cells its speed allows, so that all
+/// finish together, at 1 / Σ 1/apart[k].
+///
+/// This is what the cores gave in that moment, as a `step@N` time. On an idle machine with
+/// equal cores it is `step@1 / N`; where a core is slowed (by another tenant of a virtual
+/// machine, or by memory that does not keep up), it is more, and `step@1/ideal@N` is the
+/// speed-up the machine allowed. `ideal@N/step@N` is the share of it the step reached: about 1
+/// when the work is shared well. It is an estimate, not a bound: N grids move more memory than
+/// one, so a step on one grid can beat it a little.
+fn ideal_parallel_time(apart: &[f64]) -> f64 {
+    1.0 / apart.iter().map(|seconds| 1.0 / seconds).sum::<f64>()
 }
 
 /// Runs a no-op on every thread of the current pool and returns once all have run it, so that
@@ -541,6 +560,8 @@ mod tests {
             "naive/step@1",
             "step@1/step@N",
             "apart@N/step@1",
+            "step@1/ideal@N",
+            "ideal@N/step@N",
         ] {
             let value = window.ratio(ratio);
             assert!(value.is_some_and(|r| r > 0.0), "{ratio}: {value:?}");
@@ -551,6 +572,16 @@ mod tests {
         let moved = window.bytes_step_moved as usize;
         assert!(moved > 0 && moved < window.bytes_moved_per_step, "{moved}");
         Ok(())
+    }
+
+    #[test]
+    fn ideal_parallel_time_shares_the_cells_by_speed() {
+        // Equal cores: the step in N parts.
+        assert_eq!(ideal_parallel_time(&[0.01, 0.01]), 0.005);
+        // One core at 0.5 speed does a third of the cells: 20 ms alone on the fast one, 13.3 ms.
+        let shared = ideal_parallel_time(&[0.02, 0.04]);
+        assert!((shared - 0.04 / 3.0).abs() < 1e-12, "{shared}");
+        assert_eq!(ideal_parallel_time(&[0.01]), 0.01);
     }
 
     #[test]

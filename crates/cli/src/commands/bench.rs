@@ -139,6 +139,15 @@ fn table(report: &BenchReport) -> String {
             };
             out += &format!("  {name:<24} {value:>8.3}  {target}\n");
         }
+        if let (Some(allowed), Some(reached)) =
+            (w.ratio("step@1/ideal@N"), w.ratio("ideal@N/step@N"))
+        {
+            out += &format!(
+                "  all threads: when every core stepped its own grid, together they did \
+                 {allowed:.2}× the work of one thread alone (step@1/ideal@N); the step on all \
+                 threads reached {reached:.2} of that\n"
+            );
+        }
         out += "\n";
     }
     out += &format!(
