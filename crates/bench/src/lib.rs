@@ -348,6 +348,10 @@ impl<'a> Cases<'a> {
             format!("apart@{n}"),
             apart.iter().copied().fold(0.0, f64::max),
         ));
+        times.push((
+            format!("apart-fastest@{n}"),
+            apart.iter().copied().fold(f64::INFINITY, f64::min),
+        ));
         times.push((format!("ideal@{n}"), ideal_parallel_time(&apart)));
         if with_naive {
             let naive = &mut self.naive;
@@ -385,6 +389,11 @@ impl<'a> Cases<'a> {
             ("naive/step@1", "naive@1".into(), "step@1".into()),
             ("step@1/step@N", "step@1".into(), format!("step@{n}")),
             ("apart@N/step@1", format!("apart@{n}"), "step@1".into()),
+            (
+                "apart@N/apart-fastest@N",
+                format!("apart@{n}"),
+                format!("apart-fastest@{n}"),
+            ),
             ("step@1/ideal@N", "step@1".into(), format!("ideal@{n}")),
             ("ideal@N/step@N", format!("ideal@{n}"), format!("step@{n}")),
             (
@@ -457,7 +466,8 @@ fn lookup(round: &[(String, f64)], name: &str) -> Option<f64> {
 /// Nothing is shared but the machine, so the slowest of them over `step@1` (`apart@N/step@1`)
 /// says how much slower one step runs when every core runs one: 1 where memory and the cores
 /// keep up, more where they are shared (with each other, or with other tenants of a virtual
-/// machine). [`ideal_parallel_time`] turns the N times into the bound of `step@N`.
+/// machine). The slowest over the fastest (`apart@N/apart-fastest@N`) says how unequal the
+/// cores were: the same work at the same moment, 1 on equal cores. [`ideal_parallel_time`] turns the N times into the bound of `step@N`.
 fn step_apart(
     grids: &mut [(PerceptionGrid, rayon::ThreadPool)],
     sg: &evigrid::SensorGrid,
@@ -560,6 +570,7 @@ mod tests {
             "naive/step@1",
             "step@1/step@N",
             "apart@N/step@1",
+            "apart@N/apart-fastest@N",
             "step@1/ideal@N",
             "ideal@N/step@N",
         ] {

@@ -35,6 +35,7 @@ fn a_small_run_prints_every_step_case_ratio_and_the_scaling_line() -> TestResult
         "step@1".into(),
         format!("step@{threads}"),
         format!("apart@{threads}"),
+        format!("apart-fastest@{threads}"),
         format!("ideal@{threads}"),
         "step@1/step@N".into(),
         "step@1/ideal@N".into(),
