@@ -467,7 +467,8 @@ fn lookup(round: &[(String, f64)], name: &str) -> Option<f64> {
 /// says how much slower one step runs when every core runs one: 1 where memory and the cores
 /// keep up, more where they are shared (with each other, or with other tenants of a virtual
 /// machine). The slowest over the fastest (`apart@N/apart-fastest@N`) says how unequal the
-/// cores were: the same work at the same moment, 1 on equal cores. [`ideal_parallel_time`] turns the N times into the bound of `step@N`.
+/// cores were: the same work at the same moment, 1 on equal cores. [`ideal_parallel_time`]
+/// turns the N times into an estimate of the fastest `step@N` the cores allowed.
 fn step_apart(
     grids: &mut [(PerceptionGrid, rayon::ThreadPool)],
     sg: &evigrid::SensorGrid,
