@@ -35,7 +35,7 @@ pub struct RealInputs {
 pub enum RealError {
     /// The scan could not be read.
     #[error(transparent)]
-    Scan(#[from] evigrid::scan::ScanError),
+    Scan(#[from] drive::ScanError),
     /// The map could not be read.
     #[error(transparent)]
     Map(#[from] geodata::MapError),
@@ -70,7 +70,7 @@ impl RealCases {
     /// # Errors
     /// An unreadable scan or map, or an invalid window.
     pub fn new(inputs: &RealInputs, size: usize, cell_size_m: f64) -> Result<Self, RealError> {
-        let scan = evigrid::scan::read_scan(&inputs.scan)?;
+        let scan = drive::read_scan(&inputs.scan)?;
         let loaded = geodata::load_map(&inputs.map, &geodata::LoadOptions::default())?;
         let raster = ContextRaster::new(&loaded.map);
         let mut params = Params::default();

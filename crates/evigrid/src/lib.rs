@@ -38,7 +38,6 @@ pub mod params;
 pub mod pipeline;
 pub mod reference;
 pub mod render;
-pub mod scan;
 pub mod sensor_model;
 pub mod step;
 pub mod window;

@@ -977,9 +977,9 @@ mod tests {
         }
     }
 
-    fn shared_scan(name: &str) -> Option<crate::scan::Scan> {
+    fn shared_scan(name: &str) -> Option<drive::Scan> {
         let path = geodata::testdata::shared_file(&format!("data/lidar/kitti-city-22/{name}"))?;
-        Some(crate::scan::read_scan(&path).unwrap())
+        Some(drive::read_scan(&path).unwrap())
     }
 
     #[test]

@@ -20,7 +20,7 @@ use evigrid::render::{
     self, ClassColours, OccupancyGridExport, count_decisions, decision_image, pignistic_image,
     trace_image, write_masses, write_png,
 };
-use evigrid::scan::{list_scans, read_scan};
+use drive::{list_scans, read_scan};
 use evigrid::sensor_model::Isometry3;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;

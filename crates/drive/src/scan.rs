@@ -2,7 +2,7 @@
 //!
 //! A scan is a list of points in the *sensor* frame (metres), with an intensity per point when
 //! the file has one. Nothing is filtered here: NaN or far points are the sensor model's business,
-//! which counts what it drops (see [`crate::sensor_model`]).
+//! which counts what it drops.
 //!
 //! The PCD reader is a small one of our own: it accepts fields `x y z` and optionally
 //! `intensity` in any order among other fields, of type `F` with size 4 or 8 (intensity may also

@@ -1,0 +1,3 @@
+//! Ground segmentation for 3-D lidar scans.
+
+#![deny(missing_docs)]

@@ -1,0 +1,3 @@
+//! Lidar odometry: poses from the scans alone.
+
+#![deny(missing_docs)]
