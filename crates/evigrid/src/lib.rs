@@ -40,6 +40,7 @@ pub mod reference;
 pub mod render;
 pub mod sensor_model;
 pub mod step;
+pub mod trace;
 pub mod window;
 
 pub use decision::Decision;

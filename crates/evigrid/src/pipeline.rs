@@ -35,7 +35,7 @@ use crate::decision::Decision;
 use crate::grids::{GisGrid, PerceptionGrid, SensorGrid};
 use crate::map_prior::MapPrior;
 use crate::params::{Params, ParamsError};
-use crate::render::MovingTrace;
+use crate::trace::MovingTrace;
 use crate::sensor_model::{Isometry3, SensorModel, SensorStats};
 use crate::step::{StepStats, step_and_decide};
 use crate::window::{Window, WindowError};

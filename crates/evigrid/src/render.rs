@@ -24,8 +24,9 @@ use image::{Rgb, RgbImage};
 use serde::Serialize;
 
 use crate::decision::{Decision, betp};
+use crate::trace::MovingTrace;
 use crate::grids::{N_SETS, OMEGA, PerceptionGrid, class};
-use crate::window::{Entered, Window};
+use crate::window::Window;
 
 /// Why a picture or an export could not be written. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -188,49 +189,6 @@ pub fn pignistic_image(
     }))
 }
 
-/// Which cells were ever decided moving during the drive: a world-fixed flag per storage cell
-/// (paper Fig. 2, picture 4). Cells that enter the window start clear, so memory stays that of
-/// the window.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct MovingTrace {
-    ever_moving: Vec<bool>,
-}
-
-impl MovingTrace {
-    /// An empty trace for a window of `len` cells.
-    pub fn new(len: usize) -> Self {
-        Self {
-            ever_moving: vec![false; len],
-        }
-    }
-
-    /// Clears the cells that entered the window in its last move.
-    pub fn reset_entered(&mut self, window: &Window, entered: &Entered) {
-        for block in entered.blocks() {
-            for span in window.storage_spans(block) {
-                self.ever_moving[span].fill(false);
-            }
-        }
-    }
-
-    /// Adds the cells decided moving now (`decisions` in storage order).
-    pub fn record(&mut self, decisions: &[Decision]) {
-        for (flag, decision) in self.ever_moving.iter_mut().zip(decisions) {
-            *flag |= *decision == Decision::M;
-        }
-    }
-
-    /// The flags, in storage order.
-    pub fn as_slice(&self) -> &[bool] {
-        &self.ever_moving
-    }
-
-    /// Number of cells flagged.
-    pub fn count(&self) -> usize {
-        self.ever_moving.iter().filter(|f| **f).count()
-    }
-}
-
 /// The trace picture: the decision map with every cell of the trace painted in the moving
 /// colour.
 ///
@@ -244,9 +202,9 @@ pub fn trace_image(
     colours: &ClassColours,
 ) -> Result<RgbImage, RenderError> {
     check_len("decisions", decisions.len(), window)?;
-    check_len("moving trace", trace.ever_moving.len(), window)?;
+    check_len("moving trace", trace.as_slice().len(), window)?;
     Ok(paint(window, |idx| {
-        if trace.ever_moving[idx] {
+        if trace.as_slice()[idx] {
             colours.classes[4]
         } else {
             colours.of(decisions[idx])
