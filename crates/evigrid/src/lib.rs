@@ -36,6 +36,7 @@ pub mod grids;
 pub mod map_prior;
 pub mod params;
 pub mod pipeline;
+pub mod pose;
 pub mod reference;
 pub mod render;
 pub mod sensor_model;

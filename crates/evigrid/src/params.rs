@@ -271,7 +271,7 @@ pub struct SensorParams {
     /// How returns are split into obstacle and ground points: `"plane"` (3-D lidar: fit a
     /// ground plane per scan) or `"none"` (planar or multi-layer scanner: every return is an
     /// obstacle). By default `"plane"`, for the Velodyne data the project is tested on.
-    pub ground_model: crate::sensor_model::GroundModel,
+    pub ground_model: GroundModel,
     /// Half-thickness of the ground band, metres: returns within it of the fitted plane are
     /// ground returns. By default 0.2 m (provisional: above the HDL-64E's range noise, below a
     /// kerb; to be tuned on the benchmark).
@@ -291,11 +291,23 @@ impl Default for SensorParams {
             min_obstacle_height_m: 0.3,
             max_obstacle_height_m: 2.5,
             max_range_m: 60.0,
-            ground_model: crate::sensor_model::GroundModel::Plane,
+            ground_model: GroundModel::Plane,
             ground_band_m: 0.2,
             min_range_m: 2.0,
         }
     }
+}
+
+/// How a scan's points are split into obstacle and ground points (SPEC §3).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GroundModel {
+    /// Planar or multi-layer scanner: every return is an obstacle; there are no ground returns.
+    None,
+    /// 3-D lidar: fit a ground plane to each scan; obstacles lie between the obstacle heights
+    /// above it, ground returns within the ground band of it.
+    #[default]
+    Plane,
 }
 
 /// Confidence in the map, per context (SPEC §4, eq 34-38).

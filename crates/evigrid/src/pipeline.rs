@@ -35,9 +35,9 @@ use crate::decision::Decision;
 use crate::grids::{GisGrid, PerceptionGrid, SensorGrid};
 use crate::map_prior::MapPrior;
 use crate::params::{Params, ParamsError};
-use crate::trace::MovingTrace;
 use crate::sensor_model::{Isometry3, SensorModel, SensorStats};
 use crate::step::{StepStats, step_and_decide};
+use crate::trace::MovingTrace;
 use crate::window::{Window, WindowError};
 
 /// Why a frame (or the pipeline) was refused.

@@ -46,4 +46,3 @@ impl MovingTrace {
         self.ever_moving.iter().filter(|f| **f).count()
     }
 }
-

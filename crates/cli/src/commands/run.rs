@@ -14,13 +14,13 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use drive::{list_scans, read_scan};
 use evigrid::Params;
 use evigrid::pipeline::{FrameStats, Pipeline};
 use evigrid::render::{
     self, ClassColours, OccupancyGridExport, count_decisions, decision_image, pignistic_image,
     trace_image, write_masses, write_png,
 };
-use drive::{list_scans, read_scan};
 use evigrid::sensor_model::Isometry3;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;

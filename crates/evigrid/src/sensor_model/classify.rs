@@ -1,0 +1,142 @@
+//! Points into sectors: each levelled point is told ground, obstacle or neither, and every
+//! sector keeps the range of its nearest obstacle and of its farthest ground return.
+
+use super::ground_plane::GroundPlane;
+use crate::window::Window;
+
+/// Points classified per parallel task: enough that a task's per-sector arrays cost little.
+pub(super) const CLASSIFY_CHUNK: usize = 8192;
+
+/// How the points of a scan are told apart: ground (within the band of the fitted plane),
+/// obstacle (within the obstacle heights above it, or every point without a ground model) or
+/// neither.
+pub(super) struct PointClassifier<'a> {
+    pub(super) plane: Option<&'a GroundPlane>,
+    pub(super) ground_band_m: f64,
+    pub(super) obstacle_heights_m: std::ops::RangeInclusive<f64>,
+    pub(super) sectors: usize,
+    pub(super) sectors_per_radian: f64,
+    pub(super) window: &'a Window,
+    pub(super) sensor_xy: (f64, f64),
+}
+
+/// What one chunk of points gives.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Classified {
+    pub(super) ground_points: usize,
+    pub(super) unclassified_points: usize,
+    pub(super) dropped_outside_window: usize,
+    /// Farthest ground return and nearest obstacle return per sector.
+    pub(super) ground_range: Vec<f64>,
+    pub(super) obstacle_range: Vec<f64>,
+    /// (cell, sector, range) of each ground return in the window; cell of each obstacle return.
+    pub(super) ground_cells: Vec<(usize, u32, f64)>,
+    pub(super) obstacle_cells: Vec<usize>,
+}
+
+impl PointClassifier<'_> {
+    /// Classifies `points` into `out`, whose buffers are cleared and reused.
+    pub(super) fn chunk(&self, points: &[[f64; 3]], out: &mut Classified) {
+        out.ground_points = 0;
+        out.unclassified_points = 0;
+        out.dropped_outside_window = 0;
+        out.ground_range.clear();
+        out.ground_range.resize(self.sectors, 0.0);
+        out.obstacle_range.clear();
+        out.obstacle_range.resize(self.sectors, f64::INFINITY);
+        out.ground_cells.clear();
+        out.obstacle_cells.clear();
+        let (sensor_x, sensor_y) = self.sensor_xy;
+        for &q in points {
+            let is_obstacle = match self.plane {
+                None => true,
+                Some(plane) => {
+                    let h = plane.height_of(q);
+                    if h.abs() <= self.ground_band_m {
+                        out.ground_points += 1;
+                        let s = sector_of(q, self.sectors_per_radian, self.sectors);
+                        let range_m = horizontal_range(q);
+                        out.ground_range[s] = out.ground_range[s].max(range_m);
+                        if let Some(idx) = self
+                            .window
+                            .storage_index_of_point(sensor_x + q[0], sensor_y + q[1])
+                        {
+                            out.ground_cells.push((idx, s as u32, range_m));
+                        }
+                        continue;
+                    }
+                    self.obstacle_heights_m.contains(&h)
+                }
+            };
+            if !is_obstacle {
+                out.unclassified_points += 1;
+                continue;
+            }
+            match self
+                .window
+                .storage_index_of_point(sensor_x + q[0], sensor_y + q[1])
+            {
+                Some(idx) => {
+                    out.obstacle_cells.push(idx);
+                    let s = sector_of(q, self.sectors_per_radian, self.sectors);
+                    out.obstacle_range[s] = out.obstacle_range[s].min(horizontal_range(q));
+                }
+                None => out.dropped_outside_window += 1,
+            }
+        }
+    }
+}
+
+/// Horizontal distance from the sensor. (`f64::hypot` guards against overflow we cannot have
+/// here, at several times the cost.)
+#[inline]
+pub(super) fn horizontal_range(q: [f64; 3]) -> f64 {
+    (q[0] * q[0] + q[1] * q[1]).sqrt()
+}
+
+/// Sector of a levelled point by its bearing, `atan2(y, x)` measured from −π.
+#[inline]
+pub(super) fn sector_of(q: [f64; 3], sectors_per_radian: f64, sectors: usize) -> usize {
+    let angle = fast_atan2(q[1], q[0]) + std::f64::consts::PI;
+    // `as usize` saturates: a tiny negative angle gives sector 0.
+    ((angle * sectors_per_radian) as usize).min(sectors - 1)
+}
+
+/// `atan2(y, x)` within 1e-7 rad: octant reduction and a fitted polynomial for atan on
+/// [0, 1]. Sector assignment only needs a small fraction of a sector's width, and this is
+/// several times faster than the libm call on 100k points per scan.
+#[inline]
+pub(super) fn fast_atan2(y: f64, x: f64) -> f64 {
+    use std::f64::consts::{FRAC_PI_2, PI};
+    let (ax, ay) = (x.abs(), y.abs());
+    let (num, den) = if ay > ax { (ax, ay) } else { (ay, ax) };
+    if den == 0.0 {
+        return 0.0;
+    }
+    let z = num / den;
+    let z2 = z * z;
+    // atan(z) ≈ z·P(z²) on [0, 1]: a degree-15 odd polynomial, least-squares fitted on
+    // Chebyshev nodes (maximum error 4e-8 rad).
+    const C: [f64; 8] = [
+        0.999_999_438_324_601_7,
+        -0.333_301_127_400_456_2,
+        0.199_485_768_955_586_34,
+        -0.139_161_315_520_430_1,
+        0.096_570_694_736_276_69,
+        -0.056_073_881_742_006_86,
+        0.021_953_772_647_316_73,
+        -0.004_075_223_254_295_879,
+    ];
+    let mut poly = C[7];
+    for c in C[..7].iter().rev() {
+        poly = poly * z2 + c;
+    }
+    let mut a = z * poly;
+    if ay > ax {
+        a = FRAC_PI_2 - a;
+    }
+    if x < 0.0 {
+        a = PI - a;
+    }
+    if y < 0.0 { -a } else { a }
+}

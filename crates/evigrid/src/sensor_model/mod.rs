@@ -1,0 +1,273 @@
+//! The sensor model: one lidar scan becomes a SensorGrid on Ω_SG = {F, O} (SPEC §3, after Moras
+//! et al., ICRA 2011).
+//!
+//! The scan's points are moved into a *levelled* frame — world axes, origin at the sensor — with
+//! the sensor's pose. They are split into obstacle and ground points: for a planar or multi-layer
+//! scanner every return is an obstacle ([`GroundModel::None`]); for a 3-D lidar a ground plane is
+//! fitted to the scan ([`GroundModel::Plane`]: RANSAC with a fixed seed, then least squares on the
+//! inliers) and obstacle points are those between `min_obstacle_height_m` and
+//! `max_obstacle_height_m` above it, ground points those within `ground_band_m` of it.
+//!
+//! Around the sensor the plane is cut into angular sectors of `angular_resolution_deg`. Each
+//! sector keeps only two numbers, the range of its nearest obstacle return and that of its
+//! farthest ground return, so the cost of the free space does not grow with the number of
+//! points: rays walk the world-fixed window cell by cell (Amanatides & Woo's exact traversal) up
+//! to that range, enough rays per sector that neighbouring rays are less than a cell apart at
+//! their far end. Then every obstacle point marks its own cell occupied, which also settles the
+//! SPEC §3 decision that a cell both crossed and holding a return is occupied.
+//!
+//! Free cells are those a ray crosses *entirely* before the first obstacle range ("strictly
+//! before"); where a sector has no obstacle, the cells it enters before its farthest ground
+//! return (that return's own cell included: the ground was seen there).
+
+mod classify;
+mod ground_plane;
+mod ray;
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::grids::SensorGrid;
+use crate::params::SensorParams;
+use crate::window::Window;
+use classify::{CLASSIFY_CHUNK, Classified, PointClassifier, horizontal_range};
+use ray::walk_ray;
+
+pub use crate::params::GroundModel;
+pub use crate::pose::Isometry3;
+use ground_plane::fit_ground_plane_into;
+pub use ground_plane::{GroundPlane, fit_ground_plane};
+
+/// What became of one scan's points and cells.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct SensorStats {
+    /// Points in the scan.
+    pub points: usize,
+    /// Points dropped because a coordinate was NaN or infinite.
+    pub dropped_non_finite: usize,
+    /// Points dropped because their horizontal distance from the sensor is below `min_range_m`
+    /// (the vehicle's own body, invalid zero returns) or beyond `max_range_m`.
+    pub dropped_out_of_range: usize,
+    /// Obstacle points whose cell lies outside the window.
+    pub dropped_outside_window: usize,
+    /// Points used as obstacle returns.
+    pub obstacle_points: usize,
+    /// Points used as ground returns.
+    pub ground_points: usize,
+    /// Finite points in range that are neither: below the ground band, between the band and the
+    /// lowest obstacle height, above the highest obstacle height, or every point when no ground
+    /// plane could be fitted.
+    pub unclassified_points: usize,
+    /// Cells given m(F) = μ_F.
+    pub free_cells: usize,
+    /// Cells given m(O) = μ_O.
+    pub occupied_cells: usize,
+    /// The fitted ground plane ([`GroundModel::Plane`] only; `None` if no plane was found).
+    pub ground_plane: Option<GroundPlane>,
+}
+
+/// Builds SensorGrids from scans; keeps its scratch buffers between scans.
+#[derive(Clone, Debug)]
+pub struct SensorModel {
+    params: SensorParams,
+    /// Points in the levelled frame (world axes, sensor origin), kept between scans.
+    levelled: Vec<[f64; 3]>,
+    /// Horizontal range of the nearest obstacle per sector (∞ if none).
+    obstacle_range: Vec<f64>,
+    /// Horizontal range of the farthest ground return per sector (0 if none).
+    ground_range: Vec<f64>,
+    /// What each chunk of the current scan's points gave, in point order; kept between scans
+    /// so that the chunks' buffers are not allocated again.
+    classified: Vec<Classified>,
+    /// Indices of the ground plane's inliers (scratch of the fit).
+    inliers: Vec<usize>,
+}
+
+impl SensorModel {
+    /// A sensor model with these parameters (read from the `[sensor]` section).
+    pub fn new(params: SensorParams) -> Self {
+        Self {
+            params,
+            levelled: Vec::new(),
+            obstacle_range: Vec::new(),
+            ground_range: Vec::new(),
+            classified: Vec::new(),
+            inliers: Vec::new(),
+        }
+    }
+
+    /// The parameters in use.
+    pub fn params(&self) -> &SensorParams {
+        &self.params
+    }
+
+    /// Number of angular sectors: `ceil(360° / angular_resolution_deg)`, at least 1.
+    pub fn sector_count(&self) -> usize {
+        let n = (360.0 / self.params.angular_resolution_deg).ceil();
+        if n.is_finite() && n >= 1.0 {
+            (n as usize).min(1 << 20)
+        } else {
+            1
+        }
+    }
+
+    /// Fills `out` (cleared first) from one scan.
+    ///
+    /// `points_in_sensor` are the scan's points in the sensor frame; `world_from_sensor` is the
+    /// sensor's pose in the map's local frame at scan time; `window` maps world cells to the
+    /// storage of `out`, which must have the window's size.
+    ///
+    /// Points with a NaN or infinite coordinate, or beyond `max_range_m`, are dropped and
+    /// counted; so are obstacle points outside the window. A non-finite pose gives an empty
+    /// (vacuous) grid and counts every point as non-finite.
+    pub fn build(
+        &mut self,
+        points_in_sensor: &[[f32; 3]],
+        world_from_sensor: &Isometry3,
+        window: &Window,
+        out: &mut SensorGrid,
+    ) -> SensorStats {
+        out.clear();
+        let mut stats = SensorStats {
+            points: points_in_sensor.len(),
+            ..SensorStats::default()
+        };
+        if !world_from_sensor.is_finite() || out.len() != window.len() {
+            stats.dropped_non_finite = points_in_sensor.len();
+            return stats;
+        }
+        let (min_range_m, max_range_m) = (self.params.min_range_m, self.params.max_range_m);
+        // Levelled frame: rotate only, so that heights and ranges are metric and small numbers
+        // keep full precision whatever the map's origin.
+        self.levelled.clear();
+        for p in points_in_sensor {
+            if !p.iter().all(|v| v.is_finite()) {
+                stats.dropped_non_finite += 1;
+                continue;
+            }
+            let q = world_from_sensor.rotate([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]);
+            let range_m = horizontal_range(q);
+            if !(min_range_m..=max_range_m).contains(&range_m) {
+                stats.dropped_out_of_range += 1;
+                continue;
+            }
+            self.levelled.push(q);
+        }
+        let plane = match self.params.ground_model {
+            GroundModel::None => None,
+            GroundModel::Plane => {
+                let plane = fit_ground_plane_into(
+                    &self.levelled,
+                    self.params.ground_band_m,
+                    &mut self.inliers,
+                );
+                stats.ground_plane = plane;
+                if plane.is_none() {
+                    stats.unclassified_points = self.levelled.len();
+                    return stats;
+                }
+                plane
+            }
+        };
+
+        let sectors = self.sector_count();
+        let sector_width = std::f64::consts::TAU / sectors as f64;
+        let sectors_per_radian = sectors as f64 / std::f64::consts::TAU;
+        // Points are classified in fixed chunks, in parallel, and the chunks merged in order:
+        // ranges by min/max, cells in point order, so the result does not depend on the number
+        // of threads.
+        let [sensor_x, sensor_y, _] = world_from_sensor.translation;
+        let classify = PointClassifier {
+            plane: plane.as_ref(),
+            ground_band_m: self.params.ground_band_m,
+            obstacle_heights_m: self.params.min_obstacle_height_m
+                ..=self.params.max_obstacle_height_m,
+            sectors,
+            sectors_per_radian,
+            window,
+            sensor_xy: (sensor_x, sensor_y),
+        };
+        let chunk_count = self.levelled.len().div_ceil(CLASSIFY_CHUNK);
+        self.classified
+            .resize_with(chunk_count, Classified::default);
+        self.levelled
+            .par_chunks(CLASSIFY_CHUNK)
+            .zip(self.classified.par_iter_mut())
+            .for_each(|(points, out)| classify.chunk(points, out));
+        self.obstacle_range.clear();
+        self.obstacle_range.resize(sectors, f64::INFINITY);
+        self.ground_range.clear();
+        self.ground_range.resize(sectors, 0.0);
+        for chunk in &self.classified {
+            stats.ground_points += chunk.ground_points;
+            stats.unclassified_points += chunk.unclassified_points;
+            stats.obstacle_points += chunk.obstacle_cells.len();
+            stats.dropped_outside_window += chunk.dropped_outside_window;
+            for (all, this) in self.ground_range.iter_mut().zip(&chunk.ground_range) {
+                *all = all.max(*this);
+            }
+            for (all, this) in self.obstacle_range.iter_mut().zip(&chunk.obstacle_range) {
+                *all = all.min(*this);
+            }
+        }
+
+        let mu_free = self.params.mu_free as f32;
+        let mu_occupied = self.params.mu_occupied as f32;
+        let cell_size_m = window.cell_size_m();
+        let origin = (sensor_x / cell_size_m, sensor_y / cell_size_m);
+        let mut free_cells = 0usize;
+        for s in 0..sectors {
+            let (limit_m, whole_cells) = if self.obstacle_range[s].is_finite() {
+                (self.obstacle_range[s], true)
+            } else {
+                (self.ground_range[s], false)
+            };
+            if limit_m <= 0.0 {
+                continue;
+            }
+            // Enough rays that neighbours are under a cell apart at the far end.
+            let rays = ((limit_m * sector_width / cell_size_m).ceil() as usize).clamp(1, 4096);
+            let first_angle = -std::f64::consts::PI + s as f64 * sector_width;
+            for k in 0..rays {
+                let angle = first_angle + (k as f64 + 0.5) * sector_width / rays as f64;
+                walk_ray(
+                    window,
+                    origin,
+                    angle.sin_cos(),
+                    limit_m / cell_size_m,
+                    whole_cells,
+                    |idx| {
+                        // Counted on the first visit: rays of a sector overlap near the sensor.
+                        free_cells += usize::from(out.m_free()[idx] != mu_free);
+                        out.set_free(idx, mu_free);
+                    },
+                );
+            }
+        }
+        // A ground return's own cell was seen free, if it lies within its sector's free range
+        // (a ray may enter that cell just after the return's range, or miss its corner).
+        let ground_cells = self.classified.iter().flat_map(|c| &c.ground_cells);
+        for &(idx, s, range_m) in ground_cells {
+            let s = s as usize;
+            if range_m < self.obstacle_range[s] {
+                free_cells += usize::from(out.m_free()[idx] != mu_free);
+                out.set_free(idx, mu_free);
+            }
+        }
+        let mut occupied_cells = 0;
+        for &idx in self.classified.iter().flat_map(|c| &c.obstacle_cells) {
+            if out.m_occupied()[idx] != mu_occupied {
+                occupied_cells += 1;
+                free_cells -= usize::from(out.m_free()[idx] == mu_free && mu_free != 0.0);
+            }
+            out.set_free(idx, 0.0);
+            out.set_occupied(idx, mu_occupied);
+        }
+        stats.free_cells = free_cells;
+        stats.occupied_cells = occupied_cells;
+        stats
+    }
+}
+
+#[cfg(test)]
+mod tests;

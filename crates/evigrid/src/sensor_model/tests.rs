@@ -1,0 +1,301 @@
+#![allow(clippy::unwrap_used)]
+use super::*;
+use classify::fast_atan2;
+
+fn planar_params() -> SensorParams {
+    SensorParams {
+        ground_model: GroundModel::None,
+        angular_resolution_deg: 1.0,
+        max_range_m: 50.0,
+        ..SensorParams::default()
+    }
+}
+
+/// A 21 × 21 window of 1 m cells centred on the origin (cells -10..=10).
+fn small_window() -> Window {
+    let mut w = Window::new(21, 21, 1.0).unwrap();
+    w.recentre(0.5, 0.5).unwrap();
+    w
+}
+
+fn at(window: &Window, grid: &[f32], x: f64, y: f64) -> f32 {
+    grid[window.storage_index_of_point(x, y).unwrap()]
+}
+
+#[test]
+fn fast_atan2_is_within_a_tenth_of_a_microradian() {
+    let mut worst = 0.0f64;
+    for k in 0..100_000 {
+        let angle = -std::f64::consts::PI + k as f64 * std::f64::consts::TAU / 100_000.0;
+        let (y, x) = (3.7 * angle.sin(), 3.7 * angle.cos());
+        let d = (fast_atan2(y, x) - y.atan2(x)).abs();
+        // ±π are the same bearing.
+        worst = worst.max(d.min((d - std::f64::consts::TAU).abs()));
+    }
+    assert!(worst < 1e-7, "{worst}");
+    assert_eq!(fast_atan2(0.0, 0.0), 0.0);
+}
+
+#[test]
+fn rpy_follows_the_ros_convention() {
+    // Yaw 90°: the sensor's x axis points north. Pitch 90°: x points down.
+    let yaw = Isometry3::from_xyz_rpy(1.0, 2.0, 3.0, 0.0, 0.0, std::f64::consts::FRAC_PI_2);
+    let p = yaw.transform_point([1.0, 0.0, 0.0]);
+    assert!((p[0] - 1.0).abs() < 1e-12 && (p[1] - 3.0).abs() < 1e-12 && (p[2] - 3.0).abs() < 1e-12);
+    let pitch = Isometry3::from_xyz_rpy(0.0, 0.0, 0.0, 0.0, std::f64::consts::FRAC_PI_2, 0.0);
+    let p = pitch.rotate([1.0, 0.0, 0.0]);
+    assert!((p[2] + 1.0).abs() < 1e-12 && p[0].abs() < 1e-12);
+    // Roll 90°: y points up.
+    let roll = Isometry3::from_xyz_rpy(0.0, 0.0, 0.0, std::f64::consts::FRAC_PI_2, 0.0, 0.0);
+    let p = roll.rotate([0.0, 1.0, 0.0]);
+    assert!((p[2] - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn a_wall_ahead_gives_free_cells_before_it_and_occupied_cells_on_it() {
+    let window = small_window();
+    let mut grid = SensorGrid::new(21, 21);
+    let mut model = SensorModel::new(planar_params());
+    // A wall at x = 5.5 m from y = −2 to 2, seen from the centre of cell (0, 0).
+    let points: Vec<[f32; 3]> = (-20..=20).map(|k| [5.5, k as f32 * 0.1, 0.0]).collect();
+    let pose = Isometry3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
+    let stats = model.build(&points, &pose, &window, &mut grid);
+    assert_eq!(stats.obstacle_points, 41);
+    // Wall points: y from −2 + 0.5 to 2 + 0.5 in world, x 6.0 → column 6, rows −2..=2.
+    for row in -2..=2 {
+        let y = row as f64 + 0.5;
+        assert_eq!(at(&window, grid.m_occupied(), 6.5, y), 0.8, "row {row}");
+        assert_eq!(at(&window, grid.m_free(), 6.5, y), 0.0);
+    }
+    // Cells 0..=5 along the row of the sensor are free; beyond the wall nothing is known.
+    for col in 0..=5 {
+        assert_eq!(
+            at(&window, grid.m_free(), col as f64 + 0.5, 0.5),
+            0.7,
+            "col {col}"
+        );
+    }
+    assert_eq!(at(&window, grid.m_free(), 7.5, 0.5), 0.0);
+    assert_eq!(at(&window, grid.m_occupied(), 7.5, 0.5), 0.0);
+    // Behind the sensor no return: no free space is invented.
+    assert_eq!(at(&window, grid.m_free(), -3.5, 0.5), 0.0);
+    assert_eq!(stats.occupied_cells, 5);
+}
+
+#[test]
+fn bad_points_are_dropped_and_counted() {
+    let window = small_window();
+    let mut grid = SensorGrid::new(21, 21);
+    let mut model = SensorModel::new(SensorParams {
+        max_range_m: 30.0,
+        ..planar_params()
+    });
+    let points = [
+        [f32::NAN, 0.0, 0.0],
+        [f32::INFINITY, 1.0, 0.0],
+        [40.0, 0.0, 0.0], // beyond 30 m
+        [15.0, 0.0, 0.0], // in range, outside the 21-cell window
+        [3.0, 0.0, 0.0],  // kept
+    ];
+    let stats = model.build(&points, &Isometry3::IDENTITY, &window, &mut grid);
+    assert_eq!(stats.points, 5);
+    assert_eq!(stats.dropped_non_finite, 2);
+    assert_eq!(stats.dropped_out_of_range, 1);
+    assert_eq!(stats.dropped_outside_window, 1);
+    assert_eq!(stats.obstacle_points, 1);
+    assert!(
+        grid.m_occupied()
+            .iter()
+            .chain(grid.m_free())
+            .all(|v| v.is_finite())
+    );
+    // A non-finite pose: nothing at all.
+    let pose = Isometry3::from_xyz_rpy(f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let stats = model.build(&points, &pose, &window, &mut grid);
+    assert_eq!(stats.dropped_non_finite, 5);
+    assert!(grid.m_free().iter().all(|&v| v == 0.0));
+}
+
+#[test]
+fn ground_returns_make_free_space_up_to_the_farthest_one() {
+    let window = small_window();
+    let mut grid = SensorGrid::new(21, 21);
+    let mut model = SensorModel::new(SensorParams {
+        ground_model: GroundModel::Plane,
+        ground_band_m: 0.2,
+        ..planar_params()
+    });
+    // A flat ground 1.5 m below the sensor, sampled densely to 8 m, plus one box at
+    // (−4, 0) rising 1 m.
+    let mut points = Vec::new();
+    for i in 0..400 {
+        let angle = i as f32 * std::f32::consts::TAU / 400.0;
+        for r in [3.0f32, 4.0, 5.0, 6.0, 7.0, 8.0] {
+            points.push([r * angle.cos(), r * angle.sin(), -1.5]);
+        }
+    }
+    // The box's face: x = −3.8 m, y from −1 to 1.5 m, heights 0.5 to 1.3 m above ground.
+    // 2 cm apart, so that every 1° sector across the face holds some of its points.
+    for dy in 0..=125 {
+        for dz in 0..5 {
+            points.push([-3.8, -1.0 + dy as f32 * 0.02, -1.0 + dz as f32 * 0.2]);
+        }
+    }
+    let stats = model.build(&points, &Isometry3::IDENTITY, &window, &mut grid);
+    let plane = stats.ground_plane.unwrap();
+    assert!((plane.offset_m + 1.5).abs() < 1e-6 && (plane.normal[2] - 1.0).abs() < 1e-9);
+    assert_eq!(stats.ground_points, 2400);
+    // Heights 0.5, 0.7, …, 1.3 m: all within the default 0.3 – 2.5 m obstacle band.
+    assert_eq!(stats.obstacle_points, 126 * 5);
+    assert_eq!(at(&window, grid.m_occupied(), -3.5, 0.5), 0.8);
+    assert_eq!(at(&window, grid.m_occupied(), -2.5, 0.5), 0.0);
+    // Free to 8 m east (the cell at 8 m holds a ground return), not beyond.
+    assert_eq!(at(&window, grid.m_free(), 8.5, 0.5), 0.7);
+    assert_eq!(at(&window, grid.m_free(), 9.5, 0.5), 0.0);
+    // West: free before the box only; the ground seen beyond it does not count.
+    assert_eq!(at(&window, grid.m_free(), -2.5, 0.5), 0.7);
+    assert_eq!(at(&window, grid.m_free(), -4.5, 0.5), 0.0);
+    assert_eq!(at(&window, grid.m_free(), -5.5, 0.5), 0.0);
+}
+
+#[test]
+fn an_empty_scan_gives_a_vacuous_grid() {
+    let window = small_window();
+    let mut grid = SensorGrid::new(21, 21);
+    grid.m_free_mut().fill(0.3);
+    let stats = SensorModel::new(SensorParams::default()).build(
+        &[],
+        &Isometry3::IDENTITY,
+        &window,
+        &mut grid,
+    );
+    assert_eq!(stats.free_cells + stats.occupied_cells, 0);
+    assert!(
+        grid.m_free()
+            .iter()
+            .chain(grid.m_occupied())
+            .all(|&v| v == 0.0)
+    );
+}
+
+#[test]
+fn rays_leave_no_gaps_at_long_range() {
+    // A ring of obstacles at 9.7 m: every cell strictly inside 8.5 m must be free.
+    let window = small_window();
+    let mut grid = SensorGrid::new(21, 21);
+    let mut model = SensorModel::new(SensorParams {
+        angular_resolution_deg: 5.0,
+        ..planar_params()
+    });
+    let points: Vec<[f32; 3]> = (0..3600)
+        .map(|i| {
+            let a = i as f32 * std::f32::consts::TAU / 3600.0;
+            [9.7 * a.cos(), 9.7 * a.sin(), 0.0]
+        })
+        .collect();
+    model.build(
+        &points,
+        &Isometry3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0),
+        &window,
+        &mut grid,
+    );
+    for col in -10..=10i64 {
+        for row in -10..=10i64 {
+            let (cx, cy) = window.cell_centre(col, row);
+            let far_corner = ((cx - 0.5).abs() + 0.5).hypot((cy - 0.5).abs() + 0.5);
+            if far_corner < 8.5 {
+                assert_eq!(
+                    at(&window, grid.m_free(), cx, cy),
+                    0.7,
+                    "cell ({col}, {row})"
+                );
+            }
+        }
+    }
+}
+
+fn shared_scan(name: &str) -> Option<drive::Scan> {
+    let path = geodata::testdata::shared_file(&format!("data/lidar/kitti-city-22/{name}"))?;
+    Some(drive::read_scan(&path).unwrap())
+}
+
+#[test]
+fn finds_the_road_under_the_kitti_lidar() {
+    let Some(scan) = shared_scan("0000000000.pcd") else {
+        return;
+    };
+    let levelled: Vec<[f64; 3]> = scan
+        .points_in_sensor
+        .iter()
+        .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
+        .collect();
+    let plane = fit_ground_plane(&levelled, 0.2).unwrap();
+    // KITTI's HDL-64E is mounted 1.73 m above the road (Geiger et al. 2013).
+    assert!(plane.normal[2] > 0.995, "{plane:?}");
+    assert!((plane.offset_m + 1.73).abs() < 0.15, "{plane:?}");
+    assert!(plane.inliers > scan.len() / 4, "{plane:?}");
+}
+
+#[test]
+fn a_real_scan_into_a_large_window() {
+    let Some(scan) = shared_scan("0000000000.pcd") else {
+        return;
+    };
+    let mut window = Window::new(1000, 1000, 0.2).unwrap();
+    window.recentre(0.0, 0.0).unwrap();
+    let mut grid = SensorGrid::new(1000, 1000);
+    let mut model = SensorModel::new(SensorParams::default());
+    let stats = model.build(
+        &scan.points_in_sensor,
+        &Isometry3::IDENTITY,
+        &window,
+        &mut grid,
+    );
+    // The points are classified in parallel: any number of threads gives the same grid.
+    for threads in [1, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let mut again = SensorGrid::new(1000, 1000);
+        let stats_again = pool.install(|| {
+            SensorModel::new(SensorParams::default()).build(
+                &scan.points_in_sensor,
+                &Isometry3::IDENTITY,
+                &window,
+                &mut again,
+            )
+        });
+        assert_eq!(stats_again, stats, "{threads} threads");
+        assert!(again.m_free() == grid.m_free() && again.m_occupied() == grid.m_occupied());
+    }
+    assert_eq!(stats.points, 119_978);
+    // The grid knows which blocks of 64 cells the scan left vacuous (the step skips them):
+    // every cell with mass lies in a noted block, and most blocks of this window are not.
+    let noted = grid.may_hold_mass();
+    for (idx, (&free, &occupied)) in grid.m_free().iter().zip(grid.m_occupied()).enumerate() {
+        assert!(free + occupied == 0.0 || noted[idx / 64], "cell {idx}");
+    }
+    let share = noted.iter().filter(|&&b| b).count() as f64 / noted.len() as f64;
+    assert!(share < 0.2, "{share}");
+    assert_eq!(
+        stats.points,
+        stats.dropped_non_finite
+            + stats.dropped_out_of_range
+            + stats.dropped_outside_window
+            + stats.obstacle_points
+            + stats.ground_points
+            + stats.unclassified_points
+    );
+    assert!(
+        stats.obstacle_points > 1000 && stats.ground_points > 30_000,
+        "{stats:?}"
+    );
+    assert!(
+        stats.free_cells > 10_000 && stats.occupied_cells > 500,
+        "{stats:?}"
+    );
+    // The sensor's own cell is seen free (the road under the car), not occupied.
+    let own = window.storage_index_of_point(0.0, 0.0).unwrap();
+    assert_eq!(grid.m_occupied()[own], 0.0);
+}
