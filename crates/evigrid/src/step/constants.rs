@@ -5,15 +5,15 @@
 use super::evidence::CellEvidence;
 use super::passes::{ALL_SETS, Live, REACHABLE, Restriction};
 use crate::grids::{N_SETS, OMEGA, class};
+use crate::map_prior::{MAP_CONTEXTS, prior_beta, prior_focal_set};
 use crate::params::{DiscountMode, Params, ResidualPolicy, SetRate, UnobservedCells};
-use geodata::MapContext;
 
 /// Everything the step derives from the parameters once, before touching a cell.
 #[derive(Clone, Debug)]
 pub(super) struct StepConstants {
     pub(super) discount: Discount,
-    /// The GISGrid mass function of each map context, indexed by `MapContext as u8`.
-    pub(super) map_prior: [MapPrior; 4],
+    /// The map prior of each map context, indexed by `MapContext as usize`.
+    pub(super) context_priors: [ContextPrior; 4],
     pub(super) residual: ResidualPolicy,
     pub(super) delta_inc: f32,
     pub(super) delta_dec: f32,
@@ -28,6 +28,44 @@ pub(super) struct StepConstants {
     pub(super) specialisation: Restrictions,
 }
 
+impl StepConstants {
+    pub(super) fn new(params: &Params, dt_s: f64) -> Self {
+        let dt_s = if dt_s > 0.0 { dt_s } else { 0.0 };
+        let fusion = &params.fusion;
+        let class_rates = fusion.discount_per_second.as_array();
+        let discount = match fusion.discount_mode {
+            DiscountMode::Classical => {
+                let rate = set_rate_per_second(OMEGA, &class_rates, fusion.set_rate);
+                Discount::ToOmega([rate_for_step(rate, dt_s) as f32; N_SETS])
+            }
+            DiscountMode::ClassRates => Discount::ToOmega(std::array::from_fn(|set| {
+                let rate = set_rate_per_second(set, &class_rates, fusion.set_rate);
+                rate_for_step(rate, dt_s) as f32
+            })),
+            DiscountMode::Mercier => {
+                Discount::Mercier(class_rates.map(|rate| rate_for_step(rate, dt_s) as f32))
+            }
+        };
+        let context_priors = MAP_CONTEXTS.map(|context| {
+            ContextPrior::new(prior_focal_set(context), prior_beta(context, &params.map))
+        });
+        let acc = &params.accumulator;
+        StepConstants {
+            discount,
+            context_priors,
+            residual: fusion.residual,
+            delta_inc: acc.delta_inc as f32,
+            delta_dec: acc.delta_dec as f32,
+            gamma_occupied: acc.gamma_occupied as f32,
+            gamma_conflict: acc.gamma_conflict as f32,
+            unobserved_evidence: context_priors.map(|prior| CellEvidence::unobserved(&prior)),
+            unknown_threshold: params.decision.unknown_threshold as f32,
+            unobserved: fusion.unobserved,
+            specialisation: Restrictions::new(OMEGA ^ class::M),
+        }
+    }
+}
+
 /// The discounting of step 3, as rates for this step's `dt`.
 #[derive(Clone, Debug)]
 pub(super) enum Discount {
@@ -37,10 +75,36 @@ pub(super) enum Discount {
     Mercier([f32; 5]),
 }
 
-/// The GISGrid of one map context: β on the focal set G, 1 − β on Ω (eq 34-38), with the
-/// indicators SG' needs, as 0/1 factors.
+/// α(dt) = 1 − (1 − α_1s)^dt: a rate per second applied over `dt_s` seconds (SPEC §5 step 3).
+pub fn rate_for_step(rate_per_second: f64, dt_s: f64) -> f64 {
+    1.0 - (1.0 - rate_per_second).powf(dt_s)
+}
+
+/// α_A per second from the rates of the classes in A (`class_rates` and `classical` modes).
+///
+/// For A = ∅ (mass kept on ∅ by the `keep` policy) the classes of Ω are used, so that equal rates
+/// give classical discounting on every set, ∅ included (eq 13).
+pub fn set_rate_per_second(set: usize, class_rates: &[f64; 5], set_rate: SetRate) -> f64 {
+    let members = if set == 0 { OMEGA } else { set };
+    let rates = (0..5)
+        .filter(|k| members & (1 << k) != 0)
+        .map(|k| class_rates[k]);
+    match set_rate {
+        SetRate::Min => rates.fold(f64::INFINITY, f64::min),
+        SetRate::Max => rates.fold(f64::NEG_INFINITY, f64::max),
+        SetRate::Mean => {
+            let count = members.count_ones() as f64;
+            rates.sum::<f64>() / count
+        }
+    }
+}
+
+/// The GISGrid mass function of one map context, β on the focal set G and 1 − β on Ω (SPEC §4,
+/// from [`prior_focal_set`] and [`prior_beta`]), as the passes apply it: its transfers, and the
+/// indicators SG' needs as 0/1 factors. (Not the public `map_prior::MapPrior`, which fills the
+/// GISGrid's contexts.)
 #[derive(Clone, Copy, Debug)]
-pub(super) struct MapPrior {
+pub(super) struct ContextPrior {
     /// The focal set G.
     pub(super) g: usize,
     /// The transfers of m ∩ GG, for blocks on the reachable sets and for any block.
@@ -53,10 +117,10 @@ pub(super) struct MapPrior {
     pub(super) g_within_occupied: f32,
 }
 
-impl MapPrior {
+impl ContextPrior {
     fn new(g: usize, beta: f64) -> Self {
         let indicator = |condition: bool| if condition { 1.0 } else { 0.0 };
-        MapPrior {
+        ContextPrior {
             g,
             restriction: Restrictions::new(g),
             beta: beta as f32,
@@ -96,72 +160,6 @@ impl Restrictions {
             &self.reachable
         } else {
             &self.all
-        }
-    }
-}
-
-/// α(dt) = 1 − (1 − α_1s)^dt: a rate per second applied over `dt_s` seconds (SPEC §5 step 3).
-pub fn rate_for_step(rate_per_second: f64, dt_s: f64) -> f64 {
-    1.0 - (1.0 - rate_per_second).powf(dt_s)
-}
-
-/// α_A per second from the rates of the classes in A (`class_rates` and `classical` modes).
-///
-/// For A = ∅ (mass kept on ∅ by the `keep` policy) the classes of Ω are used, so that equal rates
-/// give classical discounting on every set, ∅ included (eq 13).
-pub fn set_rate_per_second(set: usize, class_rates: &[f64; 5], set_rate: SetRate) -> f64 {
-    let members = if set == 0 { OMEGA } else { set };
-    let rates = (0..5)
-        .filter(|k| members & (1 << k) != 0)
-        .map(|k| class_rates[k]);
-    match set_rate {
-        SetRate::Min => rates.fold(f64::INFINITY, f64::min),
-        SetRate::Max => rates.fold(f64::NEG_INFINITY, f64::max),
-        SetRate::Mean => {
-            let count = members.count_ones() as f64;
-            rates.sum::<f64>() / count
-        }
-    }
-}
-
-impl StepConstants {
-    pub(super) fn new(params: &Params, dt_s: f64) -> Self {
-        let dt_s = if dt_s > 0.0 { dt_s } else { 0.0 };
-        let fusion = &params.fusion;
-        let class_rates = fusion.discount_per_second.as_array();
-        let discount = match fusion.discount_mode {
-            DiscountMode::Classical => {
-                let rate = set_rate_per_second(OMEGA, &class_rates, fusion.set_rate);
-                Discount::ToOmega([rate_for_step(rate, dt_s) as f32; N_SETS])
-            }
-            DiscountMode::ClassRates => Discount::ToOmega(std::array::from_fn(|set| {
-                let rate = set_rate_per_second(set, &class_rates, fusion.set_rate);
-                rate_for_step(rate, dt_s) as f32
-            })),
-            DiscountMode::Mercier => {
-                Discount::Mercier(class_rates.map(|rate| rate_for_step(rate, dt_s) as f32))
-            }
-        };
-        let map = &params.map;
-        let mut map_prior = [MapPrior::new(OMEGA, 0.0); 4];
-        map_prior[MapContext::Other as usize] =
-            MapPrior::new(class::F | class::U | class::S | class::M, map.beta_other);
-        map_prior[MapContext::Road as usize] =
-            MapPrior::new(class::F | class::S | class::M, map.beta_road);
-        map_prior[MapContext::Building as usize] = MapPrior::new(class::I, map.beta_building);
-        let acc = &params.accumulator;
-        StepConstants {
-            discount,
-            map_prior,
-            residual: fusion.residual,
-            delta_inc: acc.delta_inc as f32,
-            delta_dec: acc.delta_dec as f32,
-            gamma_occupied: acc.gamma_occupied as f32,
-            gamma_conflict: acc.gamma_conflict as f32,
-            unobserved_evidence: map_prior.map(|prior| CellEvidence::unobserved(&prior)),
-            unknown_threshold: params.decision.unknown_threshold as f32,
-            unobserved: fusion.unobserved,
-            specialisation: Restrictions::new(OMEGA ^ class::M),
         }
     }
 }

@@ -2,7 +2,7 @@
 //! cell in the compact form the fusion needs, and the per-lane lookups by map context it is
 //! built with.
 
-use super::constants::{MapPrior, StepConstants};
+use super::constants::{ContextPrior, StepConstants};
 use super::lanes::any_lane;
 use super::passes::{BLOCK, Lanes};
 use geodata::MapContext;
@@ -59,8 +59,8 @@ impl CellEvidence {
     }
 
     /// A cell the scan did not reach, in map context `prior`.
-    pub(super) fn unobserved(prior: &MapPrior) -> Self {
-        let MapPrior {
+    pub(super) fn unobserved(prior: &ContextPrior) -> Self {
+        let ContextPrior {
             beta,
             free_in_g,
             occupied_meets_g,
@@ -166,7 +166,8 @@ impl SensorEvidence {
             // The map prior of each cell, selected the same way.
             // The map prior of each cell: a broadcast inside one context, else a lookup in the
             // four contexts' values by the two bits of the context (three selects a value).
-            let table = |field: fn(&MapPrior) -> f32| k.map_prior.map(|prior| field(&prior));
+            let table =
+                |field: fn(&ContextPrior) -> f32| k.context_priors.map(|prior| field(&prior));
             let bits = match one_context {
                 Some(_) => [[0; BLOCK]; 2],
                 None => context_bits(context),

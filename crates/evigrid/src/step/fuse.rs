@@ -81,7 +81,7 @@ pub(super) fn step_block(
 fn reachable_this_step(before: PlaneBits, sensor: &SensorEvidence, k: &StepConstants) -> Live {
     let mut live = (before & MASS_BITS) as Live | 1 << OMEGA;
     let mut restricted = live;
-    for (c, prior) in k.map_prior.iter().enumerate() {
+    for (c, prior) in k.context_priors.iter().enumerate() {
         if sensor.contexts_present & (1 << c) != 0 && prior.is_informative() {
             for_each_bit(PlaneBits::from(live), |set| {
                 restricted |= 1 << (set & prior.g)

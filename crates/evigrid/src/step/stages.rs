@@ -167,7 +167,7 @@ pub(super) fn combine_with_map_prior(
     k: &StepConstants,
     live: Live,
 ) {
-    for (index, prior) in k.map_prior.iter().enumerate() {
+    for (index, prior) in k.context_priors.iter().enumerate() {
         if sensor.contexts_present & (1 << index) == 0 || !prior.is_informative() {
             continue;
         }
