@@ -1,9 +1,10 @@
 //! What the step derives from the parameters once, before touching a cell: the discount rates
 //! for this step's `dt` (SPEC §5 step 3), the map prior of each context as the passes apply it
-//! (SPEC §4), the accumulator's thresholds (eq 24-27) and the specialisation's transfers.
+//! and the evidence of a cell the scan did not reach (SPEC §4-5), the accumulator's thresholds
+//! (eq 24-27) and the specialisation's transfers.
 
-use super::evidence::CellEvidence;
-use super::passes::{ALL_SETS, Live, REACHABLE, Restriction};
+use super::evidence::{CellEvidence, ContextPrior};
+use super::passes::Restrictions;
 use crate::grids::{N_SETS, OMEGA, class};
 use crate::map_prior::{MAP_CONTEXTS, prior_beta, prior_focal_set};
 use crate::params::{DiscountMode, Params, ResidualPolicy, SetRate, UnobservedCells};
@@ -95,71 +96,6 @@ pub fn set_rate_per_second(set: usize, class_rates: &[f64; 5], set_rate: SetRate
         SetRate::Mean => {
             let count = members.count_ones() as f64;
             rates.sum::<f64>() / count
-        }
-    }
-}
-
-/// The GISGrid mass function of one map context, β on the focal set G and 1 − β on Ω (SPEC §4,
-/// from [`prior_focal_set`] and [`prior_beta`]), as the passes apply it: its transfers, and the
-/// indicators SG' needs as 0/1 factors. (Not the public `map_prior::MapPrior`, which fills the
-/// GISGrid's contexts.)
-#[derive(Clone, Copy, Debug)]
-pub(super) struct ContextPrior {
-    /// The focal set G.
-    pub(super) g: usize,
-    /// The transfers of m ∩ GG, for blocks on the reachable sets and for any block.
-    pub(super) restriction: Restrictions,
-    pub(super) beta: f32,
-    /// [F ∈ G], [O ∩ G ≠ ∅], [G = {F}], [∅ ≠ G ⊆ O].
-    pub(super) free_in_g: f32,
-    pub(super) occupied_meets_g: f32,
-    pub(super) g_is_free: f32,
-    pub(super) g_within_occupied: f32,
-}
-
-impl ContextPrior {
-    fn new(g: usize, beta: f64) -> Self {
-        let indicator = |condition: bool| if condition { 1.0 } else { 0.0 };
-        ContextPrior {
-            g,
-            restriction: Restrictions::new(g),
-            beta: beta as f32,
-            free_in_g: indicator(g & class::F != 0),
-            occupied_meets_g: indicator(g & class::O != 0),
-            g_is_free: indicator(g == class::F),
-            g_within_occupied: indicator(g != 0 && g & class::F == 0),
-        }
-    }
-
-    /// Whether combining with this prior can change a mass function.
-    pub(super) fn is_informative(&self) -> bool {
-        self.g != OMEGA && self.beta > 0.0
-    }
-}
-
-/// The [`Restriction`] to one focal set G, for the two families of live sets a block can have.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Restrictions {
-    reachable: Restriction,
-    all: Restriction,
-}
-
-impl Restrictions {
-    fn new(g: usize) -> Self {
-        Restrictions {
-            reachable: Restriction::new(g, REACHABLE),
-            all: Restriction::new(g, ALL_SETS),
-        }
-    }
-
-    /// The transfers for a block whose live sets are `live`: those among the [`REACHABLE`] sets
-    /// if `live` lies within them, else all.
-    #[inline(always)]
-    pub(super) fn for_live(&self, live: Live) -> &Restriction {
-        if live & !REACHABLE == 0 {
-            &self.reachable
-        } else {
-            &self.all
         }
     }
 }

@@ -1,11 +1,50 @@
-//! The sensor's evidence of a block, SG'_t = r(SG_t) ⊕ GG (SPEC §5 steps 1-2, eq 16-21), per
-//! cell in the compact form the fusion needs, and the per-lane lookups by map context it is
-//! built with.
+//! The evidence a block is fused with: the map prior GG of each map context (SPEC §4) and the
+//! sensor's evidence SG'_t = r(SG_t) ⊕ GG (SPEC §5 steps 1-2, eq 16-21), per cell in the compact
+//! form the fusion needs, with the per-lane lookups by map context it is built with.
 
-use super::constants::{ContextPrior, StepConstants};
 use super::lanes::any_lane;
-use super::passes::{BLOCK, Lanes};
+use super::passes::{BLOCK, Lanes, Restrictions};
+use crate::grids::{OMEGA, class};
 use geodata::MapContext;
+
+/// The GISGrid mass function of one map context, β on the focal set G and 1 − β on Ω (SPEC §4,
+/// from [`prior_focal_set`](crate::map_prior::prior_focal_set) and
+/// [`prior_beta`](crate::map_prior::prior_beta)), as the kernel applies it: its transfers, and
+/// the indicators SG' needs as 0/1 factors. (Not [`MapPrior`](crate::map_prior::MapPrior),
+/// which fills the GISGrid's contexts.)
+#[derive(Clone, Copy, Debug)]
+pub(super) struct ContextPrior {
+    /// The focal set G.
+    pub(super) g: usize,
+    /// The transfers of m ∩ GG, for blocks on the reachable sets and for any block.
+    pub(super) restriction: Restrictions,
+    pub(super) beta: f32,
+    /// [F ∈ G], [O ∩ G ≠ ∅], [G = {F}], [∅ ≠ G ⊆ O].
+    pub(super) free_in_g: f32,
+    pub(super) occupied_meets_g: f32,
+    pub(super) g_is_free: f32,
+    pub(super) g_within_occupied: f32,
+}
+
+impl ContextPrior {
+    pub(super) fn new(g: usize, beta: f64) -> Self {
+        let indicator = |condition: bool| if condition { 1.0 } else { 0.0 };
+        ContextPrior {
+            g,
+            restriction: Restrictions::new(g),
+            beta: beta as f32,
+            free_in_g: indicator(g & class::F != 0),
+            occupied_meets_g: indicator(g & class::O != 0),
+            g_is_free: indicator(g == class::F),
+            g_within_occupied: indicator(g != 0 && g & class::F == 0),
+        }
+    }
+
+    /// Whether combining with this prior can change a mass function.
+    pub(super) fn is_informative(&self) -> bool {
+        self.g != OMEGA && self.beta > 0.0
+    }
+}
 
 /// A Dempster conflict K between the sensor and the map at or above `1 − this` counts as total
 /// (K = 1, SPEC §5 step 2): dividing by a smaller 1 − K would only amplify f32 rounding.
@@ -140,7 +179,8 @@ impl SensorEvidence {
         m_free: &Lanes,
         m_occupied: &Lanes,
         context: &[MapContext; BLOCK],
-        k: &StepConstants,
+        priors: &[ContextPrior; 4],
+        unobserved_evidence: &[CellEvidence; 4],
     ) {
         let e = self;
         let mut present = 0u8;
@@ -159,15 +199,14 @@ impl SensorEvidence {
             // it as a broadcast; one across contexts (half the blocks in a city centre) takes each
             // context's in its cells, a vectorised select.
             match one_context {
-                Some(c) => e.broadcast(&k.unobserved_evidence[c]),
-                None => e.select_unobserved(context, present, &k.unobserved_evidence),
+                Some(c) => e.broadcast(&unobserved_evidence[c]),
+                None => e.select_unobserved(context, present, unobserved_evidence),
             }
         } else {
             // The map prior of each cell, selected the same way.
             // The map prior of each cell: a broadcast inside one context, else a lookup in the
             // four contexts' values by the two bits of the context (three selects a value).
-            let table =
-                |field: fn(&ContextPrior) -> f32| k.context_priors.map(|prior| field(&prior));
+            let table = |field: fn(&ContextPrior) -> f32| priors.map(|prior| field(&prior));
             let bits = match one_context {
                 Some(_) => [[0; BLOCK]; 2],
                 None => context_bits(context),

@@ -4,10 +4,10 @@
 //! themselves are in `stages`.
 
 use super::StepStats;
-use super::block::Block;
 use super::constants::{Discount, StepConstants};
 use super::evidence::SensorEvidence;
 use super::lanes::{any_lane, count, count_where, for_each_bit};
+use super::memory::Block;
 use super::passes::{
     ALL_SETS, BLOCK, BlockMasses, Live, REACHABLE, add_class, is_live, occupied_mass,
 };
@@ -31,7 +31,8 @@ pub(super) fn step_block(
         &block.sensor_free,
         &block.sensor_occupied,
         &block.context,
-        k,
+        &k.context_priors,
+        &k.unobserved_evidence,
     );
     block.live = known_live.unwrap_or_else(|| live_sets(&block.m, &k.discount));
     if !block.sensor.any_observed && matches!(k.discount, Discount::ToOmega(_)) {

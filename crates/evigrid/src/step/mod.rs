@@ -4,18 +4,20 @@
 //! the mass planes into a small stack buffer; every stage is a pass over the block (module
 //! `passes`, each derived there), so the work per cell is a fixed sequence of vectorisable
 //! multiply-adds without per-cell branches or allocation. Per-block branches only skip work that
-//! is exactly a no-op. Row ranges run in parallel with rayon; each cell is computed alone and
-//! the statistics are integer counts, so the result is bit-identical whatever the number of
-//! threads (ARCHITECTURE.md, "The fusion kernel").
+//! is exactly a no-op. Tasks of whole blocks run in parallel with rayon; each cell is computed
+//! alone and the statistics are integer counts, so the result is bit-identical whatever the
+//! number of threads (ARCHITECTURE.md, "The fusion kernel").
 //!
 //! Where each concern lives:
 //! - this file: the entry points [`step`] and [`step_and_decide`], and [`StepStats`];
 //! - `constants`: what the step derives from [`Params`] once: the rates for `dt`
 //!   ([`rate_for_step`]), each map context's prior, the thresholds;
-//! - `schedule`: tasks, tiles and blocks, memory brought in ahead of the work, and the choice
-//!   between the AVX2 and the portable build;
-//! - `block`: the stack buffer of one block, loaded from the grids' planes and stored back;
-//! - `evidence`: the sensor's evidence SG' of a block (steps 1-2);
+//! - `schedule`: tasks, tiles and blocks, and the choice between the AVX2 and the portable
+//!   build;
+//! - `memory`: the grids' planes over a run of cells, the stack buffer of one block loaded from
+//!   them and stored back, and memory brought in ahead of the work;
+//! - `evidence`: the map prior of each context, and the sensor's evidence SG' of a block (steps
+//!   1-2);
 //! - `fuse`: the sequence of SPEC §5 on one block; `stages`: its stages, one function each;
 //! - `passes`: the mass transfers the stages are made of; `lanes`: lane reductions.
 //!
@@ -43,11 +45,11 @@
 // vectorises, and zipped iterators over five arrays would only hide it.
 #![allow(clippy::needless_range_loop)]
 
-mod block;
 mod constants;
 mod evidence;
 mod fuse;
 mod lanes;
+mod memory;
 mod passes;
 mod schedule;
 mod stages;
@@ -58,8 +60,8 @@ use crate::decision::Decision;
 use crate::grids::{GisGrid, PerceptionGrid, SensorGrid};
 use crate::params::Params;
 use constants::{Discount, StepConstants};
+use memory::CellRun;
 use rayon::iter::{IndexedParallelIterator, IntoParallelIterator, ParallelIterator};
-use schedule::CellRun;
 
 /// What happened during one step, counted over the window.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -192,6 +192,33 @@ impl Restriction {
     }
 }
 
+/// The [`Restriction`] to one focal set G, for the two families of live sets a block can have.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Restrictions {
+    reachable: Restriction,
+    all: Restriction,
+}
+
+impl Restrictions {
+    pub(super) fn new(g: usize) -> Self {
+        Restrictions {
+            reachable: Restriction::new(g, REACHABLE),
+            all: Restriction::new(g, ALL_SETS),
+        }
+    }
+
+    /// The transfers for a block whose live sets are `live`: those among the [`REACHABLE`] sets
+    /// if `live` lies within them, else all.
+    #[inline(always)]
+    pub(super) fn for_live(&self, live: Live) -> &Restriction {
+        if live & !REACHABLE == 0 {
+            &self.reachable
+        } else {
+            &self.all
+        }
+    }
+}
+
 /// Σ of m(A) over the sets A for which `select(A)` holds, per cell, in increasing set order (so
 /// that the result does not depend on how cells are grouped).
 #[inline(always)]

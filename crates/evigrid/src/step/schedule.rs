@@ -1,19 +1,14 @@
 //! How the step walks the grid: the window's storage cut into tasks (the unit of parallel
-//! work), each task into tiles and blocks; memory brought in ahead of the work (prefetch on
-//! AVX2, plane-by-plane reads otherwise); and the run-time choice between the AVX2 and the
-//! portable build of the same code.
+//! work), each task into tiles and blocks, each block loaded, stepped, decided and stored; and
+//! the run-time choice between the AVX2 and the portable build of the same code.
 
 use super::StepStats;
-use super::block::Block;
 use super::constants::StepConstants;
 use super::fuse::step_block;
-use super::lanes::for_each_bit;
+use super::memory::{Block, CellRun};
 use super::passes::{ALL_SETS, BLOCK, REACHABLE};
-use crate::decision::{Decision, decide_lanes};
-use crate::grids::{
-    CONFLICT_FO_BIT, CONFLICT_OF_BIT, MASS_BITS, PerceptionPlanesMut, PlaneBits, ZETA_BIT,
-};
-use geodata::MapContext;
+use crate::decision::decide_lanes;
+use crate::grids::{CONFLICT_FO_BIT, CONFLICT_OF_BIT, PlaneBits, ZETA_BIT};
 
 /// Cells whose planes are brought into cache together before their blocks are stepped
 /// ([`CellRun::warm`]): 40 planes of 1024 cells are 160 KiB, within L2.
@@ -26,21 +21,6 @@ const TILE: usize = 1024;
 /// one-thread step over 1000 × 1000 cells, the 123 tasks' own times summed to within about 1 %
 /// of the step's.
 const CELLS_PER_TASK: usize = 8 * 1024;
-
-/// A run of consecutive storage cells: the unit of parallel work.
-pub(super) struct CellRun<'a> {
-    pub(super) pg: PerceptionPlanesMut<'a>,
-    pub(super) m_free: &'a [f32],
-    pub(super) m_occupied: &'a [f32],
-    /// Per block, whether the SensorGrid may hold mass there (false: its planes are 0 and are
-    /// not read).
-    pub(super) sensor_blocks: &'a [bool],
-    pub(super) context: &'a [MapContext],
-    /// Where to write the decision of each cell, if wanted.
-    pub(super) decisions: Option<&'a mut [Decision]>,
-    /// Every mass outside the [`REACHABLE`] sets is +0 (see `step_cells`).
-    pub(super) reachable_only: bool,
-}
 
 impl<'a> CellRun<'a> {
     /// Cuts the run into tasks of [`CELLS_PER_TASK`] cells (whole blocks; the last task takes
@@ -182,74 +162,5 @@ impl<'a> CellRun<'a> {
             tile_start = tile_end;
         }
         stats
-    }
-
-    /// Asks `prefetch` for every cache line the block at `start` will read, if the run has one
-    /// there.
-    #[inline(always)]
-    fn prefetch_block(&self, start: usize, planes: PlaneBits, prefetch: &impl Fn(*const i8)) {
-        const F32_PER_LINE: usize = 64 / 4;
-        let Some(&stored) = self.pg.nonzero.get(start / BLOCK) else {
-            return;
-        };
-        let cells = start..(start + BLOCK).min(self.m_free.len());
-        let pg = &self.pg;
-        let lines = |plane: &[f32]| {
-            let cells = &plane[cells.clone()];
-            for line in 0..cells.len().div_ceil(F32_PER_LINE) {
-                prefetch(cells.as_ptr().wrapping_add(line * F32_PER_LINE).cast());
-            }
-        };
-        for_each_bit(stored & planes & MASS_BITS, |set| lines(pg.masses[set]));
-        for (bit, plane) in [
-            (ZETA_BIT, &pg.zeta),
-            (CONFLICT_FO_BIT, &pg.conflict_fo),
-            (CONFLICT_OF_BIT, &pg.conflict_of),
-        ] {
-            if stored & planes & bit != 0 {
-                lines(plane);
-            }
-        }
-        if self.sensor_blocks[start / BLOCK] {
-            lines(self.m_free);
-            lines(self.m_occupied);
-        }
-        prefetch(pg.seen[cells.clone()].as_ptr().cast());
-        prefetch(self.context[cells].as_ptr().cast());
-    }
-
-    /// Reads one value per cache line of every plane in `cells`, one plane after the other.
-    ///
-    /// The step reads ~40 planes at once, more streams than the hardware prefetcher follows;
-    /// touching a tile plane by plane first turns that into sequential reads, and the blocks
-    /// of the tile then find their lines in cache. The values are summed as bits (integer
-    /// additions, no floating-point dependency chain) only so that the reads are not elided.
-    #[inline(always)]
-    fn warm(&self, cells: std::ops::Range<usize>, planes: PlaneBits) {
-        const F32_PER_LINE: usize = 64 / 4;
-        let mut checksum = 0u32;
-        let pg = &self.pg;
-        let state = [
-            (ZETA_BIT, &pg.zeta[..]),
-            (CONFLICT_FO_BIT, &pg.conflict_fo[..]),
-            (CONFLICT_OF_BIT, &pg.conflict_of[..]),
-        ];
-        let f32_planes = (pg.masses.iter().enumerate())
-            .map(|(set, plane)| (1 << set, &plane[..]))
-            .chain(state)
-            .filter(|(bit, _)| planes & bit != 0)
-            .map(|(_, plane)| plane)
-            .chain([self.m_free, self.m_occupied]);
-        for plane in f32_planes {
-            for value in plane[cells.clone()].iter().step_by(F32_PER_LINE) {
-                checksum = checksum.wrapping_add(value.to_bits());
-            }
-        }
-        for i in cells.step_by(64) {
-            checksum = checksum
-                .wrapping_add(u32::from(self.pg.seen[i]))
-                .wrapping_add(self.context[i] as u32);
-        }
-        std::hint::black_box(checksum);
     }
 }
