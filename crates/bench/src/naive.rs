@@ -7,6 +7,7 @@
 //! `evigrid bench`, the baseline the kernel's speed is stated against.
 
 use evigrid::grids::{N_SETS, OMEGA, class};
+use evigrid::map_prior::{prior_beta, prior_focal_set};
 use evigrid::params::{DiscountMode, ResidualPolicy, UnobservedCells};
 use evigrid::step::{rate_for_step, set_rate_per_second};
 use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid};
@@ -130,17 +131,9 @@ fn disjunctive(m1: &[f32; N_SETS], m2: &[f32; N_SETS]) -> [f32; N_SETS] {
     out
 }
 
-/// The GISGrid mass function of a map context (eq 34-38).
+/// The GISGrid mass function of a map context (SPEC §4, eq 34-38), dense.
 fn map_prior(context: MapContext, params: &Params) -> [f32; N_SETS] {
-    let (set, beta) = match context {
-        MapContext::Building => (class::I, params.map.beta_building),
-        MapContext::Road => (class::F | class::S | class::M, params.map.beta_road),
-        MapContext::Other => (
-            class::F | class::U | class::S | class::M,
-            params.map.beta_other,
-        ),
-        _ => (OMEGA, 0.0),
-    };
+    let (set, beta) = (prior_focal_set(context), prior_beta(context, &params.map));
     let mut m = [0.0; N_SETS];
     m[set] += beta as f32;
     m[OMEGA] += 1.0 - beta as f32;

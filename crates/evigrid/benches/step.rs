@@ -9,6 +9,7 @@
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use evigrid::grids::{N_SETS, OMEGA, class};
+use evigrid::map_prior::{prior_beta, prior_focal_set};
 use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid, step::step};
 use geodata::MapContext;
 use std::hint::black_box;
@@ -134,15 +135,8 @@ fn naive_step(cells: &mut [NaiveCell], sg: &SensorGrid, gg: &GisGrid, p: &Params
         r_sg[class::F] = sg.m_free()[idx];
         r_sg[class::O] = sg.m_occupied()[idx];
         r_sg[OMEGA] = 1.0 - sg.m_free()[idx] - sg.m_occupied()[idx];
-        let (g, beta) = match gg.context[idx] {
-            MapContext::Unknown => (OMEGA, 0.0),
-            MapContext::Other => (
-                class::F | class::U | class::S | class::M,
-                p.map.beta_other as f32,
-            ),
-            MapContext::Road => (class::F | class::S | class::M, p.map.beta_road as f32),
-            MapContext::Building => (class::I, p.map.beta_building as f32),
-        };
+        let context = gg.context[idx];
+        let (g, beta) = (prior_focal_set(context), prior_beta(context, &p.map) as f32);
         let mut gm = [0.0; N_SETS];
         gm[g] += beta;
         gm[OMEGA] += 1.0 - beta;

@@ -1,15 +1,69 @@
-//! The map prior: filling the GISGrid's contexts through the window (SPEC §4, eq 32-38).
+//! The map prior (SPEC §4, eq 32-38): the GISGrid mass function of each map context, and filling
+//! the GISGrid's contexts through the window.
 //!
-//! The GISGrid stores one [`MapContext`] per storage cell; its mass function is derived from the
-//! context and the β parameters inside the step. Because the window is a circular buffer, only
+//! The GISGrid stores one [`MapContext`] per storage cell. Its mass function, β on a focal set G
+//! and 1 − β on Ω, is written once, here: [`prior_focal_set`] gives G and [`prior_beta`] gives β,
+//! and the step derives its masses from them. Because the window is a circular buffer, only
 //! the cells that entered after a move need new contexts: the map is rasterised for those blocks
 //! alone ([`MapPrior::fill_entered`]), so the map costs nothing per frame while the vehicle stays
 //! in the same cell. Without a map every cell is [`MapContext::Unknown`], a vacuous prior.
+//!
+//! ```
+//! use evigrid::Params;
+//! use evigrid::grids::class::{F, M, S};
+//! use evigrid::map_prior::{prior_beta, prior_focal_set};
+//! use geodata::MapContext;
+//!
+//! let params = Params::default();
+//! // On a road the map says "free, or an object": β_R on {F, S, M}, the rest on Ω.
+//! assert_eq!(prior_focal_set(MapContext::Road), F | S | M);
+//! assert_eq!(prior_beta(MapContext::Road, &params.map), params.map.beta_road);
+//! assert_eq!(prior_beta(MapContext::Unknown, &params.map), 0.0); // no map: vacuous
+//! ```
 
 use geodata::{CellWindow, ContextRaster, MapContext};
 
-use crate::grids::GisGrid;
+use crate::grids::{GisGrid, OMEGA, class};
+use crate::params::MapParams;
 use crate::window::{Entered, Window};
+
+/// Every map context, in the order of their discriminants: a table indexed by
+/// `context as usize` is built as `MAP_CONTEXTS.map(…)`.
+pub const MAP_CONTEXTS: [MapContext; 4] = [
+    MapContext::Unknown,
+    MapContext::Other,
+    MapContext::Road,
+    MapContext::Building,
+];
+
+/// The focal set G on which the GISGrid of a map context puts its mass β (a bitmask of Ω_PG, as
+/// in [`class`]): {I} in a building, {F, S, M} on a road, {F, U, S, M} in the intermediate
+/// space, Ω where the map says nothing.
+///
+/// # References
+/// SPEC §4; Kurdej et al. 2013, eq 34-38.
+pub const fn prior_focal_set(context: MapContext) -> usize {
+    match context {
+        MapContext::Unknown => OMEGA,
+        MapContext::Other => class::F | class::U | class::S | class::M,
+        MapContext::Road => class::F | class::S | class::M,
+        MapContext::Building => class::I,
+    }
+}
+
+/// β, the mass the GISGrid of a map context puts on [`prior_focal_set`] (the rest, 1 − β, is on
+/// Ω): the confidence in the map for that context, 0 where the map says nothing.
+///
+/// # References
+/// SPEC §4; Kurdej et al. 2013, eq 34-38.
+pub fn prior_beta(context: MapContext, map: &MapParams) -> f64 {
+    match context {
+        MapContext::Unknown => 0.0,
+        MapContext::Other => map.beta_other,
+        MapContext::Road => map.beta_road,
+        MapContext::Building => map.beta_building,
+    }
+}
 
 /// The map (if any) and a scratch buffer to rasterise window blocks into.
 #[derive(Clone, Debug, Default)]
@@ -89,6 +143,13 @@ mod tests {
             let cell = window.cell_of_storage(idx).unwrap();
             let (x, y) = window.cell_centre(cell.col, cell.row);
             assert_eq!(grid.context[idx], raster.context_at(x, y), "cell {cell:?}");
+        }
+    }
+
+    #[test]
+    fn map_contexts_are_listed_in_discriminant_order() {
+        for (index, context) in MAP_CONTEXTS.into_iter().enumerate() {
+            assert_eq!(context as usize, index, "{context:?}");
         }
     }
 

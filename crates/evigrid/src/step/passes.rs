@@ -7,17 +7,17 @@
 //!
 //! Every stage is a combination with a mass function of one or two focal sets, and each is one
 //! kind of pass, a transfer of a per-cell share of m(A) from each source set A to one target:
-//! - [`restrict_to`]: conjunctive combination with "s on G, 1 − s on Ω". For B ⊆ Ω:
+//! - `restrict_to` ([`Restriction`]): conjunctive combination with "s on G, 1 − s on Ω". For B ⊆ Ω:
 //!   (m ∩ m_s)(B) = (1 − s)·m(B) + s·Σ_{A ∩ G = B} m(A): every A ⊄ G gives s·m(A) to A ∩ G.
-//!   With G = Ω∖{θ} ([`remove_class`]) it removes one class: the specialisation (θ = M, s = ζ,
+//!   With G = Ω∖{θ} (`remove_class`) it removes one class: the specialisation (θ = M, s = ζ,
 //!   eq 28-29, whose matrix is exactly this combination); with G the map context's focal set and
 //!   s = β it is the map prior (eq 34-38).
 //! - [`add_class`]: disjunctive combination with "1 − α on ∅, α on {θ}" (one Mercier context).
 //!   (m ∪ m_α)(B) = (1 − α)·m(B) + α·Σ_{A ∪ {θ} = B} m(A): every A ∌ θ gives α·m(A) to A ∪ {θ}.
 //!
 //! Discounting to Ω and the refined sensor r(SG), whose three focal sets pair each A ∌ F with
-//! A ∪ {F}, make one pass of their own (`discount_and_combine_with_refined_sensor` in the
-//! parent module).
+//! A ∪ {F}, make one pass of their own (`discount_and_combine_with_refined_sensor` in
+//! `stages`).
 
 use crate::grids::{N_SETS, OMEGA};
 
@@ -188,6 +188,33 @@ impl Restriction {
                     masses[i] += share[i] * sum[i];
                 }
             }
+        }
+    }
+}
+
+/// The [`Restriction`] to one focal set G, for the two families of live sets a block can have.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Restrictions {
+    reachable: Restriction,
+    all: Restriction,
+}
+
+impl Restrictions {
+    pub(super) fn new(g: usize) -> Self {
+        Restrictions {
+            reachable: Restriction::new(g, REACHABLE),
+            all: Restriction::new(g, ALL_SETS),
+        }
+    }
+
+    /// The transfers for a block whose live sets are `live`: those among the [`REACHABLE`] sets
+    /// if `live` lies within them, else all.
+    #[inline(always)]
+    pub(super) fn for_live(&self, live: Live) -> &Restriction {
+        if live & !REACHABLE == 0 {
+            &self.reachable
+        } else {
+            &self.all
         }
     }
 }

@@ -3,10 +3,13 @@
 
 #![allow(clippy::unwrap_used)]
 
+use super::constants::StepConstants;
 use super::*;
 use crate::grids::class::{F, I, M, O, S, U};
-use crate::params::{ClassRates, Params, ResidualPolicy, SetRate, UnobservedCells};
+use crate::grids::{N_SETS, OMEGA};
+use crate::params::{ClassRates, DiscountMode, Params, ResidualPolicy, SetRate, UnobservedCells};
 use crate::reference::{CellState, reference_step_traced};
+use geodata::MapContext;
 use proptest::prelude::*;
 
 /// One cell's state and what the step reported.
