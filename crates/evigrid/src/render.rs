@@ -24,8 +24,8 @@ use image::{Rgb, RgbImage};
 use serde::Serialize;
 
 use crate::decision::{Decision, betp};
-use crate::grids::{N_SETS, OMEGA, PerceptionGrid, class};
 use crate::trace::MovingTrace;
+use crate::grids::{N_SETS, OMEGA, PerceptionGrid, class};
 use crate::window::Window;
 
 /// Why a picture or an export could not be written. Every variant names the file.
