@@ -25,7 +25,7 @@
 //! undefined IoU (class absent from truth and prediction) is a short grey stub below the axis. A
 //! legend (colour swatch, variant name) is on the right.
 
-use crate::eval::{EvalReport, VariantReport};
+use crate::report::{EvalReport, VariantReport};
 use crate::metrics::{ConfusionMatrix, TRUTH_NAMES};
 use image::{Rgb, RgbImage};
 
