@@ -23,8 +23,8 @@
 //! let mut scenario = small_scenario(3);
 //! scenario.duration_s = 1.0;
 //! let mut config = EvalConfig::default();
-//! config.params.window.width_cells = 120;
-//! config.params.window.height_cells = 120;
+//! config.params.window.width_cells = 240;
+//! config.params.window.height_cells = 240;
 //! let report = evaluate(&town(), &scenario, &Variant::ALL, &[3], &config, &mut |_| {})?;
 //! assert_eq!(report.frames_per_seed, 10);
 //! assert!(report.variants.iter().all(|v| v.confusion.total() > 0));

@@ -41,12 +41,9 @@ pub fn actor_class(actor: &Actor) -> Label {
 }
 
 /// Rank of a truth label when several objects claim a cell: F < I < U < S < M < [`IGNORED`].
+/// [`IGNORED`] is code 0, so one wrapping subtraction ranks it last, without a branch.
 fn priority(label: Label) -> u8 {
-    if label == IGNORED {
-        u8::MAX
-    } else {
-        label as u8
-    }
+    (label as u8).wrapping_sub(1)
 }
 
 /// Gives `cell` to `claim` if it ranks higher than what the cell holds.
@@ -195,6 +192,13 @@ mod tests {
                     .collect()
             })
             .collect()
+    }
+
+    #[test]
+    fn classes_rank_in_frame_order_and_ignored_above_all() {
+        let ranks: Vec<u8> = Label::CLASSES.iter().map(|&l| priority(l)).collect();
+        assert!(ranks.windows(2).all(|w| w[0] < w[1]), "{ranks:?}");
+        assert!(ranks.iter().all(|&r| r < priority(IGNORED)));
     }
 
     #[test]
