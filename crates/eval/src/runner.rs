@@ -146,14 +146,14 @@ pub struct FusionFrame<'a> {
 
 /// A variant's method: evigrid's fusion is kept by type so that observers can see its grids.
 enum Method {
-    Fusion(Fusion),
+    Fusion(Box<Fusion>),
     Other(Box<dyn GridMethod>),
 }
 
 impl Method {
     fn as_grid_method(&mut self) -> &mut dyn GridMethod {
         match self {
-            Method::Fusion(fusion) => fusion,
+            Method::Fusion(fusion) => fusion.as_mut(),
             Method::Other(method) => method.as_mut(),
         }
     }
@@ -179,8 +179,10 @@ impl Runner {
         len: usize,
     ) -> Result<Self, EvalError> {
         let method = match variant {
-            Variant::Full => Method::Fusion(Fusion::new(params.clone(), Prior::Map)?),
-            Variant::NoMap => Method::Fusion(Fusion::new(params.clone(), Prior::Vacuous)?),
+            Variant::Full => Method::Fusion(Box::new(Fusion::new(params.clone(), Prior::Map)?)),
+            Variant::NoMap => {
+                Method::Fusion(Box::new(Fusion::new(params.clone(), Prior::Vacuous)?))
+            }
             Variant::Moras2011 => Method::Other(Box::new(Moras2011::new(len, config.moras2011))),
             Variant::LogOdds => Method::Other(Box::new(LogOdds::new(len, config.log_odds))),
         };

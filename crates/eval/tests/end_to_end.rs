@@ -1,7 +1,7 @@
 //! End-to-end: simulated drives on a real OpenStreetMap extract, every variant scored.
 
-use geodata::testdata::shared_file;
 use eval::{EvalConfig, Variant, evaluate};
+use geodata::testdata::shared_file;
 use sim::Scenario;
 
 fn load(relative: &str) -> Option<geodata::LocalMap> {

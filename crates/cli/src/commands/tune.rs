@@ -19,10 +19,10 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use evigrid::render::write_atomic;
-use geodata::LocalMap;
 use eval::tune::{DriveSet, TuneOptions, TuneProgress, TuneReport, VariantScore};
 use eval::{EvalError, Variant};
+use evigrid::render::write_atomic;
+use geodata::LocalMap;
 use serde::Serialize;
 use sim::{Scenario, SimError};
 

@@ -201,14 +201,7 @@ mod tests {
         // Flip scan + 4 more = 5 scans of M, then O.
         assert_eq!(
             decisions,
-            vec![
-                Label::M,
-                Label::M,
-                Label::M,
-                Label::M,
-                Label::M,
-                Label::O
-            ]
+            vec![Label::M, Label::M, Label::M, Label::M, Label::M, Label::O]
         );
         // Clamped at logit(0.971) = 3.511031.
         assert_relative_eq!(g.log_odds(0).unwrap_or(0.0), 3.511_031, epsilon = 1e-4);
