@@ -68,9 +68,9 @@ fn writes_metrics_report_and_plots_for_every_variant() {
     assert!(output.status.success(), "stderr: {stderr}");
 
     // --json prints the same report that metrics.json holds.
-    let printed: sim::EvalReport = serde_json::from_slice(&output.stdout).unwrap();
+    let printed: eval::EvalReport = serde_json::from_slice(&output.stdout).unwrap();
     let text = std::fs::read_to_string(s.out.join("metrics.json")).unwrap();
-    let report: sim::EvalReport = serde_json::from_str(&text).unwrap();
+    let report: eval::EvalReport = serde_json::from_str(&text).unwrap();
     assert_eq!(printed, report);
     assert_eq!(report.seeds, vec![4, 5]);
     assert_eq!(report.frames_per_seed, 10);
@@ -113,7 +113,7 @@ fn table_lists_the_requested_variants_only() {
     assert!(lines[1].starts_with("log-odds"));
     assert!(lines[2].starts_with("full"));
     assert!(!stdout.contains("no-map") && !stdout.contains("moras2011"));
-    let report: sim::EvalReport =
+    let report: eval::EvalReport =
         serde_json::from_str(&std::fs::read_to_string(s.out.join("metrics.json")).unwrap())
             .unwrap();
     assert_eq!(report.variants.len(), 2);

@@ -1,9 +1,18 @@
-//! The per-frame pipeline: window, map prior, sensor grid, fusion step, decision (SPEC §2-§6).
+//! The per-frame pipeline: a front end (window, map prior, sensor grid: SPEC §2-§4) and the
+//! paper's method behind it (fusion step, decision, trace of moving cells: SPEC §5-§6).
 //!
-//! A [`Pipeline`] owns everything one drive needs — the window, the three grids, the map
-//! rasteriser, the sensor model's buffers, the decisions and the trace of moving objects — all
-//! sized by the window, so memory does not depend on the drive's length. Feed it scans in time
-//! order with [`Pipeline::process`].
+//! - [`FrontEnd`] turns each scan into what any grid method consumes: it moves the world-fixed
+//!   window with the vehicle, keeps the map prior (GISGrid) of the cells in it and builds the
+//!   frame's SensorGrid, and says which cells are new in the window ([`NewCells`]).
+//! - [`Fusion`] is Kurdej et al.'s method on that output: the PerceptionGrid, the fusion step,
+//!   the decision per cell and the moving trace. It fuses the front end's map prior
+//!   ([`Prior::Map`]) or a vacuous one ([`Prior::Vacuous`], the method without a map).
+//! - [`Pipeline`] composes one of each for one drive; feed it scans in time order with
+//!   [`Pipeline::process`].
+//!
+//! The split exists so that several methods can share one front end: the sensor model runs once
+//! per scan however many methods are compared on it (the evaluation does exactly that). Every
+//! structure is sized by the window, so memory does not depend on the drive's length.
 //!
 //! ```
 //! use evigrid::pipeline::Pipeline;
@@ -25,7 +34,35 @@
 //! assert_eq!(pipeline.decisions()[ahead], Decision::F);
 //! # Ok::<(), evigrid::pipeline::PipelineError>(())
 //! ```
+//!
+//! Two methods on one front end, with and without the map prior:
+//!
+//! ```
+//! use evigrid::pipeline::{FrontEnd, Fusion, Prior};
+//! use evigrid::sensor_model::{GroundModel, Isometry3};
+//! use evigrid::{Decision, Params};
+//!
+//! let mut params = Params::default();
+//! params.window.width_cells = 40;
+//! params.window.height_cells = 40;
+//! params.sensor.ground_model = GroundModel::None;
+//! let mut front_end = FrontEnd::new(&params, None)?;
+//! let mut with_map = Fusion::new(params.clone(), Prior::Map)?;
+//! let mut without_map = Fusion::new(params, Prior::Vacuous)?;
+//! let wall: Vec<[f32; 3]> = (-10..=10).map(|k| [6.0, k as f32 * 0.2, 0.0]).collect();
+//! for time_s in [0.0, 0.1] {
+//!     front_end.process(&wall, &Isometry3::IDENTITY, time_s)?; // one sensor model run
+//!     with_map.update(&front_end)?;
+//!     without_map.update(&front_end)?;
+//! }
+//! // No map was given, so both priors are vacuous and the two agree.
+//! assert_eq!(with_map.decisions(), without_map.decisions());
+//! let ahead = front_end.window().storage_index_of_point(3.0, 0.1).expect("in the window");
+//! assert_eq!(with_map.decisions()[ahead], Decision::F);
+//! # Ok::<(), evigrid::pipeline::PipelineError>(())
+//! ```
 
+use std::ops::Range;
 use std::time::Instant;
 
 use geodata::ContextRaster;
@@ -38,7 +75,7 @@ use crate::params::{Params, ParamsError};
 use crate::sensor_model::{Isometry3, SensorModel, SensorStats};
 use crate::step::{StepStats, step_and_decide};
 use crate::trace::MovingTrace;
-use crate::window::{Window, WindowError};
+use crate::window::{Entered, Window, WindowError};
 
 /// Why a frame (or the pipeline) was refused.
 #[derive(Debug, thiserror::Error)]
@@ -64,6 +101,369 @@ pub enum PipelineError {
         /// The refused pose.
         world_from_sensor: Isometry3,
     },
+    /// A back end was fed a front end whose window has another size than its grids.
+    #[error(
+        "front end window is {front_end:?} cells but the back end's grids are {back_end:?} (width, height)"
+    )]
+    WindowSize {
+        /// The front end's window, (width, height) in cells.
+        front_end: (usize, usize),
+        /// The back end's grids, (width, height) in cells.
+        back_end: (usize, usize),
+    },
+}
+
+/// The cells that are new in the window after a frame: they start vacuous in every grid.
+#[derive(Clone, Debug, PartialEq)]
+pub enum NewCells {
+    /// The first frame placed the window (or no frame yet): every cell is new.
+    All,
+    /// The cells the window's move uncovered (none if it did not move).
+    Entered(Entered),
+}
+
+impl NewCells {
+    /// Number of new cells in `window`.
+    pub fn cell_count(&self, window: &Window) -> usize {
+        match self {
+            NewCells::All => window.len(),
+            NewCells::Entered(entered) => entered.cell_count(),
+        }
+    }
+
+    /// Storage ranges covering the new cells of `window`, each cell once.
+    pub fn storage_spans<'a>(
+        &'a self,
+        window: &'a Window,
+    ) -> impl Iterator<Item = Range<usize>> + 'a {
+        let (all, entered) = match self {
+            NewCells::All => (Some(0..window.len()), None),
+            NewCells::Entered(entered) => (None, Some(entered)),
+        };
+        all.into_iter().chain(
+            entered
+                .into_iter()
+                .flat_map(|e| e.blocks())
+                .flat_map(|block| window.storage_spans(block)),
+        )
+    }
+}
+
+/// What the front end did in one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct FrontEndStats {
+    /// Seconds since the previous frame (0 for the first).
+    pub dt_s: f64,
+    /// Cells that entered the window (all of them on the first frame).
+    pub entered_cells: usize,
+    /// The sensor model's counts.
+    pub sensor: SensorStats,
+    /// Wall time of the stages, milliseconds: window move, map prior of the cells that
+    /// entered, sensor grid.
+    pub window_ms: f64,
+    /// See `window_ms`.
+    pub prior_ms: f64,
+    /// See `window_ms`.
+    pub sensor_ms: f64,
+}
+
+/// The per-frame front end (SPEC §2-§4): the window that follows the vehicle, the GISGrid of the
+/// map prior kept in it, and each scan's SensorGrid.
+///
+/// Back ends ([`Fusion`], or any other grid method) read its state after every
+/// [`FrontEnd::process`]: [`FrontEnd::window`], [`FrontEnd::new_cells`] (which cells to reset),
+/// [`FrontEnd::sensor_grid`], [`FrontEnd::gis`] and [`FrontEnd::dt_s`].
+#[derive(Debug)]
+pub struct FrontEnd {
+    window: Window,
+    sensor_model: SensorModel,
+    sensor: SensorGrid,
+    gis: GisGrid,
+    map_prior: MapPrior,
+    new_cells: NewCells,
+    dt_s: f64,
+    /// Time of the last frame; `None` before the first, when the window is not placed yet.
+    last_time_s: Option<f64>,
+}
+
+impl FrontEnd {
+    /// A front end with the window and sensor model of `params` and, optionally, a map. The
+    /// grids are vacuous; the window is placed on the first frame.
+    ///
+    /// # Errors
+    ///
+    /// [`PipelineError::Params`] if the parameters are out of range.
+    pub fn new(params: &Params, map: Option<ContextRaster>) -> Result<Self, PipelineError> {
+        params.validate()?;
+        let window = Window::new(
+            params.window.width_cells,
+            params.window.height_cells,
+            params.grid.cell_size_m,
+        )?;
+        let (w, h) = (window.width(), window.height());
+        Ok(Self {
+            sensor_model: SensorModel::new(params.sensor.clone()),
+            sensor: SensorGrid::new(w, h),
+            gis: GisGrid::new(w, h),
+            map_prior: MapPrior::new(map),
+            window,
+            new_cells: NewCells::All,
+            dt_s: 0.0,
+            last_time_s: None,
+        })
+    }
+
+    /// Processes one scan: `points_in_sensor` in the sensor frame, taken at `time_s` (seconds,
+    /// any origin, non-decreasing) from the pose `world_from_sensor` in the map's local frame.
+    ///
+    /// # Errors
+    ///
+    /// [`PipelineError::Time`] for a time that is not finite or goes back,
+    /// [`PipelineError::Pose`] for a non-finite pose, [`PipelineError::Window`] for a position
+    /// too far to index. The front end is unchanged on error.
+    pub fn process(
+        &mut self,
+        points_in_sensor: &[[f32; 3]],
+        world_from_sensor: &Isometry3,
+        time_s: f64,
+    ) -> Result<FrontEndStats, PipelineError> {
+        let previous_s = self.last_time_s.unwrap_or(time_s);
+        if !(time_s.is_finite() && time_s >= previous_s) {
+            return Err(PipelineError::Time { time_s, previous_s });
+        }
+        if !world_from_sensor.is_finite() {
+            return Err(PipelineError::Pose {
+                world_from_sensor: *world_from_sensor,
+            });
+        }
+        let [x_m, y_m, _] = world_from_sensor.translation;
+        let ms = |start: Instant| start.elapsed().as_secs_f64() * 1e3;
+
+        // Follow the vehicle: whole-cell shift of the window (SPEC §2).
+        let start = Instant::now();
+        let entered = self.window.recentre(x_m, y_m)?;
+        self.new_cells = if self.last_time_s.is_none() {
+            NewCells::All
+        } else {
+            NewCells::Entered(entered)
+        };
+        let window_ms = ms(start);
+
+        // Map prior of the cells that entered (all of them on the first frame) (SPEC §4).
+        let start = Instant::now();
+        match &self.new_cells {
+            NewCells::All => self.map_prior.fill_window(&self.window, &mut self.gis),
+            NewCells::Entered(entered) => {
+                self.map_prior
+                    .fill_entered(&self.window, entered, &mut self.gis);
+            }
+        }
+        let prior_ms = ms(start);
+
+        // Sensor grid from the scan (SPEC §3).
+        let start = Instant::now();
+        let sensor = self.sensor_model.build(
+            points_in_sensor,
+            world_from_sensor,
+            &self.window,
+            &mut self.sensor,
+        );
+        let sensor_ms = ms(start);
+
+        self.dt_s = time_s - previous_s;
+        self.last_time_s = Some(time_s);
+        Ok(FrontEndStats {
+            dt_s: self.dt_s,
+            entered_cells: self.new_cells.cell_count(&self.window),
+            sensor,
+            window_ms,
+            prior_ms,
+            sensor_ms,
+        })
+    }
+
+    /// The window (world ↔ storage mapping of every grid).
+    pub fn window(&self) -> &Window {
+        &self.window
+    }
+
+    /// The cells new in the window since the previous frame.
+    pub fn new_cells(&self) -> &NewCells {
+        &self.new_cells
+    }
+
+    /// Storage ranges of the cells new in the window since the previous frame.
+    pub fn new_cell_spans(&self) -> impl Iterator<Item = Range<usize>> + '_ {
+        self.new_cells.storage_spans(&self.window)
+    }
+
+    /// The last frame's SensorGrid, in storage order.
+    pub fn sensor_grid(&self) -> &SensorGrid {
+        &self.sensor
+    }
+
+    /// The GISGrid (vacuous without a map), in storage order.
+    pub fn gis(&self) -> &GisGrid {
+        &self.gis
+    }
+
+    /// Seconds between the last two frames (0 after the first).
+    pub fn dt_s(&self) -> f64 {
+        self.dt_s
+    }
+
+    /// Time of the last frame, seconds; `None` before the first.
+    pub fn time_s(&self) -> Option<f64> {
+        self.last_time_s
+    }
+
+    /// True if a map was given.
+    pub fn has_map(&self) -> bool {
+        self.map_prior.has_map()
+    }
+}
+
+/// Which map prior a [`Fusion`] combines with the sensor (SPEC §5 step 2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum Prior {
+    /// The front end's GISGrid (vacuous where it has no map).
+    Map,
+    /// A vacuous GISGrid everywhere: the method without a map, whatever the front end holds.
+    Vacuous,
+}
+
+/// What the fusion back end did in one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FusionStats {
+    /// The step's counts.
+    pub step: StepStats,
+    /// Wall time of the stages, milliseconds: resetting the cells new in the window, fusion
+    /// step with the decision, trace of moving cells.
+    pub reset_ms: f64,
+    /// See `reset_ms`.
+    pub step_ms: f64,
+    /// See `reset_ms`.
+    pub trace_ms: f64,
+}
+
+/// The paper's method as a back end of a [`FrontEnd`] (SPEC §5-§6): the PerceptionGrid, the
+/// fusion step, the decision of every cell and the trace of moving cells.
+#[derive(Debug)]
+pub struct Fusion {
+    params: Params,
+    prior: Prior,
+    perception: PerceptionGrid,
+    decisions: Vec<Decision>,
+    trace: MovingTrace,
+    /// The prior of [`Prior::Vacuous`]: a GISGrid nothing ever writes.
+    vacuous_gis: Option<GisGrid>,
+}
+
+impl Fusion {
+    /// A vacuous PerceptionGrid of the window size of `params`, fusing `prior`.
+    ///
+    /// # Errors
+    ///
+    /// [`PipelineError::Params`] if the parameters are out of range.
+    pub fn new(params: Params, prior: Prior) -> Result<Self, PipelineError> {
+        params.validate()?;
+        let (w, h) = (params.window.width_cells, params.window.height_cells);
+        Ok(Self {
+            params,
+            prior,
+            perception: PerceptionGrid::new(w, h),
+            decisions: vec![Decision::Unknown; w * h],
+            trace: MovingTrace::new(w * h),
+            vacuous_gis: (prior == Prior::Vacuous).then(|| GisGrid::new(w, h)),
+        })
+    }
+
+    /// Fuses the front end's last frame: cells new in the window start vacuous, then the step
+    /// and the decision of every cell, then the trace. Call it once after every
+    /// [`FrontEnd::process`].
+    ///
+    /// # Errors
+    ///
+    /// [`PipelineError::WindowSize`] if the front end's window is not the size of this back
+    /// end's grids; nothing is changed then.
+    pub fn update(&mut self, front_end: &FrontEnd) -> Result<FusionStats, PipelineError> {
+        let window = front_end.window();
+        let back_end = (self.perception.width(), self.perception.height());
+        if (window.width(), window.height()) != back_end {
+            return Err(PipelineError::WindowSize {
+                front_end: (window.width(), window.height()),
+                back_end,
+            });
+        }
+        let ms = |start: Instant| start.elapsed().as_secs_f64() * 1e3;
+
+        // Cells that entered the window start vacuous, and off the trace.
+        let start = Instant::now();
+        match front_end.new_cells() {
+            NewCells::All => {
+                self.perception.reset_all();
+                self.trace = MovingTrace::new(window.len());
+            }
+            NewCells::Entered(_) => {
+                for span in front_end.new_cell_spans() {
+                    self.perception.reset_range(span.clone());
+                    self.trace.reset_range(span);
+                }
+            }
+        }
+        let reset_ms = ms(start);
+
+        // Refine, combine with the map prior, discount the past, fuse, accumulate, specialise
+        // (SPEC §5), and decide every cell (SPEC §6) while its block is in cache.
+        let start = Instant::now();
+        let gis = self.vacuous_gis.as_ref().unwrap_or(front_end.gis());
+        let step = step_and_decide(
+            &mut self.perception,
+            front_end.sensor_grid(),
+            gis,
+            &self.params,
+            front_end.dt_s(),
+            &mut self.decisions,
+        );
+        let step_ms = ms(start);
+
+        // Add this frame's moving cells to the trace.
+        let start = Instant::now();
+        self.trace.record(&self.decisions);
+        let trace_ms = ms(start);
+
+        Ok(FusionStats {
+            step,
+            reset_ms,
+            step_ms,
+            trace_ms,
+        })
+    }
+
+    /// The parameters in use.
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// The prior it fuses.
+    pub fn prior(&self) -> Prior {
+        self.prior
+    }
+
+    /// The PerceptionGrid, in storage order.
+    pub fn perception(&self) -> &PerceptionGrid {
+        &self.perception
+    }
+
+    /// The decision per cell after the last frame, in storage order.
+    pub fn decisions(&self) -> &[Decision] {
+        &self.decisions
+    }
+
+    /// Cells decided moving at any frame while they were in the window.
+    pub fn trace(&self) -> &MovingTrace {
+        &self.trace
+    }
 }
 
 /// What happened in one frame.
@@ -92,20 +492,11 @@ pub struct FrameStats {
     pub trace_ms: f64,
 }
 
-/// The whole perception loop for one drive.
+/// The whole perception loop for one drive: a [`FrontEnd`] and the [`Fusion`] of its map prior.
 #[derive(Debug)]
 pub struct Pipeline {
-    params: Params,
-    window: Window,
-    perception: PerceptionGrid,
-    sensor: SensorGrid,
-    gis: GisGrid,
-    map_prior: MapPrior,
-    sensor_model: SensorModel,
-    decisions: Vec<Decision>,
-    trace: MovingTrace,
-    /// Time of the last frame; `None` before the first, when the window is not placed yet.
-    last_time_s: Option<f64>,
+    front_end: FrontEnd,
+    fusion: Fusion,
 }
 
 impl Pipeline {
@@ -116,24 +507,9 @@ impl Pipeline {
     ///
     /// [`PipelineError::Params`] if the parameters are out of range.
     pub fn new(params: Params, map: Option<ContextRaster>) -> Result<Self, PipelineError> {
-        params.validate()?;
-        let window = Window::new(
-            params.window.width_cells,
-            params.window.height_cells,
-            params.grid.cell_size_m,
-        )?;
-        let (w, h) = (window.width(), window.height());
         Ok(Self {
-            sensor_model: SensorModel::new(params.sensor.clone()),
-            params,
-            perception: PerceptionGrid::new(w, h),
-            sensor: SensorGrid::new(w, h),
-            gis: GisGrid::new(w, h),
-            map_prior: MapPrior::new(map),
-            decisions: vec![Decision::Unknown; w * h],
-            trace: MovingTrace::new(w * h),
-            window,
-            last_time_s: None,
+            front_end: FrontEnd::new(&params, map)?,
+            fusion: Fusion::new(params, Prior::Map)?,
         })
     }
 
@@ -151,123 +527,74 @@ impl Pipeline {
         world_from_sensor: &Isometry3,
         time_s: f64,
     ) -> Result<FrameStats, PipelineError> {
-        let previous_s = self.last_time_s.unwrap_or(time_s);
-        if !(time_s.is_finite() && time_s >= previous_s) {
-            return Err(PipelineError::Time { time_s, previous_s });
-        }
-        if !world_from_sensor.is_finite() {
-            return Err(PipelineError::Pose {
-                world_from_sensor: *world_from_sensor,
-            });
-        }
-        let [x_m, y_m, _] = world_from_sensor.translation;
-        let ms = |start: Instant| start.elapsed().as_secs_f64() * 1e3;
-        let start = Instant::now();
-
-        // Follow the vehicle: whole-cell shift of the window; cells that enter start vacuous and
-        // get their map prior (all cells on the first frame).
-        let entered = self.window.recentre(x_m, y_m)?;
-        let entered_cells = if self.last_time_s.is_none() {
-            self.perception.reset_all();
-            self.map_prior.fill_window(&self.window, &mut self.gis);
-            self.trace = MovingTrace::new(self.window.len());
-            self.window.len()
-        } else {
-            for block in entered.blocks() {
-                for span in self.window.storage_spans(block) {
-                    self.perception.reset_range(span);
-                }
-            }
-            self.map_prior
-                .fill_entered(&self.window, &entered, &mut self.gis);
-            self.trace.reset_entered(&self.window, &entered);
-            entered.cell_count()
-        };
-
-        let window_ms = ms(start);
-
-        // Sensor grid from the scan (SPEC §3).
-        let start = Instant::now();
-        let sensor = self.sensor_model.build(
-            points_in_sensor,
-            world_from_sensor,
-            &self.window,
-            &mut self.sensor,
-        );
-
-        // Refine, combine with the map prior, discount the past, fuse, accumulate, specialise
-        // (SPEC §5), and decide every cell (SPEC §6) while its block is in cache.
-        let sensor_ms = ms(start);
-        let start = Instant::now();
-        let dt_s = time_s - previous_s;
-        let step_stats: StepStats = step_and_decide(
-            &mut self.perception,
-            &self.sensor,
-            &self.gis,
-            &self.params,
-            dt_s,
-            &mut self.decisions,
-        );
-        let step_ms = ms(start);
-
-        // Add this frame's moving cells to the trace.
-        let start = Instant::now();
-        self.trace.record(&self.decisions);
-        let trace_ms = ms(start);
-
-        self.last_time_s = Some(time_s);
+        // Window, map prior and sensor grid (SPEC §2-§4).
+        let front = self
+            .front_end
+            .process(points_in_sensor, world_from_sensor, time_s)?;
+        // Fusion step, decision and trace (SPEC §5-§6).
+        let back = self.fusion.update(&self.front_end)?;
         Ok(FrameStats {
-            dt_s,
-            entered_cells,
-            sensor,
-            step_cells: step_stats.cells,
-            observed_cells: step_stats.observed_cells,
-            total_map_conflicts: step_stats.total_map_conflicts,
-            window_ms,
-            sensor_ms,
-            step_ms,
-            trace_ms,
+            dt_s: front.dt_s,
+            entered_cells: front.entered_cells,
+            sensor: front.sensor,
+            step_cells: back.step.cells,
+            observed_cells: back.step.observed_cells,
+            total_map_conflicts: back.step.total_map_conflicts,
+            window_ms: front.window_ms + front.prior_ms + back.reset_ms,
+            sensor_ms: front.sensor_ms,
+            step_ms: back.step_ms,
+            trace_ms: back.trace_ms,
         })
+    }
+
+    /// The front end: window, SensorGrid, GISGrid.
+    pub fn front_end(&self) -> &FrontEnd {
+        &self.front_end
+    }
+
+    /// The back end: PerceptionGrid, decisions, trace.
+    pub fn fusion(&self) -> &Fusion {
+        &self.fusion
     }
 
     /// The parameters in use.
     pub fn params(&self) -> &Params {
-        &self.params
+        self.fusion.params()
     }
 
     /// The window (world ↔ storage mapping of every grid below).
     pub fn window(&self) -> &Window {
-        &self.window
+        self.front_end.window()
     }
 
     /// The PerceptionGrid, in storage order.
     pub fn perception(&self) -> &PerceptionGrid {
-        &self.perception
+        self.fusion.perception()
     }
 
     /// The last frame's SensorGrid, in storage order.
     pub fn sensor_grid(&self) -> &SensorGrid {
-        &self.sensor
+        self.front_end.sensor_grid()
     }
 
     /// The GISGrid, in storage order.
     pub fn gis(&self) -> &GisGrid {
-        &self.gis
+        self.front_end.gis()
     }
 
     /// The decision per cell after the last frame, in storage order.
     pub fn decisions(&self) -> &[Decision] {
-        &self.decisions
+        self.fusion.decisions()
     }
 
     /// Cells decided moving at any frame while they were in the window.
     pub fn trace(&self) -> &MovingTrace {
-        &self.trace
+        self.fusion.trace()
     }
 
     /// True if a map was given.
     pub fn has_map(&self) -> bool {
-        self.map_prior.has_map()
+        self.front_end.has_map()
     }
 }
 
@@ -327,5 +654,94 @@ mod tests {
         // 1.2 m east at 0.5 m cells: two columns of 20 cells entered.
         assert_eq!(second.entered_cells, 40);
         assert_eq!(second.dt_s, 0.5);
+    }
+
+    /// A building on x ∈ [2, 6], y ∈ [0, 4] and a road y ∈ [−2, 0] across the map.
+    fn raster() -> ContextRaster {
+        use geo::{Rect, coord, polygon};
+        let building =
+            polygon![(x: 2.0, y: 0.0), (x: 6.0, y: 0.0), (x: 6.0, y: 4.0), (x: 2.0, y: 4.0)];
+        let road = polygon![(x: -20.0, y: -2.0), (x: 20.0, y: -2.0), (x: 20.0, y: 0.0), (x: -20.0, y: 0.0)];
+        let extent = Rect::new(coord! { x: -20.0, y: -20.0 }, coord! { x: 20.0, y: 20.0 });
+        ContextRaster::new(&geodata::LocalMap::new(vec![building], vec![road], extent))
+    }
+
+    /// A short drive east along the road past the building, with a wall north of it and an
+    /// object that appears on the road.
+    fn drive() -> Vec<(Vec<[f32; 3]>, Isometry3, f64)> {
+        (0..8)
+            .map(|k| {
+                let x_m = 0.4 * k as f64;
+                // The building's south face (y = 0) is 1 m north of the sensor.
+                let mut points: Vec<[f32; 3]> =
+                    (-10..=10).map(|j| [j as f32 * 0.3, 1.0, 0.0]).collect();
+                if k >= 4 {
+                    points.push([3.0, 0.5, 0.0]);
+                }
+                let pose = Isometry3::from_xyz_rpy(x_m, -1.0, 0.0, 0.0, 0.0, 0.0);
+                (points, pose, 0.1 * k as f64)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn back_ends_on_one_front_end_match_their_own_pipelines() {
+        // `full` and `no-map` of the evaluation: one front end with the map, a fusion of its
+        // prior and one of a vacuous prior; each must match a pipeline of its own.
+        let mut with_map = Pipeline::new(params(), Some(raster())).unwrap();
+        let mut without_map = Pipeline::new(params(), None).unwrap();
+        let mut front_end = FrontEnd::new(&params(), Some(raster())).unwrap();
+        let mut map_fusion = Fusion::new(params(), Prior::Map).unwrap();
+        let mut vacuous_fusion = Fusion::new(params(), Prior::Vacuous).unwrap();
+        for (points, pose, time_s) in drive() {
+            with_map.process(&points, &pose, time_s).unwrap();
+            without_map.process(&points, &pose, time_s).unwrap();
+            front_end.process(&points, &pose, time_s).unwrap();
+            map_fusion.update(&front_end).unwrap();
+            vacuous_fusion.update(&front_end).unwrap();
+            assert_eq!(front_end.window(), with_map.window());
+            assert_eq!(front_end.sensor_grid(), with_map.sensor_grid());
+            assert_eq!(front_end.gis(), with_map.gis());
+            assert_eq!(map_fusion.perception(), with_map.perception());
+            assert_eq!(map_fusion.decisions(), with_map.decisions());
+            assert_eq!(map_fusion.trace(), with_map.trace());
+            assert_eq!(vacuous_fusion.perception(), without_map.perception());
+            assert_eq!(vacuous_fusion.decisions(), without_map.decisions());
+            assert_eq!(vacuous_fusion.trace(), without_map.trace());
+        }
+        // The map changed something, or the comparison above proves nothing.
+        assert_ne!(with_map.decisions(), without_map.decisions());
+    }
+
+    #[test]
+    fn new_cells_are_the_whole_window_first_then_what_entered() {
+        let mut front_end = FrontEnd::new(&params(), None).unwrap();
+        assert_eq!(front_end.new_cells(), &NewCells::All);
+        front_end.process(&[], &Isometry3::IDENTITY, 0.0).unwrap();
+        assert_eq!(front_end.new_cell_spans().collect::<Vec<_>>(), vec![0..400]);
+        let pose = Isometry3::from_xyz_rpy(0.6, 0.0, 0.0, 0.0, 0.0, 0.0);
+        front_end.process(&[], &pose, 0.1).unwrap();
+        // One column of 20 cells entered, one storage cell per row.
+        let spans: Vec<_> = front_end.new_cell_spans().collect();
+        assert_eq!(spans.len(), 20);
+        assert!(spans.iter().all(|s| s.len() == 1));
+        assert_eq!(front_end.new_cells().cell_count(front_end.window()), 20);
+        assert_eq!(front_end.dt_s(), 0.1);
+    }
+
+    #[test]
+    fn a_back_end_refuses_a_front_end_of_another_size() {
+        let mut front_end = FrontEnd::new(&params(), None).unwrap();
+        front_end.process(&[], &Isometry3::IDENTITY, 0.0).unwrap();
+        let mut other = params();
+        other.window.width_cells = 30;
+        let mut fusion = Fusion::new(other, Prior::Map).unwrap();
+        assert!(matches!(
+            fusion.update(&front_end),
+            Err(PipelineError::WindowSize {
+                front_end: (20, 20),
+                back_end: (30, 20)
+            })
+        ));
     }
 }

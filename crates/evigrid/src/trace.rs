@@ -29,6 +29,12 @@ impl MovingTrace {
         }
     }
 
+    /// Clears the storage cells in `range` (they just entered the window).
+    pub fn reset_range(&mut self, range: std::ops::Range<usize>) {
+        let len = self.ever_moving.len();
+        self.ever_moving[range.start.min(len)..range.end.min(len)].fill(false);
+    }
+
     /// Adds the cells decided moving now (`decisions` in storage order).
     pub fn record(&mut self, decisions: &[Decision]) {
         for (flag, decision) in self.ever_moving.iter_mut().zip(decisions) {

@@ -8,6 +8,7 @@
 use crate::SimError;
 use crate::actors::{self, Actor, Obstacle};
 use crate::geometry::{Polyline, Pose2, Vec2};
+use crate::label::Label;
 use crate::roadnet::{RoadNetwork, Route};
 use crate::scenario::Scenario;
 use crate::sensor::{self, Scan};
@@ -184,7 +185,7 @@ impl Drive {
     }
 
     /// Truth labels of `window` now (see [`truth::label_window`]).
-    pub fn truth(&self, window: &CellWindow, out: &mut Vec<u8>) {
+    pub fn truth(&self, window: &CellWindow, out: &mut Vec<Label>) {
         truth::label_window(
             &self.world,
             &self.actors,
@@ -312,41 +313,11 @@ fn pipeline_map(world: &World, map: &LocalMap, offset: Vec2) -> LocalMap {
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
-    use geo::{Rect, coord, polygon};
+    use crate::testing::{small_scenario, town};
 
-    /// A small town: two crossing 10 m streets, four 20 × 20 m buildings in the corners, 200 m
-    /// square.
-    pub(crate) fn town() -> LocalMap {
-        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| polygon![(x: x0, y: y0), (x: x1, y: y0), (x: x1, y: y1), (x: x0, y: y1)];
-        LocalMap::new(
-            vec![
-                rect(70.0, 70.0, 90.0, 90.0),
-                rect(110.0, 70.0, 130.0, 90.0),
-                rect(70.0, 110.0, 90.0, 130.0),
-                rect(110.0, 110.0, 130.0, 130.0),
-            ],
-            vec![rect(0.0, 95.0, 200.0, 105.0), rect(95.0, 0.0, 105.0, 200.0)],
-            Rect::new(coord! { x: 0.0, y: 0.0 }, coord! { x: 200.0, y: 200.0 }),
-        )
-    }
-
-    pub(crate) fn small_scenario(seed: u64) -> Scenario {
-        let mut s = Scenario {
-            seed,
-            duration_s: 5.0,
-            ..Scenario::default()
-        };
-        s.traffic.moving_cars = 4;
-        s.traffic.parked_cars = 4;
-        s.traffic.pedestrians = 4;
-        s.traffic.infrastructure = 6;
-        s.ego.waypoints = vec![[5.0, 100.0], [195.0, 100.0]];
-        s
-    }
-
-    fn run(seed: u64) -> (Vec<Frame>, Vec<Vec<u8>>) {
+    fn run(seed: u64) -> (Vec<Frame>, Vec<Vec<Label>>) {
         let mut drive = Drive::new(&town(), &small_scenario(seed)).unwrap();
         let window = CellWindow {
             first_col: 0,

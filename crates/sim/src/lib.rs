@@ -1,11 +1,11 @@
-//! sim: simulated drives with ground truth, metrics and baselines for evigrid.
+//! sim: simulated drives with per-cell ground truth, to evaluate evigrid on.
 //!
 //! **What.** A planar world built from a real map (buildings and road surface from
 //! [`geodata::LocalMap`]), populated with cars that drive, stop at junctions and queue, parked
 //! cars, pedestrians who walk and stand, and unmapped street furniture; a simulated IBEO-like
-//! 4-layer or 360° multi-beam scanner with exact ray casting; per-cell ground truth in the
-//! perception grid's classes {F, I, U, S, M}; streaming metrics; two baselines from the
-//! literature; and a runner that scores variants side by side on the same drive.
+//! 4-layer or 360° multi-beam scanner with exact ray casting; and per-cell ground truth in the
+//! perception grid's classes {F, I, U, S, M} ([`Label`], the one label type of truth and
+//! predictions). Scoring methods against that truth is the `evigrid-eval` crate's business.
 //!
 //! **Why.** The paper's method (Kurdej et al. 2013) needs a benchmark with per-cell truth of
 //! *moving* vs *stopped* vs *infrastructure*, which no public lidar data set gives together with
@@ -31,25 +31,22 @@
 //! # Ok::<(), sim::SimError>(())
 //! ```
 
+#![deny(missing_docs)]
+
 pub mod actors;
-pub mod baselines;
 pub mod drive;
-pub mod eval;
 pub mod geometry;
-pub mod metrics;
-pub mod plots;
+pub mod label;
 pub mod roadnet;
 pub mod scenario;
 pub mod sensor;
+pub mod testing;
 pub mod truth;
-pub mod tune;
 pub mod world;
 
 pub use drive::{Drive, Frame};
-pub use eval::{EvalConfig, EvalReport, Variant, evaluate};
-pub use plots::{confusion_heatmap, per_class_iou_chart};
+pub use label::Label;
 pub use scenario::Scenario;
-pub use truth::TruthClass;
 
 /// Errors of the simulator.
 #[derive(Debug, thiserror::Error)]
@@ -75,24 +72,6 @@ pub enum SimError {
         /// Road polygons in the map.
         road_polygons: usize,
     },
-    /// An evaluation variant name is not one of `full`, `no-map`, `moras2011`, `log-odds`.
-    #[error("unknown variant {name:?} (expected full, no-map, moras2011 or log-odds)")]
-    UnknownVariant {
-        /// The name given.
-        name: String,
-    },
-    /// An evaluation was asked with no seed.
-    #[error("no seed to evaluate")]
-    NoSeeds,
-    /// An evaluation was asked with no variant.
-    #[error("no variant to evaluate")]
-    NoVariants,
-    /// evigrid refused the parameters or a frame.
-    #[error(transparent)]
-    Pipeline(#[from] evigrid::pipeline::PipelineError),
-    /// A pipeline's window ended up elsewhere than the evaluation's (a bug, reported not hidden).
-    #[error("pipeline window and evaluation window disagree")]
-    WindowMismatch,
     /// The ego route cannot reach a waypoint along the roads.
     #[error("no road route to ego waypoint {waypoint}")]
     NoEgoRoute {

@@ -18,62 +18,43 @@
 
 use crate::actors::Actor;
 use crate::geometry::Vec2;
+use crate::label::Label;
 use crate::world::World;
 use geodata::CellWindow;
 
-/// Truth class codes, ordered by priority (higher wins).
-#[repr(u8)]
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize, serde::Deserialize,
-)]
-pub enum TruthClass {
-    /// Nothing occupies the cell.
-    F = 0,
-    /// A mapped building.
-    I = 1,
-    /// Unmapped infrastructure: street furniture, a building missing from the map.
-    U = 2,
-    /// A road user slower than [`STOPPED_BELOW_MPS`].
-    S = 3,
-    /// A road user at or above [`STOPPED_BELOW_MPS`].
-    M = 4,
-}
-
-impl TruthClass {
-    /// All five, in code order.
-    pub const ALL: [TruthClass; 5] = [
-        TruthClass::F,
-        TruthClass::I,
-        TruthClass::U,
-        TruthClass::S,
-        TruthClass::M,
-    ];
-    /// From a code 0..=4.
-    pub fn from_code(code: u8) -> Option<Self> {
-        Self::ALL.get(code as usize).copied()
-    }
-}
-
-/// Code of a cell excluded from scoring (under the ego).
-pub const IGNORED: u8 = 255;
+/// Truth of a cell excluded from scoring (under the ego): it outranks every class.
+pub const IGNORED: Label = Label::Unknown;
 /// Speed below which a road user is stopped (S), m/s.
 pub const STOPPED_BELOW_MPS: f64 = 0.5;
 /// Default number of samples per cell side.
 pub const DEFAULT_SAMPLES_PER_AXIS: usize = 3;
 
 /// The class of an actor at this instant.
-pub fn actor_class(actor: &Actor) -> TruthClass {
+pub fn actor_class(actor: &Actor) -> Label {
     if actor.kind.is_infrastructure() {
-        TruthClass::U
+        Label::U
     } else if actor.speed_mps < STOPPED_BELOW_MPS {
-        TruthClass::S
+        Label::S
     } else {
-        TruthClass::M
+        Label::M
+    }
+}
+
+/// Rank of a truth label when several objects claim a cell: F < I < U < S < M < [`IGNORED`].
+/// [`IGNORED`] is code 0, so one wrapping subtraction ranks it last, without a branch.
+fn priority(label: Label) -> u8 {
+    (label as u8).wrapping_sub(1)
+}
+
+/// Gives `cell` to `claim` if it ranks higher than what the cell holds.
+fn claim(cell: &mut Label, claim: Label) {
+    if priority(claim) > priority(*cell) {
+        *cell = claim;
     }
 }
 
 /// Labels every cell of `window` into `out` (row-major, `out[row * width + col]`, rows from the
-/// south): a [`TruthClass`] code, or [`IGNORED`] under the actor `ego_id`.
+/// south): one of F, I, U, S, M, or [`IGNORED`] under the actor `ego_id`.
 ///
 /// `out` is resized to the window. `samples_per_axis` is clamped to 1..=8.
 pub fn label_window(
@@ -82,11 +63,11 @@ pub fn label_window(
     ego_id: Option<u32>,
     window: &CellWindow,
     samples_per_axis: usize,
-    out: &mut Vec<u8>,
+    out: &mut Vec<Label>,
 ) {
     let (w, h) = (window.width, window.height);
     out.clear();
-    out.resize(w * h, TruthClass::F as u8);
+    out.resize(w * h, Label::F);
     if w == 0 || h == 0 || window.cell_size_m.is_nan() || window.cell_size_m <= 0.0 {
         return;
     }
@@ -107,11 +88,7 @@ pub fn label_window(
     let mut xs = Vec::new();
     for &id in &ids {
         let b = &world.buildings()[id as usize];
-        let class = if b.mapped {
-            TruthClass::I
-        } else {
-            TruthClass::U
-        } as u8;
+        let class = if b.mapped { Label::I } else { Label::U };
         let k0 = first_sample(b.bounds.0.y, y0).max(0.0) as usize;
         let k1 = last_sample(b.bounds.1.y, y0).min((h * n) as f64 - 1.0);
         if k1 < k0 as f64 {
@@ -131,7 +108,7 @@ pub fn label_window(
                 }
                 let (c0, c1) = (j0 as usize / n, j1 as usize / n);
                 for cell in &mut out[row * w + c0..=row * w + c1] {
-                    *cell = (*cell).max(class);
+                    claim(cell, class);
                 }
             }
         }
@@ -142,7 +119,7 @@ pub fn label_window(
         let code = if Some(a.id) == ego_id {
             IGNORED
         } else {
-            actor_class(a) as u8
+            actor_class(a)
         };
         let r = a.footprint.bounding_radius_m();
         let p = a.pose.position_m;
@@ -167,16 +144,14 @@ pub fn label_window(
                     a.footprint.contains(&a.pose, sample)
                 });
                 if covered {
-                    let cell = &mut out[row * w + col];
-                    *cell = (*cell).max(code);
+                    claim(&mut out[row * w + col], code);
                 }
             }
         }
         // The cell holding the centre, for objects thinner than the sample spacing.
         let (cc, rc) = (col_range(p.x), row_range(p.y));
         if cc >= 0.0 && rc >= 0.0 && (cc as usize) < w && (rc as usize) < h {
-            let cell = &mut out[rc as usize * w + cc as usize];
-            *cell = (*cell).max(code);
+            claim(&mut out[rc as usize * w + cc as usize], code);
         }
     }
 }
@@ -200,23 +175,30 @@ mod tests {
         }
     }
 
-    fn rows(out: &[u8], w: usize) -> Vec<String> {
+    fn rows(out: &[Label], w: usize) -> Vec<String> {
         // Top row (north) first, for reading.
         out.chunks(w)
             .rev()
             .map(|r| {
                 r.iter()
                     .map(|&c| match c {
-                        0 => '.',
-                        1 => 'I',
-                        2 => 'U',
-                        3 => 'S',
-                        4 => 'M',
+                        Label::F => '.',
+                        Label::I => 'I',
+                        Label::U => 'U',
+                        Label::S => 'S',
+                        Label::M => 'M',
                         _ => 'x',
                     })
                     .collect()
             })
             .collect()
+    }
+
+    #[test]
+    fn classes_rank_in_frame_order_and_ignored_above_all() {
+        let ranks: Vec<u8> = Label::CLASSES.iter().map(|&l| priority(l)).collect();
+        assert!(ranks.windows(2).all(|w| w[0] < w[1]), "{ranks:?}");
+        assert!(ranks.iter().all(|&r| r < priority(IGNORED)));
     }
 
     #[test]
@@ -302,7 +284,7 @@ mod tests {
         );
         let mut out = Vec::new();
         label_window(&world, &[ego], Some(5), &window(), 3, &mut out);
-        assert_eq!(out[0], TruthClass::U as u8);
+        assert_eq!(out[0], Label::U);
         assert_eq!(out[8 * 2 + 5], IGNORED);
         // Shifted window: global cells from (−2, −1); the building cell (0, 0) is now (2, 1).
         let shifted = CellWindow {
@@ -311,8 +293,8 @@ mod tests {
             ..window()
         };
         label_window(&world, &[], None, &shifted, 3, &mut out);
-        assert_eq!(out[8 + 2], TruthClass::U as u8);
-        assert_eq!(out[8 + 3], TruthClass::U as u8);
-        assert_eq!(out.iter().filter(|&&c| c != 0).count(), 2);
+        assert_eq!(out[8 + 2], Label::U);
+        assert_eq!(out[8 + 3], Label::U);
+        assert_eq!(out.iter().filter(|&&c| c != Label::F).count(), 2);
     }
 }

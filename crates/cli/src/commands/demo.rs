@@ -8,12 +8,12 @@
 //! (`assets/helsinki-demo.geojson`, cropped from the OpenStreetMap extract with `evigrid map crop`;
 //! map data © OpenStreetMap contributors, ODbL). `full` and `no-map` are scored against the
 //! simulator's truth exactly as `evigrid eval` does, in one pass over the drive; the `full`
-//! pipeline's views of the paper's Fig. 2 are rendered after every frame of that pass and encoded
+//! method's views of the paper's Fig. 2 are rendered after every frame of that pass and encoded
 //! (PNG per frame, animated GIF) on a second thread, so the minute-long drive stays well under a
 //! minute of wall time.
 //!
-//! Wiring only: the drive is `sim::Drive`'s, the perception `evigrid::Pipeline`'s, the scoring
-//! `sim::eval::evaluate_observed`'s.
+//! Wiring only: the drive is `sim::Drive`'s, the perception evigrid's (`FrontEnd` and
+//! `Fusion`), the scoring `eval::evaluate_observed`'s.
 
 use std::fs;
 use std::io::Write as _;
@@ -23,17 +23,15 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use eval::{EvalConfig, FusionFrame, Progress, Variant};
 use evigrid::Params;
-use evigrid::pipeline::Pipeline;
 use evigrid::render::{
     ClassColours, decision_image, pignistic_image, trace_image, write_atomic, write_png,
 };
-use evigrid::sensor_model::GroundModel;
 use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, DynamicImage, RgbImage};
 use rayon::prelude::*;
 use sim::Scenario;
-use sim::eval::{EvalConfig, PipelineFrame, Progress, Variant};
 
 use crate::exit::BadInput;
 
@@ -97,11 +95,8 @@ pub fn run(args: DemoArgs) -> Result<()> {
         scenario.duration_s = frames as f64 / scenario.sensor.rate_hz;
     }
     let frames = scenario.frame_count();
-    let mut params = Params::default();
-    // The simulated scanner is planar; evaluate() forces the same.
-    params.sensor.ground_model = GroundModel::None;
     let config = EvalConfig {
-        params,
+        params: Params::default(),
         ..EvalConfig::default()
     };
     let frames_dir = args.out.join("frames");
@@ -110,7 +105,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let delay_ms = (1000.0 / scenario.sensor.rate_hz).round() as u32;
 
     // One pass over the drive: the evaluation runs `full` and `no-map` frame by frame, and the
-    // views are rendered from its `full` pipeline, not from a second run of it. Encoding the
+    // views are rendered from its `full` method, not from a second run of it. Encoding the
     // PNGs and the GIF is the other half of the work; it runs on its own thread, fed through a
     // short queue (memory stays bounded), while the pipelines go on with the next frames.
     let bar = crate::progress::bar(frames as u64, "demo");
@@ -119,18 +114,18 @@ pub fn run(args: DemoArgs) -> Result<()> {
         let frames_dir = &frames_dir;
         let encoder = scope.spawn(move || encode_views(views_rx, frames_dir, delay_ms));
         let mut rendered: Result<()> = Ok(());
-        let report = sim::eval::evaluate_observed(
+        let report = eval::evaluate_observed(
             &loaded.map,
             &scenario,
             &[Variant::Full, Variant::NoMap],
             &[scenario.seed],
             &config,
             &mut |p: Progress| bar.set_position(p.frame as u64),
-            &mut |f: PipelineFrame<'_>| {
+            &mut |f: FusionFrame<'_>| {
                 if f.variant != Variant::Full || rendered.is_err() {
                     return;
                 }
-                rendered = render_views(f.pipeline, f.frame).map(|views| {
+                rendered = render_views(&f, f.frame).map(|views| {
                     // A closed queue means the encoder failed; its error is reported below.
                     let _ = views_tx.send(views);
                 });
@@ -150,8 +145,8 @@ pub fn run(args: DemoArgs) -> Result<()> {
     write_atomic(&args.out.join("decision.gif"), |f| f.write_all(&gif_bytes))?;
 
     let seconds = started.elapsed().as_secs_f64();
-    let json =
-        super::eval::write_outputs(&args.out, &report, &config.params, "evigrid demo", seconds)?;
+    let params = config.params_for(&scenario);
+    let json = super::eval::write_outputs(&args.out, &report, &params, "evigrid demo", seconds)?;
     append_attribution(&args.out.join("report.md"))?;
 
     if args.json {
@@ -179,15 +174,15 @@ struct FrameViews {
     decision: RgbImage,
 }
 
-/// Renders the `full` pipeline's three views of the paper's Fig. 2 after frame `index`.
-fn render_views(pipeline: &Pipeline, index: usize) -> Result<FrameViews> {
+/// Renders the `full` method's three views of the paper's Fig. 2 after frame `index`.
+fn render_views(frame: &FusionFrame<'_>, index: usize) -> Result<FrameViews> {
     let five = ClassColours::FIVE_CLASSES;
-    let window = pipeline.window();
+    let (window, fusion) = (frame.front_end.window(), frame.fusion);
     Ok(FrameViews {
         index,
-        pignistic: pignistic_image(window, pipeline.perception(), &five)?,
-        trace: trace_image(window, pipeline.decisions(), pipeline.trace(), &five)?,
-        decision: decision_image(window, pipeline.decisions(), &five)?,
+        pignistic: pignistic_image(window, fusion.perception(), &five)?,
+        trace: trace_image(window, fusion.decisions(), fusion.trace(), &five)?,
+        decision: decision_image(window, fusion.decisions(), &five)?,
     })
 }
 

@@ -7,7 +7,7 @@
 //! ```
 //!
 //! Wiring only: reading and checking the inputs, the progress bar, writing the outputs. The work
-//! is `sim::evaluate`'s, the pictures `sim::plots`'.
+//! is `eval::evaluate`'s, the pictures `eval::plots`'.
 
 use std::fmt::Write as _;
 use std::fs;
@@ -17,11 +17,10 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use eval::{EvalConfig, EvalError, EvalReport, Progress, Variant, plots};
 use evigrid::Params;
 use evigrid::render::{write_atomic, write_png};
-use evigrid::sensor_model::GroundModel;
-use sim::eval::{EvalConfig, EvalReport, Progress, Variant};
-use sim::{Scenario, SimError, plots};
+use sim::{Scenario, SimError};
 
 use crate::exit::BadInput;
 use crate::input::{command_line, one_line, read_params, with_path};
@@ -93,7 +92,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
     };
     let frames = scenario.frame_count();
     let bar = crate::progress::bar(frames as u64 * seeds.len() as u64, "eval");
-    let report = sim::evaluate(
+    let report = eval::evaluate(
         &loaded.map,
         &scenario,
         &variants,
@@ -109,7 +108,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let json = write_outputs(
         &args.out,
         &report,
-        &config.params,
+        &config.params_for(&scenario),
         "evigrid eval",
         started.elapsed().as_secs_f64(),
     )?;
@@ -130,8 +129,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
 }
 
 /// Writes `metrics.json`, `confusion-<variant>.png`, `per-class-iou.png` and `report.md` (headed
-/// `title`) into `out`, creating it if missing; returns the JSON written to `metrics.json`.
-/// Shared with `evigrid demo`, which reports the same evaluation.
+/// `title`, listing `params`: the parameters that ran, from `EvalConfig::params_for`) into `out`,
+/// creating it if missing; returns the JSON written to `metrics.json`. Shared with `evigrid
+/// demo`, which reports the same evaluation.
 pub(crate) fn write_outputs(
     out: &Path,
     report: &EvalReport,
@@ -179,19 +179,21 @@ fn parse_variants(names: &[String]) -> Result<Vec<Variant>> {
 }
 
 /// Errors of the evaluation itself, blamed on the input they come from.
-fn evaluation_error(error: SimError, args: &EvalArgs) -> anyhow::Error {
+fn evaluation_error(error: EvalError, args: &EvalArgs) -> anyhow::Error {
     let config = args.config.as_deref().map_or_else(
         || "default parameters".to_string(),
         |p| p.display().to_string(),
     );
     match error {
-        SimError::NoRoads { .. } => BadInput::new(with_path(&args.map, &error.to_string())),
-        SimError::Pipeline(_) => BadInput::new(format!("{config}: {error}")),
-        SimError::ScenarioToml { .. }
-        | SimError::InvalidScenario { .. }
-        | SimError::NoEgoRoute { .. } => {
-            BadInput::new(format!("{}: {error}", args.scenario.display()))
+        EvalError::Sim(SimError::NoRoads { .. }) => {
+            BadInput::new(with_path(&args.map, &error.to_string()))
         }
+        EvalError::Pipeline(_) => BadInput::new(format!("{config}: {error}")),
+        EvalError::Sim(
+            SimError::ScenarioToml { .. }
+            | SimError::InvalidScenario { .. }
+            | SimError::NoEgoRoute { .. },
+        ) => BadInput::new(format!("{}: {error}", args.scenario.display())),
         other => anyhow::Error::new(other).context("evaluation failed"),
     }
 }
@@ -230,10 +232,7 @@ fn report_markdown(
     title: &str,
     seconds: f64,
 ) -> Result<String> {
-    // evaluate() forces the planar ground model; print what actually ran.
-    let mut used = params.clone();
-    used.sensor.ground_model = GroundModel::None;
-    let params_toml = used.to_toml_string()?;
+    let params_toml = params.to_toml_string()?;
     let scenario_toml = toml::to_string(&report.scenario)?;
     let mut s = format!("# {title}\n\n");
     let _ = writeln!(s, "Command (wall time {seconds:.1} s):\n");
@@ -283,7 +282,9 @@ fn report_markdown(
     );
     let _ = writeln!(
         s,
-        "\n## Parameters used\n\nevigrid (`full`, `no-map` and the baselines' sensor model):\n\n```toml\n{params_toml}```\n"
+        "\n## Parameters used\n\nevigrid (the front end all variants share, `full` and `no-map`; \
+         `sensor.ground_model` is the simulated scanner's, `none`, whatever the configuration \
+         says):\n\n```toml\n{params_toml}```\n"
     );
     let _ = writeln!(
         s,

@@ -8,7 +8,7 @@
 //! ```
 //!
 //! Wiring only: reading and checking the inputs, the progress bar, writing the outputs. The search
-//! and the objective are `sim::tune`'s (see its docs and docs/tuning.md).
+//! and the objective are `eval::tune`'s (see its docs and docs/tuning.md).
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -19,11 +19,11 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use eval::tune::{DriveSet, TuneOptions, TuneProgress, TuneReport, VariantScore};
+use eval::{EvalError, Variant};
 use evigrid::render::write_atomic;
 use geodata::LocalMap;
 use serde::Serialize;
-use sim::eval::Variant;
-use sim::tune::{DriveSet, TuneOptions, TuneProgress, TuneReport, VariantScore};
 use sim::{Scenario, SimError};
 
 use crate::exit::BadInput;
@@ -150,7 +150,7 @@ pub fn run(args: TuneArgs) -> Result<()> {
     // About two candidates per dimension per round; the bar grows if the search needs more.
     let estimate = 1 + 2 * options.space.len() * options.rounds;
     let bar = crate::progress::bar(estimate as u64, "tune");
-    let report = sim::tune::tune(&start, &tuning_sets, &options, &mut |p: TuneProgress| {
+    let report = eval::tune::tune(&start, &tuning_sets, &options, &mut |p: TuneProgress| {
         if p.candidates as u64 > bar.length().unwrap_or(0) {
             bar.set_length(p.candidates as u64);
         }
@@ -166,9 +166,9 @@ pub fn run(args: TuneArgs) -> Result<()> {
             continue;
         }
         let w = options.moving_iou_weight;
-        let before = sim::tune::score_drives(&report.start, drive_sets, &Variant::ALL, w)
+        let before = eval::tune::score_drives(&report.start, drive_sets, &Variant::ALL, w)
             .map_err(|e| search_error(e, &args))?;
-        let after = sim::tune::score_drives(&report.best, drive_sets, &Variant::ALL, w)
+        let after = eval::tune::score_drives(&report.best, drive_sets, &Variant::ALL, w)
             .map_err(|e| search_error(e, &args))?;
         for (start, tuned) in before.into_iter().zip(after) {
             comparison.push(ComparisonRow {
@@ -307,17 +307,21 @@ fn names_and_seeds(drives: &Drives, seeds: &[Vec<u64>]) -> Vec<(String, Vec<u64>
 }
 
 /// Errors of the search, blamed on the input they come from where one is to blame.
-fn search_error(error: SimError, args: &TuneArgs) -> anyhow::Error {
+fn search_error(error: EvalError, args: &TuneArgs) -> anyhow::Error {
     let config = args.config.as_deref().map_or_else(
         || "default parameters".to_string(),
         |p| p.display().to_string(),
     );
     match error {
-        SimError::NoRoads { .. } => BadInput::new(format!("a --map has no drivable road: {error}")),
-        SimError::Pipeline(_) => BadInput::new(format!("{config}: {error}")),
-        SimError::ScenarioToml { .. }
-        | SimError::InvalidScenario { .. }
-        | SimError::NoEgoRoute { .. } => BadInput::new(format!("a --scenario: {error}")),
+        EvalError::Sim(SimError::NoRoads { .. }) => {
+            BadInput::new(format!("a --map has no drivable road: {error}"))
+        }
+        EvalError::Pipeline(_) => BadInput::new(format!("{config}: {error}")),
+        EvalError::Sim(
+            SimError::ScenarioToml { .. }
+            | SimError::InvalidScenario { .. }
+            | SimError::NoEgoRoute { .. },
+        ) => BadInput::new(format!("a --scenario: {error}")),
         other => anyhow::Error::new(other).context("tuning failed"),
     }
 }

@@ -13,9 +13,9 @@
 //! length); then it is occupied-static (O). Without the hold only the leading edge of a moving
 //! car would be M.
 
-use super::Baseline;
-use crate::metrics::Predicted;
+use crate::{EvalError, GridMethod, Label};
 use evigrid::SensorGrid;
+use evigrid::pipeline::FrontEnd;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 
@@ -82,21 +82,17 @@ impl LogOdds {
     pub fn log_odds(&self, idx: usize) -> Option<f32> {
         self.log_odds.get(idx).copied()
     }
-}
 
-impl Baseline for LogOdds {
-    fn name(&self) -> &'static str {
-        "log-odds"
-    }
-
-    fn reset_range(&mut self, range: Range<usize>) {
+    /// Makes the storage cells in `range` unknown (they just entered the window).
+    pub fn reset_range(&mut self, range: Range<usize>) {
         let r = range.start.min(self.state.len())..range.end.min(self.state.len());
         self.log_odds[r.clone()].fill(0.0);
         self.state[r.clone()].fill(UNSEEN);
         self.moving_left[r].fill(0);
     }
 
-    fn update(&mut self, sensor: &SensorGrid, dt_s: f64) {
+    /// Fuses one scan's SensorGrid, `dt_s` after the previous one.
+    pub fn update(&mut self, sensor: &SensorGrid, dt_s: f64) {
         let p = &self.params;
         let (hit, miss) = (logit(p.prob_hit), logit(p.prob_miss));
         let (lo, hi) = (logit(p.clamp_min), logit(p.clamp_max));
@@ -136,14 +132,28 @@ impl Baseline for LogOdds {
             *state = now;
         }
     }
+}
 
-    fn decide(&self, out: &mut [Predicted]) {
+impl GridMethod for LogOdds {
+    fn name(&self) -> &'static str {
+        "log-odds"
+    }
+
+    fn process(&mut self, front_end: &FrontEnd) -> Result<(), EvalError> {
+        for span in front_end.new_cell_spans() {
+            self.reset_range(span);
+        }
+        self.update(front_end.sensor_grid(), front_end.dt_s());
+        Ok(())
+    }
+
+    fn decide(&self, out: &mut [Label]) {
         for (k, d) in out.iter_mut().enumerate().take(self.state.len()) {
             *d = match self.state[k] {
-                UNSEEN => Predicted::Unknown,
-                FREE => Predicted::F,
-                _ if self.moving_left[k] > 0 => Predicted::M,
-                _ => Predicted::O,
+                UNSEEN => Label::Unknown,
+                FREE => Label::F,
+                _ if self.moving_left[k] > 0 => Label::M,
+                _ => Label::O,
             };
         }
     }
@@ -164,22 +174,22 @@ mod tests {
     #[test]
     fn octomap_updates_clamp_and_flip_to_moving() {
         let mut g = LogOdds::new(1, LogOddsParams::default());
-        let mut d = [Predicted::F];
+        let mut d = [Label::F];
         g.decide(&mut d);
-        assert_eq!(d[0], Predicted::Unknown);
+        assert_eq!(d[0], Label::Unknown);
         // logit(0.4) = −0.405465; five misses would reach −2.03 but clamp at logit(0.1192) = −2.000028.
         for _ in 0..5 {
             g.update(&sg(0.7, 0.0), 0.1);
         }
         assert_relative_eq!(g.log_odds(0).unwrap_or(0.0), -2.000_028, epsilon = 1e-4);
         g.decide(&mut d);
-        assert_eq!(d[0], Predicted::F);
+        assert_eq!(d[0], Label::F);
         // Hits add logit(0.7) = 0.847298: −1.15273, −0.30543 (still free), +0.54187 → occupied,
         // and it was free the scan before → M, held 0.5 s / 0.1 s = 5 scans.
         g.update(&sg(0.0, 0.8), 0.1);
         g.update(&sg(0.0, 0.8), 0.1);
         g.decide(&mut d);
-        assert_eq!(d[0], Predicted::F);
+        assert_eq!(d[0], Label::F);
         g.update(&sg(0.0, 0.8), 0.1);
         assert_relative_eq!(g.log_odds(0).unwrap_or(0.0), 0.541_866, epsilon = 1e-4);
         let mut decisions = Vec::new();
@@ -191,14 +201,7 @@ mod tests {
         // Flip scan + 4 more = 5 scans of M, then O.
         assert_eq!(
             decisions,
-            vec![
-                Predicted::M,
-                Predicted::M,
-                Predicted::M,
-                Predicted::M,
-                Predicted::M,
-                Predicted::O
-            ]
+            vec![Label::M, Label::M, Label::M, Label::M, Label::M, Label::O]
         );
         // Clamped at logit(0.971) = 3.511031.
         assert_relative_eq!(g.log_odds(0).unwrap_or(0.0), 3.511_031, epsilon = 1e-4);
@@ -208,12 +211,12 @@ mod tests {
     fn vacuous_cells_are_not_updated_and_occupied_from_unseen_is_static() {
         let mut g = LogOdds::new(1, LogOddsParams::default());
         g.update(&sg(0.0, 0.0), 0.1);
-        let mut d = [Predicted::F];
+        let mut d = [Label::F];
         g.decide(&mut d);
-        assert_eq!(d[0], Predicted::Unknown);
+        assert_eq!(d[0], Label::Unknown);
         // First ever observation occupied: unseen → occupied is not a flip from free.
         g.update(&sg(0.0, 0.8), 0.1);
         g.decide(&mut d);
-        assert_eq!(d[0], Predicted::O);
+        assert_eq!(d[0], Label::O);
     }
 }

@@ -21,7 +21,7 @@
 //! [`Knob`]s of [`Params`] and to [`evaluate`], whose drives run in parallel (rayon).
 //!
 //! ```
-//! use sim::tune::{Bounds, coordinate_search};
+//! use eval::tune::{Bounds, coordinate_search};
 //! // A bowl with its optimum at (0.25, 0.75), inside the box [0, 1]².
 //! let bounds = [Bounds::new(0.0, 1.0, 0.25)?, Bounds::new(0.0, 1.0, 0.25)?];
 //! let search = coordinate_search(&bounds, &[0.5, 0.5], 3, 0.0, |x: &[f64]| {
@@ -29,7 +29,7 @@
 //! })
 //! .expect("the objective never fails");
 //! assert_eq!(search.best, vec![0.25, 0.75]);
-//! # Ok::<(), sim::SimError>(())
+//! # Ok::<(), eval::EvalError>(())
 //! ```
 
 use std::collections::BTreeMap;
@@ -39,9 +39,9 @@ use geodata::LocalMap;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::SimError;
-use crate::eval::{EvalConfig, Variant, evaluate};
-use crate::scenario::Scenario;
+use crate::EvalError;
+use crate::runner::{EvalConfig, Variant, evaluate};
+use sim::Scenario;
 
 /// The box and the first step of one dimension of the search.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -58,17 +58,17 @@ impl Bounds {
     /// A dimension `[lo, hi]` searched with a first step `step`.
     ///
     /// # Errors
-    /// [`SimError::InvalidScenario`] naming `tune.bounds` when the values are not finite, `lo > hi`
+    /// [`EvalError::InvalidTuneOption`] naming `tune.bounds` when the values are not finite, `lo > hi`
     /// or `step` is not positive.
-    pub fn new(lo: f64, hi: f64, step: f64) -> Result<Self, SimError> {
+    pub fn new(lo: f64, hi: f64, step: f64) -> Result<Self, EvalError> {
         if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
-            return Err(SimError::InvalidScenario {
+            return Err(EvalError::InvalidTuneOption {
                 field: "tune.bounds",
                 value: hi - lo,
             });
         }
         if !(step > 0.0 && step.is_finite()) {
-            return Err(SimError::InvalidScenario {
+            return Err(EvalError::InvalidTuneOption {
                 field: "tune.step",
                 value: step,
             });
@@ -363,20 +363,20 @@ pub struct VariantScore {
 /// `moving_iou_weight`.
 ///
 /// # Errors
-/// [`evaluate`]'s errors (bad scenario, no road, bad parameters); [`SimError::NoSeeds`] when
+/// [`evaluate`]'s errors (bad scenario, no road, bad parameters); [`EvalError::NoSeeds`] when
 /// there is no drive at all.
 pub fn score_drives(
     params: &Params,
     sets: &[DriveSet<'_>],
     variants: &[Variant],
     moving_iou_weight: f64,
-) -> Result<Vec<VariantScore>, SimError> {
+) -> Result<Vec<VariantScore>, EvalError> {
     let jobs: Vec<(&DriveSet<'_>, u64)> = sets
         .iter()
         .flat_map(|s| s.seeds.iter().map(move |&seed| (s, seed)))
         .collect();
     if jobs.is_empty() {
-        return Err(SimError::NoSeeds);
+        return Err(EvalError::NoSeeds);
     }
     let config = EvalConfig {
         params: params.clone(),
@@ -404,7 +404,7 @@ pub fn score_drives(
                 })
                 .collect())
         })
-        .collect::<Result<_, SimError>>()?;
+        .collect::<Result<_, EvalError>>()?;
     let n = per_drive.len() as f64;
     Ok(variants
         .iter()
@@ -513,16 +513,16 @@ pub struct TuneProgress {
 /// their values in `start`. `progress` is called after every candidate.
 ///
 /// # Errors
-/// [`SimError::NoSeeds`] without drives, [`SimError::InvalidScenario`] for an empty search space
+/// [`EvalError::NoSeeds`] without drives, [`EvalError::InvalidTuneOption`] for an empty search space
 /// or bounds outside `[0, 1]`, and [`evaluate`]'s errors.
 pub fn tune(
     start: &Params,
     sets: &[DriveSet<'_>],
     options: &TuneOptions,
     progress: &mut dyn FnMut(TuneProgress),
-) -> Result<TuneReport, SimError> {
+) -> Result<TuneReport, EvalError> {
     if options.space.is_empty() {
-        return Err(SimError::InvalidScenario {
+        return Err(EvalError::InvalidTuneOption {
             field: "tune.space",
             value: 0.0,
         });
@@ -531,7 +531,7 @@ pub fn tune(
         // Every tunable parameter is a mass, rate or threshold in [0, 1].
         Bounds::new(d.bounds.lo, d.bounds.hi, d.bounds.step)?;
         if d.bounds.lo < 0.0 || d.bounds.hi > 1.0 {
-            return Err(SimError::InvalidScenario {
+            return Err(EvalError::InvalidTuneOption {
                 field: "tune.bounds",
                 value: if d.bounds.lo < 0.0 {
                     d.bounds.lo
@@ -556,7 +556,7 @@ pub fn tune(
         let score = score_drives(&with(x), sets, &[Variant::Full], options.moving_iou_weight)?
             .into_iter()
             .next()
-            .ok_or(SimError::NoVariants)?;
+            .ok_or(EvalError::NoVariants)?;
         best_so_far = best_so_far.max(score.objective);
         let objective = score.objective;
         scored.push(score);
@@ -564,7 +564,7 @@ pub fn tune(
             candidates: scored.len(),
             best_objective: best_so_far,
         });
-        Ok::<f64, SimError>(objective)
+        Ok::<f64, EvalError>(objective)
     })?;
     let candidates = search
         .trials
@@ -602,7 +602,7 @@ pub fn tune(
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
-    use crate::drive::tests::{small_scenario, town};
+    use sim::testing::{small_scenario, town};
 
     fn unit_box(step: f64, n: usize) -> Vec<Bounds> {
         vec![Bounds::new(0.0, 1.0, step).unwrap(); n]
@@ -786,7 +786,7 @@ mod tests {
         }];
         assert!(matches!(
             tune(&Params::default(), &sets, &options, &mut |_| {}),
-            Err(SimError::InvalidScenario { value, .. }) if value == 2.0
+            Err(EvalError::InvalidTuneOption { value, .. }) if value == 2.0
         ));
         assert!(matches!(
             tune(
@@ -795,7 +795,7 @@ mod tests {
                 &TuneOptions::default(),
                 &mut |_| {}
             ),
-            Err(SimError::NoSeeds)
+            Err(EvalError::NoSeeds)
         ));
     }
 }

@@ -2,13 +2,14 @@
 //! frame in constant memory.
 //!
 //! # What is scored
-//! Every frame, every cell of the window that is (a) not [`IGNORED`](crate::truth::IGNORED) in
+//! Every frame, every cell of the window that is (a) not [`IGNORED`](sim::truth::IGNORED) in
 //! truth and (b) observed at least once since it entered the window (the caller's `observed`
 //! mask: the sensor grid had evidence there at least once) adds one (truth, prediction) pair to a
 //! confusion matrix. A cell is counted once per frame, so long-lived cells weigh more, as in a
 //! per-frame benchmark.
 //!
-//! Truth is one of {F, I, U, S, M}. Predictions are one of {F, I, U, S, M, O, unknown}, where O
+//! Truth and predictions are both [`Label`]s. Truth is one of {F, I, U, S, M}. Predictions are
+//! one of {F, I, U, S, M, O, unknown}, where O
 //! ("occupied, static, class not resolved") is what a two-class baseline says of an occupied
 //! cell that is not moving. Because a baseline cannot name I, U or S, two views are reported:
 //! - **five-class** scores on the matrix as is (O counts as a miss for I, U and S);
@@ -45,48 +46,21 @@
 //! current frame (the sensor grid has evidence there now): it scores what the sensor can see,
 //! like point-wise benchmarks, at the price of not scoring the grid's memory of occluded cells.
 
+use crate::Label;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-/// A predicted label.
-#[repr(u8)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-pub enum Predicted {
-    /// Free.
-    F = 0,
-    /// Mapped infrastructure.
-    I = 1,
-    /// Unmapped infrastructure.
-    U = 2,
-    /// Stopped object.
-    S = 3,
-    /// Moving object.
-    M = 4,
-    /// Occupied and static, class not resolved (two-class baselines).
-    O = 5,
-    /// No decision.
-    Unknown = 6,
-}
-
-impl Predicted {
-    /// All labels, in code order.
-    pub const ALL: [Predicted; 7] = [
-        Predicted::F,
-        Predicted::I,
-        Predicted::U,
-        Predicted::S,
-        Predicted::M,
-        Predicted::O,
-        Predicted::Unknown,
-    ];
-    /// Short name.
-    pub fn name(self) -> &'static str {
-        ["F", "I", "U", "S", "M", "O", "unknown"][self as usize]
-    }
-}
-
-/// Names of the truth classes, in code order.
+/// Names of the truth classes, in the matrix's row order.
 pub const TRUTH_NAMES: [&str; 5] = ["F", "I", "U", "S", "M"];
+
+/// Row of each [`Label`] (by code) in [`ConfusionMatrix::counts`]: F, I, U, S, M; unknown and O
+/// are never truth.
+const ROW: [Option<usize>; 7] = [None, Some(0), Some(1), Some(2), Some(3), Some(4), None];
+/// Column of each [`Label`] (by code): F, I, U, S, M, O, unknown.
+const COLUMN: [usize; 7] = [6, 0, 1, 2, 3, 4, 5];
+
+/// Column of predicted M.
+const M_COLUMN: usize = COLUMN[Label::M as usize];
 
 /// Counts of (truth, prediction) pairs: `counts[truth][predicted]`.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -96,16 +70,16 @@ pub struct ConfusionMatrix {
 }
 
 impl ConfusionMatrix {
-    /// Adds one pair. Truth codes outside 0..=4 (e.g. ignored cells) are skipped.
-    pub fn add(&mut self, truth: u8, predicted: Predicted) {
-        if let Some(row) = self.counts.get_mut(truth as usize) {
-            row[predicted as usize] += 1;
+    /// Adds one pair. A truth that is not a class (unknown: ignored cells) is skipped.
+    pub fn add(&mut self, truth: Label, predicted: Label) {
+        if let Some(row) = ROW[truth as usize] {
+            self.counts[row][COLUMN[predicted as usize]] += 1;
         }
     }
 
     /// Adds a frame: cell `k` counts when `observed[k]` is true. Slices must have equal length
     /// (extra elements of the longer ones are ignored).
-    pub fn add_frame(&mut self, truth: &[u8], predicted: &[Predicted], observed: &[bool]) {
+    pub fn add_frame(&mut self, truth: &[Label], predicted: &[Label], observed: &[bool]) {
         for ((&t, &p), &o) in truth.iter().zip(predicted).zip(observed) {
             if o {
                 self.add(t, p);
@@ -162,10 +136,10 @@ impl ConfusionMatrix {
         let static_total: u64 = self.counts[..4].iter().flatten().sum();
         let static_kept: u64 = self.counts[..4]
             .iter()
-            .map(|r| r.iter().sum::<u64>() - r[Predicted::M as usize])
+            .map(|r| r.iter().sum::<u64>() - r[M_COLUMN])
             .sum();
         let dynamic_total: u64 = self.counts[4].iter().sum();
-        let dynamic_found = self.counts[4][Predicted::M as usize];
+        let dynamic_found = self.counts[4][M_COLUMN];
         let sa = ratio(static_kept, static_total);
         let da = ratio(dynamic_found, dynamic_total);
         let ha = match (sa, da) {
@@ -320,7 +294,8 @@ pub struct DurationSummary {
 /// Remanence tracker over a fixed set of cells (indexed like the caller's grid storage).
 #[derive(Clone, Debug)]
 pub struct Remanence {
-    previous_truth: Vec<u8>,
+    /// Truth of the previous frame; [`IGNORED`](sim::truth::IGNORED) when there is none.
+    previous_truth: Vec<Label>,
     /// Frame when the cell was vacated, or u32::MAX when not waiting.
     vacated_at: Vec<u32>,
     histogram: FrameHistogram,
@@ -328,13 +303,12 @@ pub struct Remanence {
 }
 
 const NOT_WAITING: u32 = u32::MAX;
-const NO_TRUTH: u8 = u8::MAX;
 
 impl Remanence {
     /// A tracker over `len` cells.
     pub fn new(len: usize) -> Self {
         Self {
-            previous_truth: vec![NO_TRUTH; len],
+            previous_truth: vec![sim::truth::IGNORED; len],
             vacated_at: vec![NOT_WAITING; len],
             histogram: FrameHistogram::default(),
             censored: 0,
@@ -347,7 +321,7 @@ impl Remanence {
                 self.censored += 1;
             }
             *v = NOT_WAITING;
-            self.previous_truth[idx] = NO_TRUTH;
+            self.previous_truth[idx] = sim::truth::IGNORED;
         }
     }
     /// Updates cell `idx` at `frame` with its truth, prediction and whether the sensor observes it
@@ -356,15 +330,14 @@ impl Remanence {
         &mut self,
         idx: usize,
         frame: u32,
-        truth: u8,
-        predicted: Predicted,
+        truth: Label,
+        predicted: Label,
         observed_now: bool,
     ) {
         let Some(prev) = self.previous_truth.get(idx).copied() else {
             return;
         };
-        let f = crate::truth::TruthClass::F as u8;
-        let m = crate::truth::TruthClass::M as u8;
+        let (f, m) = (Label::F, Label::M);
         if prev == m && truth == f && observed_now && self.vacated_at[idx] == NOT_WAITING {
             self.vacated_at[idx] = frame;
         }
@@ -373,7 +346,7 @@ impl Remanence {
             if truth != f {
                 self.censored += 1;
                 self.vacated_at[idx] = NOT_WAITING;
-            } else if predicted == Predicted::F {
+            } else if predicted == Label::F {
                 self.histogram.add(frame.saturating_sub(start));
                 self.vacated_at[idx] = NOT_WAITING;
             }
@@ -480,14 +453,27 @@ impl Latency {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use Predicted as P;
+    use Label as P;
     use approx::assert_relative_eq;
 
     fn hand_matrix() -> ConfusionMatrix {
-        // Ten scored cells, one unobserved (would be F→M) and one ignored (255):
-        // truth: F F F F I I   U S M M | F  | 255
+        // Ten scored cells, one unobserved (would be F→M) and one ignored:
+        // truth: F F F F I I   U S M M | F  | ignored
         // pred:  F F M U I unk U S M F | M  | M
-        let truth = [0, 0, 0, 0, 1, 1, 2, 3, 4, 4, 0, 255];
+        let truth = [
+            P::F,
+            P::F,
+            P::F,
+            P::F,
+            P::I,
+            P::I,
+            P::U,
+            P::S,
+            P::M,
+            P::M,
+            P::F,
+            sim::truth::IGNORED,
+        ];
         let pred = [
             P::F,
             P::F,
@@ -577,7 +563,7 @@ mod tests {
     fn baseline_o_counts_as_static_in_coarse_view_only() {
         let mut m = ConfusionMatrix::default();
         // One I cell predicted O: five-class I recall 0, coarse O recall 1, SA 1.
-        m.add(1, P::O);
+        m.add(P::I, P::O);
         let s = m.scores();
         assert_eq!(s.classes[1].recall, Some(0.0));
         assert_eq!(s.coarse_classes[1].recall, Some(1.0));
@@ -591,7 +577,7 @@ mod tests {
 
     #[test]
     fn remanence_times_vacated_cells_and_censors_the_rest() {
-        let (f, m) = (0u8, 4u8);
+        let (f, m) = (P::F, P::M);
         let mut r = Remanence::new(4);
         // Cell 0: truth M M F F F F, pred M M M M F F → vacated at 2, F at 4: 2 frames.
         // Cell 1: truth M F, pred M F → 0 frames.

@@ -25,8 +25,8 @@
 //! undefined IoU (class absent from truth and prediction) is a short grey stub below the axis. A
 //! legend (colour swatch, variant name) is on the right.
 
-use crate::eval::{EvalReport, VariantReport};
 use crate::metrics::{ConfusionMatrix, TRUTH_NAMES};
+use crate::report::{EvalReport, VariantReport};
 use image::{Rgb, RgbImage};
 
 /// Width of a glyph of the built-in font, pixels at scale 1.

@@ -1,12 +1,12 @@
 //! Scores every variant on a simulated drive over a map file.
 //!
 //! ```text
-//! cargo run --release -p sim --example evaluate_map -- MAP [SCENARIO.toml] [SEEDS]
+//! cargo run --release -p evigrid-eval --example evaluate_map -- MAP [SCENARIO.toml] [SEEDS]
 //! ```
 //! SEEDS is a comma-separated list (default `1`). Prints the Markdown report on stdout.
 
+use eval::{EvalConfig, Variant, evaluate};
 use sim::Scenario;
-use sim::eval::{EvalConfig, Variant, evaluate};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();

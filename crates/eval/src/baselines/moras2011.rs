@@ -11,9 +11,9 @@
 //! never observed or m(Ω) > `unknown_threshold`; otherwise F if m(F) ≥ m(O) (the larger
 //! pignistic probability), else O.
 
-use super::Baseline;
-use crate::metrics::Predicted;
+use crate::{EvalError, GridMethod, Label};
 use evigrid::SensorGrid;
+use evigrid::pipeline::FrontEnd;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 
@@ -83,14 +83,9 @@ impl Moras2011 {
             self.conflict_fo[idx],
         ))
     }
-}
 
-impl Baseline for Moras2011 {
-    fn name(&self) -> &'static str {
-        "moras2011"
-    }
-
-    fn reset_range(&mut self, range: Range<usize>) {
+    /// Makes the storage cells in `range` unknown (they just entered the window).
+    pub fn reset_range(&mut self, range: Range<usize>) {
         let r = range.start.min(self.seen.len())..range.end.min(self.seen.len());
         self.m_free[r.clone()].fill(0.0);
         self.m_occupied[r.clone()].fill(0.0);
@@ -98,7 +93,8 @@ impl Baseline for Moras2011 {
         self.seen[r].fill(false);
     }
 
-    fn update(&mut self, sensor: &SensorGrid, dt_s: f64) {
+    /// Fuses one scan's SensorGrid, `dt_s` after the previous one.
+    pub fn update(&mut self, sensor: &SensorGrid, dt_s: f64) {
         let keep =
             (1.0 - self.params.discount_per_second.clamp(0.0, 1.0)).powf(dt_s.max(0.0)) as f32;
         let cells = self
@@ -124,19 +120,33 @@ impl Baseline for Moras2011 {
             *seen |= sf > 0.0 || so > 0.0;
         }
     }
+}
 
-    fn decide(&self, out: &mut [Predicted]) {
+impl GridMethod for Moras2011 {
+    fn name(&self) -> &'static str {
+        "moras2011"
+    }
+
+    fn process(&mut self, front_end: &FrontEnd) -> Result<(), EvalError> {
+        for span in front_end.new_cell_spans() {
+            self.reset_range(span);
+        }
+        self.update(front_end.sensor_grid(), front_end.dt_s());
+        Ok(())
+    }
+
+    fn decide(&self, out: &mut [Label]) {
         let p = &self.params;
         for (k, d) in out.iter_mut().enumerate().take(self.seen.len()) {
             let (mf, mo) = (self.m_free[k], self.m_occupied[k]);
             *d = if self.conflict_fo[k] > p.moving_conflict_threshold {
-                Predicted::M
+                Label::M
             } else if !self.seen[k] || 1.0 - mf - mo > p.unknown_threshold {
-                Predicted::Unknown
+                Label::Unknown
             } else if mf >= mo {
-                Predicted::F
+                Label::F
             } else {
-                Predicted::O
+                Label::O
             };
         }
     }
@@ -162,13 +172,13 @@ mod tests {
             ..Moras2011Params::default()
         };
         let mut g = Moras2011::new(1, params);
-        let mut d = [Predicted::Unknown];
+        let mut d = [Label::Unknown];
         g.decide(&mut d);
-        assert_eq!(d[0], Predicted::Unknown);
+        assert_eq!(d[0], Label::Unknown);
         // Scan 1 free (0.7): m(F) = 0.7, m(Ω) = 0.3 → F.
         g.update(&sg(0.7, 0.0), 0.1);
         g.decide(&mut d);
-        assert_eq!(d[0], Predicted::F);
+        assert_eq!(d[0], Label::F);
         // Scan 2 free: m(F) = 0.7 + 0.3·0.7 = 0.91.
         g.update(&sg(0.7, 0.0), 0.1);
         assert_relative_eq!(g.cell(0).map_or(0.0, |c| c.0), 0.91, epsilon = 1e-6);
@@ -180,7 +190,7 @@ mod tests {
         assert_relative_eq!(mf, 0.182, epsilon = 1e-6);
         assert_relative_eq!(mo, 0.072, epsilon = 1e-6);
         g.decide(&mut d);
-        assert_eq!(d[0], Predicted::M);
+        assert_eq!(d[0], Label::M);
         // Scans 4, 5 occupied: ∅_FO = 0.182·0.8 = 0.1456 → not M; m(O) grows to
         // 0.072 + 0.746·0.8 = 0.6688 after scan 4 (pw = 1 − 0.182 − 0.072 = 0.746),
         // m(F) = 0.182·0.2 = 0.0364 → O.
@@ -190,10 +200,10 @@ mod tests {
         assert_relative_eq!(mo, 0.6688, epsilon = 1e-6);
         assert_relative_eq!(mf, 0.0364, epsilon = 1e-6);
         g.decide(&mut d);
-        assert_eq!(d[0], Predicted::O);
+        assert_eq!(d[0], Label::O);
         g.reset_range(0..1);
         g.decide(&mut d);
-        assert_eq!(d[0], Predicted::Unknown);
+        assert_eq!(d[0], Label::Unknown);
     }
 
     #[test]
@@ -211,8 +221,8 @@ mod tests {
         g.update(&sg(0.0, 0.0), 0.5);
         assert_relative_eq!(g.cell(0).map_or(0.0, |c| c.0), 0.35, epsilon = 1e-6);
         // m(Ω) = 0.65 > 0.5 → unknown again.
-        let mut d = [Predicted::F];
+        let mut d = [Label::F];
         g.decide(&mut d);
-        assert_eq!(d[0], Predicted::Unknown);
+        assert_eq!(d[0], Label::Unknown);
     }
 }

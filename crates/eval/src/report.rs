@@ -1,0 +1,143 @@
+//! The evaluation report: per variant, confusion matrices, scores, remanence, latency and time
+//! per frame, serialisable (`metrics.json`) and printable as Markdown tables.
+
+use crate::metrics::{ConfusionMatrix, DurationSummary, Scores, TRUTH_NAMES};
+use crate::runner::Variant;
+use serde::{Deserialize, Serialize};
+use sim::Scenario;
+
+/// Scores of one seed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SeedScores {
+    /// The seed.
+    pub seed: u64,
+    /// Macro-F1 over five classes.
+    pub macro_f1: Option<f64>,
+    /// IoU of M.
+    pub moving_iou: Option<f64>,
+}
+
+/// Results of one variant over all seeds.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct VariantReport {
+    /// The variant.
+    pub variant: Variant,
+    /// Counts over all seeds and frames.
+    pub confusion: ConfusionMatrix,
+    /// Scores of `confusion`.
+    pub scores: Scores,
+    /// Counts over the cells observed in the frame itself (see [`crate::metrics`]).
+    pub confusion_visible: ConfusionMatrix,
+    /// Scores of `confusion_visible`.
+    pub scores_visible: Scores,
+    /// Frames until a vacated cell is free again.
+    pub remanence: DurationSummary,
+    /// Frames from a moving actor's first return to a return cell decided M.
+    pub latency: DurationSummary,
+    /// Mean wall-clock time per frame, milliseconds.
+    pub ms_per_frame: f64,
+    /// Per-seed headline scores.
+    pub per_seed: Vec<SeedScores>,
+}
+
+/// The evaluation report (serialisable).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EvalReport {
+    /// The scenario (its seed replaced by each of `seeds`).
+    pub scenario: Scenario,
+    /// Seeds run.
+    pub seeds: Vec<u64>,
+    /// Frames per seed.
+    pub frames_per_seed: usize,
+    /// Scan period, seconds (to turn frames into seconds).
+    pub frame_period_s: f64,
+    /// One report per variant, in the order asked.
+    pub variants: Vec<VariantReport>,
+    /// Mean wall-clock time per frame of the simulation itself (actors, scan, truth), ms.
+    pub simulation_ms_per_frame: f64,
+}
+
+fn fmt(v: Option<f64>) -> String {
+    v.map_or_else(|| "–".to_string(), |x| format!("{x:.3}"))
+}
+
+fn fmt_frames(v: Option<u32>) -> String {
+    v.map_or_else(|| "–".to_string(), |x| x.to_string())
+}
+
+impl EvalReport {
+    /// The report as Markdown tables: headline scores, then IoU per class.
+    pub fn to_markdown(&self) -> String {
+        let mut s = String::new();
+        s.push_str(&format!(
+            "Seeds {:?}, {} frames each ({:.0} ms apart); simulation {:.2} ms per frame.\n\n",
+            self.seeds,
+            self.frames_per_seed,
+            self.frame_period_s * 1000.0,
+            self.simulation_ms_per_frame
+        ));
+        s.push_str("Cells observed at least once since entering the window:\n\n");
+        s.push_str("| variant | macro-F1 (F,I,U,S,M) | macro-F1 (F,O,M) | IoU M | SA | DA | HA | remanence median / p95 (frames) | latency median / p95 (frames) | ms / frame |\n");
+        s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
+        for v in &self.variants {
+            let sc = &v.scores;
+            s.push_str(&format!(
+                "| {} | {} | {} | {} | {} | {} | {} | {} / {} | {} / {} | {:.2} |\n",
+                v.variant.name(),
+                fmt(sc.macro_f1),
+                fmt(sc.macro_f1_coarse),
+                fmt(sc.moving_iou),
+                fmt(sc.static_accuracy),
+                fmt(sc.dynamic_accuracy),
+                fmt(sc.harmonic_accuracy),
+                fmt_frames(v.remanence.median_frames),
+                fmt_frames(v.remanence.p95_frames),
+                fmt_frames(v.latency.median_frames),
+                fmt_frames(v.latency.p95_frames),
+                v.ms_per_frame
+            ));
+        }
+        s.push_str("\nCells observed in the frame itself (what the sensor sees now):\n\n");
+        s.push_str("| variant | macro-F1 (F,I,U,S,M) | macro-F1 (F,O,M) | IoU M | SA | DA | HA |\n|---|---|---|---|---|---|---|\n");
+        for v in &self.variants {
+            let sc = &v.scores_visible;
+            s.push_str(&format!(
+                "| {} | {} | {} | {} | {} | {} | {} |\n",
+                v.variant.name(),
+                fmt(sc.macro_f1),
+                fmt(sc.macro_f1_coarse),
+                fmt(sc.moving_iou),
+                fmt(sc.static_accuracy),
+                fmt(sc.dynamic_accuracy),
+                fmt(sc.harmonic_accuracy),
+            ));
+        }
+        s.push_str("\nIoU per class, cells observed at least once (five-class view; O = I ∪ U ∪ S in the coarse view):\n\n");
+        s.push_str("| variant | F | I | U | S | M | O (coarse) |\n|---|---|---|---|---|---|---|\n");
+        for v in &self.variants {
+            let c = &v.scores.classes;
+            s.push_str(&format!(
+                "| {} | {} | {} | {} | {} | {} | {} |\n",
+                v.variant.name(),
+                fmt(c[0].iou),
+                fmt(c[1].iou),
+                fmt(c[2].iou),
+                fmt(c[3].iou),
+                fmt(c[4].iou),
+                fmt(v.scores.coarse_classes[1].iou)
+            ));
+        }
+        for v in &self.variants {
+            s.push_str(&format!(
+                "\nConfusion of {} (cell-frames observed at least once; rows truth, columns prediction):\n\n",
+                v.variant.name()
+            ));
+            s.push_str("| truth \\ predicted | F | I | U | S | M | O | unknown |\n|---|---|---|---|---|---|---|---|\n");
+            for (name, row) in TRUTH_NAMES.iter().zip(&v.confusion.counts) {
+                let cells: Vec<String> = row.iter().map(u64::to_string).collect();
+                s.push_str(&format!("| {name} | {} |\n", cells.join(" | ")));
+            }
+        }
+        s
+    }
+}

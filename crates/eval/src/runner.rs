@@ -1,0 +1,579 @@
+//! Variants side by side on the same simulated drive, scored against the truth.
+//!
+//! For every seed, one [`Drive`] is simulated and each scan goes once through one shared
+//! [`FrontEnd`] (the window recentred on the pose, the map prior, the SensorGrid: evigrid's own
+//! sensor model, run once per scan), whose output every variant's [`GridMethod`] consumes:
+//! - `full`: evigrid's [`Fusion`] of the drive's pipeline map ([`Prior::Map`]);
+//! - `no-map`: the same fusion with a vacuous GISGrid ([`Prior::Vacuous`]);
+//! - `moras2011`, `log-odds`: the [`baselines`](crate::baselines).
+//!
+//! Scans go in with the *estimated* sensor pose (localisation noise included); truth is labelled
+//! in the world's true frame on the same world-fixed cells. The scanner is planar: the sensor
+//! model runs with the ground model the scenario's scanner calls for
+//! ([`EvalConfig::params_for`], `none`), whatever the configuration says, and reports print
+//! those parameters. A cell is scored once it has been observed (the shared SensorGrid had
+//! evidence in it at least once since it entered the window), the same cells for every variant;
+//! a second confusion matrix scores only the cells observed in the frame itself
+//! (`scores_visible`, see [`crate::metrics`] for why both). Per frame only counts are added
+//! ([`crate::metrics`]): memory does not depend on the length of the drive.
+//!
+//! Time per frame is wall-clock time of each variant's own work plus the shared front end it
+//! needs, as if it ran alone: the window and the SensorGrid for every variant, the map prior for
+//! `full` only.
+
+use crate::EvalError;
+use crate::Label;
+use crate::baselines::{LogOdds, LogOddsParams, Moras2011, Moras2011Params};
+use crate::method::GridMethod;
+use crate::metrics::{ConfusionMatrix, Latency, Remanence};
+use crate::report::{EvalReport, SeedScores, VariantReport};
+use evigrid::Params;
+use evigrid::pipeline::{FrontEnd, FrontEndStats, Fusion, Prior};
+use evigrid::window::Window;
+use geodata::{ContextRaster, LocalMap};
+use serde::{Deserialize, Serialize};
+use sim::drive::{Drive, Frame};
+use sim::scenario::Scenario;
+use sim::sensor::HitTarget;
+use sim::truth;
+use std::time::Instant;
+
+/// A method to evaluate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Variant {
+    /// evigrid with the map prior.
+    #[serde(rename = "full")]
+    Full,
+    /// evigrid without a map.
+    #[serde(rename = "no-map")]
+    NoMap,
+    /// Moras et al. 2011 two-class evidential grid.
+    #[serde(rename = "moras2011")]
+    Moras2011,
+    /// OctoMap-style log-odds grid.
+    #[serde(rename = "log-odds")]
+    LogOdds,
+}
+
+impl Variant {
+    /// All variants, in report order.
+    pub const ALL: [Variant; 4] = [
+        Variant::Full,
+        Variant::NoMap,
+        Variant::Moras2011,
+        Variant::LogOdds,
+    ];
+    /// The name used on command lines and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Variant::Full => "full",
+            Variant::NoMap => "no-map",
+            Variant::Moras2011 => "moras2011",
+            Variant::LogOdds => "log-odds",
+        }
+    }
+    /// Parses a name.
+    ///
+    /// # Errors
+    /// [`EvalError::UnknownVariant`] for any other name.
+    pub fn parse(name: &str) -> Result<Self, EvalError> {
+        Self::ALL
+            .into_iter()
+            .find(|v| v.name() == name)
+            .ok_or_else(|| EvalError::UnknownVariant {
+                name: name.to_string(),
+            })
+    }
+    /// True if the variant fuses the map prior (it alone needs the front end's GISGrid).
+    pub fn uses_map(self) -> bool {
+        self == Variant::Full
+    }
+}
+
+/// Settings of the methods under evaluation. By default evigrid's default parameters and the
+/// baselines' defaults.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct EvalConfig {
+    /// evigrid's parameters, for the shared front end, `full` and `no-map`. The sensor's ground
+    /// model is replaced by the scanner's (see [`EvalConfig::params_for`]).
+    pub params: Params,
+    /// The Moras 2011 baseline.
+    pub moras2011: Moras2011Params,
+    /// The log-odds baseline.
+    pub log_odds: LogOddsParams,
+}
+
+impl EvalConfig {
+    /// The evigrid parameters that run on `scenario`'s scans: [`EvalConfig::params`] with the
+    /// ground model the simulated scanner calls for
+    /// ([`SensorConfig::ground_model`](sim::scenario::SensorConfig::ground_model), `none`: a
+    /// planar world has no ground returns). Print these, not `params`, in a report.
+    pub fn params_for(&self, scenario: &Scenario) -> Params {
+        let mut params = self.params.clone();
+        params.sensor.ground_model = scenario.sensor.ground_model();
+        params
+    }
+}
+
+/// Where the evaluation is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Progress {
+    /// Seed being run (index into the seed list).
+    pub seed_index: usize,
+    /// Number of seeds.
+    pub seeds: usize,
+    /// Frames done in this seed.
+    pub frame: usize,
+    /// Frames per seed.
+    pub frames: usize,
+}
+
+/// What an observer of [`evaluate_observed`] sees after an evigrid variant (`full`, `no-map`)
+/// has processed a frame.
+#[derive(Clone, Copy)]
+pub struct FusionFrame<'a> {
+    /// The variant (`full` or `no-map`).
+    pub variant: Variant,
+    /// Index of the seed in the seed list.
+    pub seed_index: usize,
+    /// Index of the frame in the drive.
+    pub frame: usize,
+    /// The shared front end after the frame: window, SensorGrid, GISGrid.
+    pub front_end: &'a FrontEnd,
+    /// The variant's fusion after the frame: PerceptionGrid, decisions, trace.
+    pub fusion: &'a Fusion,
+}
+
+/// A variant's method: evigrid's fusion is kept by type so that observers can see its grids.
+enum Method {
+    Fusion(Box<Fusion>),
+    Other(Box<dyn GridMethod>),
+}
+
+impl Method {
+    fn as_grid_method(&mut self) -> &mut dyn GridMethod {
+        match self {
+            Method::Fusion(fusion) => fusion.as_mut(),
+            Method::Other(method) => method.as_mut(),
+        }
+    }
+}
+
+/// One variant's method and its counts over one drive.
+struct Runner {
+    variant: Variant,
+    method: Method,
+    predicted: Vec<Label>,
+    confusion: ConfusionMatrix,
+    visible: ConfusionMatrix,
+    remanence: Remanence,
+    latency: Latency,
+    seconds: f64,
+}
+
+impl Runner {
+    fn new(
+        variant: Variant,
+        params: &Params,
+        config: &EvalConfig,
+        len: usize,
+    ) -> Result<Self, EvalError> {
+        let method = match variant {
+            Variant::Full => Method::Fusion(Box::new(Fusion::new(params.clone(), Prior::Map)?)),
+            Variant::NoMap => {
+                Method::Fusion(Box::new(Fusion::new(params.clone(), Prior::Vacuous)?))
+            }
+            Variant::Moras2011 => Method::Other(Box::new(Moras2011::new(len, config.moras2011))),
+            Variant::LogOdds => Method::Other(Box::new(LogOdds::new(len, config.log_odds))),
+        };
+        Ok(Self {
+            variant,
+            method,
+            predicted: vec![Label::Unknown; len],
+            confusion: ConfusionMatrix::default(),
+            visible: ConfusionMatrix::default(),
+            remanence: Remanence::new(len),
+            latency: Latency::default(),
+            seconds: 0.0,
+        })
+    }
+
+    /// Folds another drive's counts into these.
+    fn merge(&mut self, other: &Runner) {
+        self.confusion.merge(&other.confusion);
+        self.visible.merge(&other.visible);
+        self.remanence.merge(&other.remanence);
+        self.latency.merge(&other.latency);
+        self.seconds += other.seconds;
+    }
+}
+
+/// Runs every variant on the drive of every seed and scores them.
+///
+/// # Errors
+/// [`EvalError::Sim`] from building a drive (bad scenario, no roads), [`EvalError::Pipeline`]
+/// from evigrid (bad parameters), [`EvalError::NoSeeds`] / [`EvalError::NoVariants`] for empty
+/// lists.
+pub fn evaluate(
+    map: &LocalMap,
+    scenario: &Scenario,
+    variants: &[Variant],
+    seeds: &[u64],
+    config: &EvalConfig,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<EvalReport, EvalError> {
+    evaluate_observed(
+        map,
+        scenario,
+        variants,
+        seeds,
+        config,
+        progress,
+        &mut |_| {},
+    )
+}
+
+/// [`evaluate`], calling `observer` after every frame of every evigrid variant (`full`,
+/// `no-map`), so that a caller can render the views of the drive it scores without running the
+/// method a second time (`evigrid demo` does).
+///
+/// # Errors
+/// As [`evaluate`].
+pub fn evaluate_observed(
+    map: &LocalMap,
+    scenario: &Scenario,
+    variants: &[Variant],
+    seeds: &[u64],
+    config: &EvalConfig,
+    progress: &mut dyn FnMut(Progress),
+    observer: &mut dyn FnMut(FusionFrame<'_>),
+) -> Result<EvalReport, EvalError> {
+    if seeds.is_empty() {
+        return Err(EvalError::NoSeeds);
+    }
+    if variants.is_empty() {
+        return Err(EvalError::NoVariants);
+    }
+    let params = config.params_for(scenario);
+    params
+        .validate()
+        .map_err(evigrid::pipeline::PipelineError::from)?;
+    let len = params.window.width_cells * params.window.height_cells;
+    let mut totals: Vec<Runner> = Vec::new();
+    let mut per_seed: Vec<Vec<SeedScores>> = vec![Vec::new(); variants.len()];
+    let mut frames_per_seed = 0;
+    let mut frame_period_s = 0.0;
+    let mut simulation_s = 0.0;
+    for (seed_index, &seed) in seeds.iter().enumerate() {
+        let scenario = Scenario {
+            seed,
+            ..scenario.clone()
+        };
+        let mut drive = Drive::new(map, &scenario)?;
+        frames_per_seed = drive.frame_count();
+        frame_period_s = drive.dt_s();
+        // The map is rasterised only if a variant fuses it.
+        let pipeline_map = variants
+            .iter()
+            .any(|v| v.uses_map())
+            .then(|| ContextRaster::new(drive.pipeline_map()));
+        let mut front_end = FrontEnd::new(&params, pipeline_map)?;
+        let mut runners = variants
+            .iter()
+            .map(|&v| Runner::new(v, &params, config, len))
+            .collect::<Result<Vec<_>, _>>()?;
+        simulation_s += run_drive(
+            &mut drive,
+            &mut front_end,
+            &mut runners,
+            seed_index,
+            seeds.len(),
+            progress,
+            observer,
+        )?;
+        for (k, r) in runners.into_iter().enumerate() {
+            let s = r.confusion.scores();
+            per_seed[k].push(SeedScores {
+                seed,
+                macro_f1: s.macro_f1,
+                moving_iou: s.moving_iou,
+            });
+            match totals.get_mut(k) {
+                Some(t) => t.merge(&r),
+                None => totals.push(r),
+            }
+        }
+    }
+    let frames_total = (frames_per_seed * seeds.len()).max(1) as f64;
+    let variants = totals
+        .into_iter()
+        .zip(per_seed)
+        .map(|(r, per_seed)| VariantReport {
+            variant: r.variant,
+            scores: r.confusion.scores(),
+            confusion: r.confusion,
+            scores_visible: r.visible.scores(),
+            confusion_visible: r.visible,
+            remanence: r.remanence.summary(),
+            latency: r.latency.summary(),
+            ms_per_frame: r.seconds * 1000.0 / frames_total,
+            per_seed,
+        })
+        .collect();
+    Ok(EvalReport {
+        scenario: scenario.clone(),
+        seeds: seeds.to_vec(),
+        frames_per_seed,
+        frame_period_s,
+        variants,
+        simulation_ms_per_frame: simulation_s * 1000.0 / frames_total,
+    })
+}
+
+/// Feeds one drive to the front end, then every runner; returns the seconds spent simulating
+/// (scans and truth).
+fn run_drive(
+    drive: &mut Drive,
+    front_end: &mut FrontEnd,
+    runners: &mut [Runner],
+    seed_index: usize,
+    seeds: usize,
+    progress: &mut dyn FnMut(Progress),
+    observer: &mut dyn FnMut(FusionFrame<'_>),
+) -> Result<f64, EvalError> {
+    let mut simulation_s = 0.0;
+    let len = front_end.window().len();
+    let mut observed = vec![false; len];
+    let mut observed_now = vec![false; len];
+    let mut truth_world = Vec::new();
+    let mut truth_storage = vec![truth::IGNORED; len];
+    let frames = drive.frame_count();
+    loop {
+        let started = Instant::now();
+        let Some(frame) = drive.next_frame() else {
+            break;
+        };
+        simulation_s += started.elapsed().as_secs_f64();
+        let scan = &frame.scan;
+        let points = scan.points_xyz_f32();
+
+        // The shared front end: window, map prior, SensorGrid, once for every variant.
+        let stats = front_end.process(&points, &scan.estimated_isometry(), scan.time_s)?;
+        let window = front_end.window();
+        for span in front_end.new_cell_spans() {
+            observed[span].fill(false);
+        }
+        let sensor_grid = front_end.sensor_grid();
+        for ((o, now), (&f, &m)) in observed
+            .iter_mut()
+            .zip(observed_now.iter_mut())
+            .zip(sensor_grid.m_free().iter().zip(sensor_grid.m_occupied()))
+        {
+            *now = f > 0.0 || m > 0.0;
+            *o |= *now;
+        }
+
+        // Truth over the window, rearranged into storage order.
+        let started = Instant::now();
+        drive.truth(&window.as_cell_window(), &mut truth_world);
+        simulation_s += started.elapsed().as_secs_f64();
+        let mut k = 0;
+        for span in window.world_order_spans() {
+            for idx in span {
+                truth_storage[idx] = truth_world.get(k).copied().unwrap_or(truth::IGNORED);
+                k += 1;
+            }
+        }
+
+        // Every variant on the same front end.
+        for r in runners.iter_mut() {
+            let started = Instant::now();
+            let method = r.method.as_grid_method();
+            method.process(front_end)?;
+            method.decide(&mut r.predicted);
+            r.seconds += started.elapsed().as_secs_f64() + front_end_seconds(&stats, r.variant);
+            if let Method::Fusion(fusion) = &r.method {
+                observer(FusionFrame {
+                    variant: r.variant,
+                    seed_index,
+                    frame: frame.index,
+                    front_end,
+                    fusion,
+                });
+            }
+            for span in front_end.new_cell_spans() {
+                for idx in span {
+                    r.remanence.reset(idx);
+                }
+            }
+            r.confusion
+                .add_frame(&truth_storage, &r.predicted, &observed);
+            r.visible
+                .add_frame(&truth_storage, &r.predicted, &observed_now);
+            let frame_no = frame.index as u32;
+            for idx in 0..len {
+                r.remanence.update(
+                    idx,
+                    frame_no,
+                    truth_storage[idx],
+                    r.predicted[idx],
+                    observed_now[idx],
+                );
+            }
+            update_latency(&mut r.latency, drive, &frame, window, &r.predicted);
+        }
+        progress(Progress {
+            seed_index,
+            seeds,
+            frame: frame.index + 1,
+            frames,
+        });
+    }
+    Ok(simulation_s)
+}
+
+/// The share of the front end's time a variant is charged: what it would cost the variant
+/// alone (the map prior only for the variant that fuses it).
+fn front_end_seconds(stats: &FrontEndStats, variant: Variant) -> f64 {
+    let prior_ms = if variant.uses_map() {
+        stats.prior_ms
+    } else {
+        0.0
+    };
+    (stats.window_ms + prior_ms + stats.sensor_ms) / 1e3
+}
+
+/// Latency bookkeeping for one frame: per actor with returns, is any return's cell decided M?
+fn update_latency(
+    latency: &mut Latency,
+    drive: &Drive,
+    frame: &Frame,
+    window: &Window,
+    predicted: &[Label],
+) {
+    let scan = &frame.scan;
+    let est = scan.world_from_sensor_estimated;
+    // Actors with returns, in id order (BTreeMap: deterministic).
+    let mut per_actor: std::collections::BTreeMap<u32, bool> = std::collections::BTreeMap::new();
+    for (p, hit) in scan.points_in_sensor.iter().zip(&scan.hits) {
+        if let HitTarget::Actor(id) = *hit {
+            let q = est.world_from_body(*p);
+            let decided = window
+                .storage_index_of_point(q.x, q.y)
+                .and_then(|i| predicted.get(i))
+                .is_some_and(|&d| d == Label::M);
+            *per_actor.entry(id).or_insert(false) |= decided;
+        }
+    }
+    for (id, decided) in per_actor {
+        let moving = drive
+            .actors()
+            .get(id as usize)
+            .is_some_and(|a| truth::actor_class(a) == Label::M);
+        latency.observe(id, frame.index as u32, moving, decided);
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use sim::testing::{small_scenario, town};
+
+    #[test]
+    fn variant_names_round_trip() {
+        for v in Variant::ALL {
+            assert_eq!(Variant::parse(v.name()).unwrap(), v);
+        }
+        assert!(matches!(
+            Variant::parse("octomap"),
+            Err(EvalError::UnknownVariant { .. })
+        ));
+    }
+
+    fn small_config() -> EvalConfig {
+        let mut config = EvalConfig::default();
+        config.params.window.width_cells = 240;
+        config.params.window.height_cells = 240;
+        config
+    }
+
+    #[test]
+    fn observer_sees_every_frame_of_every_pipeline_variant_and_changes_nothing() {
+        let mut scenario = small_scenario(6);
+        scenario.duration_s = 1.0;
+        let variants = [Variant::Full, Variant::LogOdds, Variant::NoMap];
+        let mut seen = Vec::new();
+        let observed = evaluate_observed(
+            &town(),
+            &scenario,
+            &variants,
+            &[6, 7],
+            &small_config(),
+            &mut |_| {},
+            &mut |f: FusionFrame<'_>| {
+                assert_eq!(f.fusion.decisions().len(), 240 * 240);
+                seen.push((f.seed_index, f.frame, f.variant));
+            },
+        )
+        .unwrap();
+        // Per seed, per frame, the pipeline variants in the order asked; baselines are not seen.
+        let mut expected = Vec::new();
+        for seed_index in 0..2 {
+            for frame in 0..10 {
+                expected.push((seed_index, frame, Variant::Full));
+                expected.push((seed_index, frame, Variant::NoMap));
+            }
+        }
+        assert_eq!(seen, expected);
+        let plain = evaluate(
+            &town(),
+            &scenario,
+            &variants,
+            &[6, 7],
+            &small_config(),
+            &mut |_| {},
+        )
+        .unwrap();
+        for (a, b) in observed.variants.iter().zip(&plain.variants) {
+            assert_eq!(a.confusion, b.confusion);
+        }
+    }
+
+    #[test]
+    fn evaluation_runs_every_variant_and_is_deterministic() {
+        let mut scenario = small_scenario(5);
+        scenario.duration_s = 3.0;
+        let mut calls = 0;
+        let report = evaluate(
+            &town(),
+            &scenario,
+            &Variant::ALL,
+            &[5],
+            &small_config(),
+            &mut |_| calls += 1,
+        )
+        .unwrap();
+        assert_eq!(calls, 30);
+        assert_eq!(report.variants.len(), 4);
+        for v in &report.variants {
+            assert!(v.scores.scored_cell_frames > 0);
+        }
+        let again = evaluate(
+            &town(),
+            &scenario,
+            &Variant::ALL,
+            &[5],
+            &small_config(),
+            &mut |_| {},
+        )
+        .unwrap();
+        for (a, b) in report.variants.iter().zip(&again.variants) {
+            assert_eq!(a.confusion, b.confusion);
+        }
+        let md = report.to_markdown();
+        assert!(md.contains("| full |") && md.contains("| log-odds |"));
+        let json = serde_json::to_string(&report).unwrap();
+        assert!(json.contains("\"no-map\""));
+    }
+}
