@@ -1,0 +1,242 @@
+//! The local method: a ground height per polar cell, propagated outward from the sensor.
+//!
+//! Each cell's candidate is the centroid (range, height) of its lowest points: those at most
+//! `seed_band_m` above the cell's lowest point. Walking each sector outward from the sensor, a
+//! candidate is accepted as ground if no accepted node nearer the sensor forbids it: ground
+//! rises or falls by at most `max_slope` per metre plus one `max_step_m` (a kerb) from every
+//! earlier node — the sensor's own ground, `sensor_height_m` below it within
+//! `sensor_height_tolerance_m`, counts as the first node. Since the bound holds against every
+//! earlier node and not only the last, steps cannot be chained up a car's side: a car's hood
+//! or roof is refused, and the sector keeps the ground it had before.
+//!
+//! Between accepted nodes the ground height is interpolated linearly in range, so a ramp is
+//! followed inside cells too; beyond a sector's last node it stays level.
+//!
+//! Cell statistics are order-independent: a minimum, and sums of offsets from it quantised to
+//! integers (exact in any order), so labels do not depend on the point order.
+
+use crate::params::GroundParams;
+use crate::polar::{NO_CELL, PolarLayout};
+
+/// Fixed-point scale of the seed sums: 2^20 steps per metre (about 1 µm).
+const FIXED_PER_M: f32 = (1u32 << 20) as f32;
+
+/// The ground height along the range inside one cell: `a + b·r` in two pieces, split at the
+/// cell's own node (nodes of neighbouring rings bound the pieces).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct CellProfile {
+    split_m: f32,
+    near: [f32; 2],
+    far: [f32; 2],
+}
+
+impl CellProfile {
+    /// Ground height at horizontal range `range_m` within the cell.
+    #[inline]
+    pub(crate) fn z_at(&self, range_m: f32) -> f32 {
+        let [a, b] = if range_m < self.split_m {
+            self.near
+        } else {
+            self.far
+        };
+        a + b * range_m
+    }
+}
+
+/// Per-cell scratch of the local method, kept between scans.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct LocalHeight {
+    min_z: Vec<f32>,
+    seed_count: Vec<u32>,
+    /// Sum over seeds of (range − ring start), fixed point.
+    seed_dr: Vec<u64>,
+    /// Sum over seeds of (z − cell minimum), fixed point.
+    seed_dz: Vec<u64>,
+    /// Accepted node (range, height) per cell; NaN range where none.
+    node: Vec<(f32, f32)>,
+    /// The profile each point's ground height is read from.
+    pub(crate) profile: Vec<CellProfile>,
+}
+
+/// What the propagation counted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Counts {
+    pub(crate) accepted: usize,
+    pub(crate) refused: usize,
+}
+
+impl LocalHeight {
+    /// Fits the profiles of every cell to the points (`cell[i]`, `range_m[i]` from the binning).
+    pub(crate) fn fit(
+        &mut self,
+        layout: &PolarLayout,
+        params: &GroundParams,
+        points: &[[f32; 3]],
+        cell: &[u32],
+        range_m: &[f32],
+    ) -> Counts {
+        let cells = layout.cells();
+        reset(&mut self.min_z, cells, f32::INFINITY);
+        reset(&mut self.seed_count, cells, 0);
+        reset(&mut self.seed_dr, cells, 0);
+        reset(&mut self.seed_dz, cells, 0);
+        reset(&mut self.node, cells, (f32::NAN, f32::NAN));
+        reset(&mut self.profile, cells, CellProfile::default());
+
+        for (p, &c) in points.iter().zip(cell) {
+            if let Some(m) = self.min_z.get_mut(c as usize) {
+                *m = m.min(p[2]);
+            }
+        }
+        let rings = layout.rings();
+        let seed_band_m = params.seed_band_m as f32;
+        for ((p, &c), &r) in points.iter().zip(cell).zip(range_m) {
+            if c == NO_CELL {
+                continue;
+            }
+            let c = c as usize;
+            let dz = p[2] - self.min_z[c];
+            if dz <= seed_band_m {
+                let dr = r - layout.ring_start_m(c % rings);
+                self.seed_count[c] += 1;
+                // Casts saturate; offsets are small and non-negative by construction.
+                self.seed_dr[c] = self.seed_dr[c].saturating_add((dr * FIXED_PER_M) as u64);
+                self.seed_dz[c] = self.seed_dz[c].saturating_add((dz * FIXED_PER_M) as u64);
+            }
+        }
+
+        let blind_m = blind_radius_m(params, points, cell, range_m);
+        let mut counts = Counts::default();
+        for s in 0..layout.sectors() {
+            let sector = s * rings..(s + 1) * rings;
+            counts = self.propagate(layout, params, blind_m, sector.clone(), counts);
+            self.profiles(params, sector);
+        }
+        counts
+    }
+
+    /// Accepts or refuses the candidates of one sector's cells, nearest first.
+    fn propagate(
+        &mut self,
+        layout: &PolarLayout,
+        params: &GroundParams,
+        blind_m: f32,
+        sector: std::ops::Range<usize>,
+        mut counts: Counts,
+    ) -> Counts {
+        let slope = params.max_slope as f32;
+        let step = params.max_step_m as f32;
+        // Every accepted node j bounds the ground at range r to
+        // z_j ± (step + slope·|r − r_j|); only the tightest bound matters, kept as
+        // `ceiling = min_j (z_j − slope·r_j)` and `floor = max_j (z_j + slope·r_j)`.
+        // The sensor's own ground bounds it too: `sensor_height_m` below the sensor within the
+        // tolerance up to the blind radius (the ground there is the vehicle's), then sloping.
+        let prior_z = -params.sensor_height_m as f32;
+        let tolerance = params.sensor_height_tolerance_m as f32;
+        let mut ceiling = f32::INFINITY;
+        let mut floor = f32::NEG_INFINITY;
+        let rings = layout.rings();
+        for c in sector {
+            let n = self.seed_count[c];
+            if n == 0 {
+                continue;
+            }
+            let r =
+                layout.ring_start_m(c % rings) + self.seed_dr[c] as f32 / FIXED_PER_M / n as f32;
+            let z = self.min_z[c] + self.seed_dz[c] as f32 / FIXED_PER_M / n as f32;
+            let prior_band = tolerance + slope * (r - blind_m).max(0.0);
+            let highest = (prior_z + prior_band).min(ceiling + slope * r + step);
+            let lowest = (prior_z - prior_band).max(floor - slope * r - step);
+            if (lowest..=highest).contains(&z) {
+                self.node[c] = (r, z);
+                ceiling = ceiling.min(z - slope * r);
+                floor = floor.max(z + slope * r);
+                counts.accepted += 1;
+            } else {
+                counts.refused += 1;
+            }
+        }
+        counts
+    }
+
+    /// Turns one sector's nodes into per-cell profiles: linear between consecutive nodes,
+    /// from the sensor's prior ground before the first, level after the last.
+    fn profiles(&mut self, params: &GroundParams, sector: std::ops::Range<usize>) {
+        let prior = (0.0f32, -params.sensor_height_m as f32);
+        let line = |(r0, z0): (f32, f32), next: Option<(f32, f32)>| match next {
+            Some((r1, z1)) if r1 - r0 > 1e-3 => {
+                let b = (z1 - z0) / (r1 - r0);
+                [z0 - b * r0, b]
+            }
+            Some((_, z1)) => [z1, 0.0],
+            None => [z0, 0.0],
+        };
+        // Backward: the next node beyond each cell (its own excluded).
+        let mut next: Option<(f32, f32)> = None;
+        for c in sector.clone().rev() {
+            // Stored in `far` for now; `near` is set on the forward pass.
+            self.profile[c].far = match next {
+                Some(n) => [n.0, n.1],
+                None => [f32::NAN, f32::NAN],
+            };
+            if !self.node[c].0.is_nan() {
+                next = Some(self.node[c]);
+            }
+        }
+        let mut previous = prior;
+        for c in sector {
+            let beyond = self.profile[c].far;
+            let beyond = (!beyond[0].is_nan()).then_some((beyond[0], beyond[1]));
+            let own = self.node[c];
+            self.profile[c] = if own.0.is_nan() {
+                let piece = line(previous, beyond);
+                CellProfile {
+                    split_m: f32::INFINITY,
+                    near: piece,
+                    far: piece,
+                }
+            } else {
+                let profile = CellProfile {
+                    split_m: own.0,
+                    near: line(previous, Some(own)),
+                    far: line(own, beyond),
+                };
+                previous = own;
+                profile
+            };
+        }
+    }
+}
+
+/// Range within which the sensor cannot see ground at its prior height, metres: where its
+/// steepest beam meets that ground. A cell nearer than this holds only what stands above the
+/// ground (a wall, a car alongside), whose lowest points say nothing of the ground under them;
+/// it is accepted only within `sensor_height_tolerance_m` of the prior, and the slope allowance
+/// from the prior starts there.
+///
+/// The steepest beam is measured on the scan (the largest depression `−z / range`), so that no
+/// sensor model is needed; a noise point below the ground only shrinks the radius, back to the
+/// plain slope limit.
+fn blind_radius_m(
+    params: &GroundParams,
+    points: &[[f32; 3]],
+    cell: &[u32],
+    range_m: &[f32],
+) -> f32 {
+    let mut steepest = 0.0f32;
+    for ((p, &c), &r) in points.iter().zip(cell).zip(range_m) {
+        if c != NO_CELL && r > 0.0 {
+            steepest = steepest.max(-p[2] / r);
+        }
+    }
+    if steepest > 0.0 {
+        (params.sensor_height_m as f32 / steepest).min(params.max_range_m as f32)
+    } else {
+        0.0
+    }
+}
+
+fn reset<T: Clone>(v: &mut Vec<T>, len: usize, value: T) {
+    v.clear();
+    v.resize(len, value);
+}
