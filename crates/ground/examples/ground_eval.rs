@@ -6,7 +6,7 @@
 //! [-- --dump /tmp/ground] [--set name=value ...] [--frames]`.
 //!
 //! `--set` changes one [`GroundParams`] field (`sectors`, `max_slope`, `max_step_m`,
-//! `seed_band_m`, `min_obstacle_height_m`, `sensor_height_tolerance_m`).
+//! `max_slope_unseen`, `seed_band_m`, `min_obstacle_height_m`, `sensor_height_tolerance_m`, `outer_ring_width_m`).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -34,9 +34,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     "sectors" => params.sectors = v as usize,
                     "max_slope" => params.max_slope = v,
                     "max_step_m" => params.max_step_m = v,
+                    "max_slope_unseen" => params.max_slope_unseen = v,
                     "seed_band_m" => params.seed_band_m = v,
                     "min_obstacle_height_m" => params.min_obstacle_height_m = v,
                     "sensor_height_tolerance_m" => params.sensor_height_tolerance_m = v,
+                    // The width of the outermost zone's rings.
+                    "outer_ring_width_m" => {
+                        if let Some(zone) = params.ring_zones.last_mut() {
+                            zone.ring_width_m = v;
+                        }
+                    }
                     _ => return Err(format!("unknown parameter {k}").into()),
                 }
             }

@@ -18,6 +18,19 @@
 use crate::params::GroundParams;
 use crate::polar::{NO_CELL, PolarLayout};
 
+/// A rise between consecutive ground nodes below this is the road's own roughness and range
+/// noise (2 cm on an HDL-64E), not a step onto something, metres.
+const ROUGHNESS_M: f32 = 0.05;
+
+/// Ground cells at most this far apart along a sector are taken as seen continuously: the
+/// spacing of an HDL-64E's beams on a level road up to 25 m (and on a 10° ramp up to 50 m),
+/// metres.
+const SEEN_GAP_M: f32 = 3.0;
+
+/// The trend of a sector's ground is its gradient over this range behind the last node (or
+/// over its last three nodes, where they are farther apart), metres.
+const TREND_M: f32 = 10.0;
+
 /// Fixed-point scale of the seed sums: 2^20 steps per metre (about 1 µm).
 const FIXED_PER_M: f32 = (1u32 << 20) as f32;
 
@@ -47,11 +60,18 @@ impl CellProfile {
 #[derive(Clone, Debug, Default)]
 pub(crate) struct LocalHeight {
     min_z: Vec<f32>,
+    /// Range of the lowest point (the nearest among equally low ones).
+    min_r: Vec<f32>,
+    /// Points per cell, and those on the surface through its lowest point (see `fit`).
+    count: Vec<u32>,
+    surface_count: Vec<u32>,
     seed_count: Vec<u32>,
     /// Sum over seeds of (range − ring start), fixed point.
     seed_dr: Vec<u64>,
     /// Sum over seeds of (z − cell minimum), fixed point.
     seed_dz: Vec<u64>,
+    /// The current sector's nodes within `TREND_M` of its last one (at least three).
+    recent: Vec<(f32, f32)>,
     /// Accepted node (range, height) per cell; NaN range where none.
     node: Vec<(f32, f32)>,
     /// The profile each point's ground height is read from.
@@ -77,25 +97,40 @@ impl LocalHeight {
     ) -> Counts {
         let cells = layout.cells();
         reset(&mut self.min_z, cells, f32::INFINITY);
+        reset(&mut self.min_r, cells, f32::INFINITY);
+        reset(&mut self.count, cells, 0);
+        reset(&mut self.surface_count, cells, 0);
         reset(&mut self.seed_count, cells, 0);
         reset(&mut self.seed_dr, cells, 0);
         reset(&mut self.seed_dz, cells, 0);
         reset(&mut self.node, cells, (f32::NAN, f32::NAN));
         reset(&mut self.profile, cells, CellProfile::default());
 
-        for (p, &c) in points.iter().zip(cell) {
-            if let Some(m) = self.min_z.get_mut(c as usize) {
-                *m = m.min(p[2]);
+        for ((p, &c), &r) in points.iter().zip(cell).zip(range_m) {
+            let c = c as usize;
+            if c >= cells {
+                continue;
+            }
+            // Lowest first, then nearest: the same point whatever the order.
+            if p[2] < self.min_z[c] || (p[2] == self.min_z[c] && r < self.min_r[c]) {
+                self.min_z[c] = p[2];
+                self.min_r[c] = r;
             }
         }
         let rings = layout.rings();
         let seed_band_m = params.seed_band_m as f32;
+        let slope = params.max_slope as f32;
         for ((p, &c), &r) in points.iter().zip(cell).zip(range_m) {
-            if c == NO_CELL {
+            let c = c as usize;
+            if c >= cells {
                 continue;
             }
-            let c = c as usize;
             let dz = p[2] - self.min_z[c];
+            self.count[c] += 1;
+            // On the surface: within the seed band of the slope cone through the lowest point.
+            // A ramp's cell is all surface; a wall's or a car's side is mostly above it.
+            let cone = seed_band_m + slope * (r - self.min_r[c]).abs();
+            self.surface_count[c] += u32::from(dz <= cone);
             if dz <= seed_band_m {
                 let dr = r - layout.ring_start_m(c % rings);
                 self.seed_count[c] += 1;
@@ -125,16 +160,24 @@ impl LocalHeight {
         mut counts: Counts,
     ) -> Counts {
         let slope = params.max_slope as f32;
+        let unseen = params.max_slope_unseen as f32;
         let step = params.max_step_m as f32;
-        // Every accepted node j bounds the ground at range r to
-        // z_j ± (step + slope·|r − r_j|); only the tightest bound matters, kept as
-        // `ceiling = min_j (z_j − slope·r_j)` and `floor = max_j (z_j + slope·r_j)`.
-        // The sensor's own ground bounds it too: `sensor_height_m` below the sensor within the
-        // tolerance up to the blind radius (the ground there is the vehicle's), then sloping.
+        // Three bounds on a candidate at range r, height z:
+        // - every accepted node j: |z − z_j| ≤ step + slope·|r − r_j|, so that steps cannot be
+        //   chained up a car's side; only the tightest counts, kept as
+        //   `ceiling = min_j (z_j − slope·r_j)` and `floor = max_j (z_j + slope·r_j)`;
+        // - the last node, across a gap longer than `SEEN_GAP_M` (an occlusion, sparse far
+        //   beams): z within step + unseen·gap of the range from z_last to z_last + trend·gap,
+        //   the trend being the sector's recent gradient. A ramp is seen all the way up; a
+        //   car's hood beyond an occlusion rises faster than the road before it;
+        // - before the first node, the vehicle's own ground: |z − prior| ≤ tolerance +
+        //   unseen·r (after it, the prior is one more node of the slope cone).
         let prior_z = -params.sensor_height_m as f32;
         let tolerance = params.sensor_height_tolerance_m as f32;
-        let mut ceiling = f32::INFINITY;
-        let mut floor = f32::NEG_INFINITY;
+        // The vehicle's ground is a node at range 0 in the slope cone.
+        let mut ceiling = prior_z + tolerance - step;
+        let mut floor = prior_z - tolerance + step;
+        self.recent.clear();
         let rings = layout.rings();
         for c in sector {
             let n = self.seed_count[c];
@@ -144,13 +187,44 @@ impl LocalHeight {
             let r =
                 layout.ring_start_m(c % rings) + self.seed_dr[c] as f32 / FIXED_PER_M / n as f32;
             let z = self.min_z[c] + self.seed_dz[c] as f32 / FIXED_PER_M / n as f32;
-            let prior_band = tolerance + slope * (r - blind_m).max(0.0);
-            let highest = (prior_z + prior_band).min(ceiling + slope * r + step);
-            let lowest = (prior_z - prior_band).max(floor - slope * r - step);
-            if (lowest..=highest).contains(&z) {
+            let mut highest = ceiling + slope * r + step;
+            let mut lowest = floor - slope * r - step;
+            let last_z = match self.recent.last() {
+                Some(&(last_r, last_z)) => {
+                    let gap = r - last_r;
+                    if gap > SEEN_GAP_M {
+                        // Between the level and the trend, so that a bank's rise is not
+                        // extrapolated onto the flat behind it.
+                        let trended = last_z + trend(&self.recent, slope) * gap;
+                        let band = step + unseen * gap;
+                        highest = highest.min(last_z.max(trended) + band);
+                        lowest = lowest.max(last_z.min(trended) - band);
+                    }
+                    last_z
+                }
+                None => {
+                    let band = tolerance + unseen * r;
+                    highest = highest.min(prior_z + band);
+                    lowest = lowest.max(prior_z - band);
+                    prior_z
+                }
+            };
+            // Rising ground must look like a surface: the lowest points of a wall or a car's
+            // side rise too, but most of their cell stands above them.
+            let rising = z > last_z + ROUGHNESS_M;
+            let surface = 2 * self.surface_count[c] >= self.count[c];
+            // Nearer than the blind radius the ground cannot be seen at the prior height:
+            // whatever is there stands on it.
+            let beyond_blind = r >= blind_m;
+            if beyond_blind && (lowest..=highest).contains(&z) && (surface || !rising) {
                 self.node[c] = (r, z);
                 ceiling = ceiling.min(z - slope * r);
                 floor = floor.max(z + slope * r);
+                // The trend looks back `TREND_M`, or three nodes where they are sparser.
+                let old = self.recent.partition_point(|&(rj, _)| rj < r - TREND_M);
+                let old = old.min(self.recent.len().saturating_sub(2));
+                self.recent.drain(..old);
+                self.recent.push((r, z));
                 counts.accepted += 1;
             } else {
                 counts.refused += 1;
@@ -210,9 +284,8 @@ impl LocalHeight {
 
 /// Range within which the sensor cannot see ground at its prior height, metres: where its
 /// steepest beam meets that ground. A cell nearer than this holds only what stands above the
-/// ground (a wall, a car alongside), whose lowest points say nothing of the ground under them;
-/// it is accepted only within `sensor_height_tolerance_m` of the prior, and the slope allowance
-/// from the prior starts there.
+/// ground (a wall, a car alongside), whose lowest points say nothing of the ground under them:
+/// it gives no node, and the slope allowance from the prior starts there.
 ///
 /// The steepest beam is measured on the scan (the largest depression `−z / range`), so that no
 /// sensor model is needed; a noise point below the ground only shrinks the radius, back to the
@@ -231,6 +304,31 @@ fn blind_radius_m(
     }
     if steepest > 0.0 {
         (params.sensor_height_m as f32 / steepest).min(params.max_range_m as f32)
+    } else {
+        0.0
+    }
+}
+
+/// Least-squares gradient of the ground through `nodes` (range, height), within
+/// `±max_slope`; level with fewer than two nodes or less than 2 m between them.
+fn trend(nodes: &[(f32, f32)], max_slope: f32) -> f32 {
+    let (Some(first), Some(last)) = (nodes.first(), nodes.last()) else {
+        return 0.0;
+    };
+    if last.0 - first.0 < 2.0 {
+        return 0.0;
+    }
+    let n = nodes.len() as f32;
+    let (mean_r, mean_z) = nodes
+        .iter()
+        .fold((0.0, 0.0), |(a, b), &(r, z)| (a + r / n, b + z / n));
+    let (mut srr, mut srz) = (0.0f32, 0.0f32);
+    for &(r, z) in nodes {
+        srr += (r - mean_r) * (r - mean_r);
+        srz += (r - mean_r) * (z - mean_z);
+    }
+    if srr > 0.0 {
+        (srz / srr).clamp(-max_slope, max_slope)
     } else {
         0.0
     }

@@ -64,11 +64,17 @@ pub struct GroundParams {
     /// crate documentation for the measurement that chose it.
     pub sectors: usize,
     /// Ring layout, by increasing `from_m`; the first zone must start at 0. By default 0.5 m
-    /// rings to 10 m, 1 m to 20 m, 2 m to 40 m and 4 m beyond.
+    /// rings to 10 m, 1 m to 20 m and 2 m beyond (4 m beyond 40 m changed nothing on the KITTI
+    /// scans, and let a far ramp's cell mix two beams' heights).
     pub ring_zones: Vec<RingZone>,
     /// Steepest ground gradient (rise over run) the local ground may follow between two
     /// cells. By default 0.2 (11.3°): a 10° ramp is followed, a car's windscreen is not.
     pub max_slope: f64,
+    /// Steepest gradient the local ground may have where it was not seen: from the vehicle to
+    /// its first ground cell, and across more than 2 m between two ground cells (behind a
+    /// parked car, between far beams). By default 0.06 (6 %, a steep urban street): see the
+    /// crate documentation for the measurement that chose it.
+    pub max_slope_unseen: f64,
     /// Highest step the local ground may take at once on top of the slope, metres: a kerb.
     /// By default 0.2 m (kerbs are 0.10–0.18 m high).
     pub max_step_m: f64,
@@ -113,12 +119,9 @@ impl Default for GroundParams {
                     from_m: 20.0,
                     ring_width_m: 2.0,
                 },
-                RingZone {
-                    from_m: 40.0,
-                    ring_width_m: 4.0,
-                },
             ],
             max_slope: 0.2,
+            max_slope_unseen: 0.06,
             max_step_m: 0.2,
             seed_band_m: 0.1,
             min_obstacle_height_m: 0.3,
@@ -209,6 +212,7 @@ impl GroundParams {
             });
         }
         non_negative("max_slope", self.max_slope)?;
+        non_negative("max_slope_unseen", self.max_slope_unseen)?;
         non_negative("max_step_m", self.max_step_m)?;
         non_negative("seed_band_m", self.seed_band_m)?;
         non_negative("min_obstacle_height_m", self.min_obstacle_height_m)?;
@@ -329,8 +333,8 @@ mod tests {
     #[test]
     fn default_rings_follow_the_zones() {
         let edges = GroundParams::default().ring_edges_m().expect("valid zones");
-        // 2.0..10 by 0.5 (16 rings), 10..20 by 1 (10), 20..40 by 2 (10), 40..80 by 4 (10).
-        assert_eq!(edges.len(), 16 + 10 + 10 + 10 + 1);
+        // 2.0..10 by 0.5 (16 rings), 10..20 by 1 (10), 20..80 by 2 (30).
+        assert_eq!(edges.len(), 16 + 10 + 30 + 1);
         assert_eq!(edges[0], 2.0);
         assert_eq!(edges[1], 2.5);
         assert_eq!(edges[16], 10.0);

@@ -8,6 +8,8 @@ use std::path::{Path, PathBuf};
 
 use ground::{PointLabel, Segmentation};
 
+pub mod scene;
+
 /// The 40 scans of KITTI raw drive 2011_09_26_0013 (frames 80–119), or `None` when the shared
 /// data is absent.
 pub fn raw_0013_scans() -> Option<Vec<PathBuf>> {
