@@ -1,8 +1,10 @@
-//! Odometry on a KITTI raw drive, against its OXTS poses: per-scan time and relative errors.
+//! Odometry on a KITTI raw drive, against its OXTS poses: time per scan (scans read
+//! beforehand, not timed) and relative errors over 10, 20 and 30 m.
 //!
 //! ```text
 //! RAYON_NUM_THREADS=1 cargo run --release -p evigrid-odometry --example kitti_raw -- \
-//!     <shared>/data/lidar/kitti-raw-0013/2011_09_26/2011_09_26_drive_0013_sync [--azimuth-times]
+//!     <shared>/data/lidar/kitti-raw-0013/2011_09_26/2011_09_26_drive_0013_sync \
+//!     [--azimuth-times] [--vertical-offset DEG] [--min-range M]
 //! ```
 
 use std::time::Instant;
@@ -16,7 +18,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let dir = args
         .next()
-        .ok_or("usage: kitti_raw <drive_sync dir> [--azimuth-times] [--min-range M]")?;
+        .ok_or("usage: kitti_raw <drive_sync dir> [--azimuth-times] [--vertical-offset DEG] [--min-range M]")?;
     let mut params = OdometryParams::default();
     while let Some(flag) = args.next() {
         match flag.as_str() {
