@@ -66,5 +66,7 @@ mod polar;
 mod segmenter;
 
 pub use label::{GroundStats, PointLabel, Segmentation};
-pub use params::{GroundMethod, GroundParams, GroundParamsError, MAX_RINGS, MAX_SECTORS, RingZone};
+pub use params::{
+    GroundMethod, GroundParams, GroundParamsError, MAX_CELLS, MAX_RINGS, MAX_SECTORS, RingZone,
+};
 pub use segmenter::GroundSegmenter;

@@ -6,6 +6,9 @@ use serde::{Deserialize, Serialize};
 pub const MAX_SECTORS: usize = 3600;
 /// Largest number of rings the zones may produce, so that a typo cannot allocate gigabytes.
 pub const MAX_RINGS: usize = 4096;
+/// Largest number of polar cells (sectors × rings): about 50 MB of scratch. The defaults use
+/// 10,080.
+pub const MAX_CELLS: usize = 1 << 20;
 
 /// How the ground under each point is found.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -177,6 +180,16 @@ pub enum GroundParamsError {
         /// Largest accepted value.
         max: usize,
     },
+    /// Sectors × rings exceed [`MAX_CELLS`].
+    #[error("ground.sectors × rings = {sectors} × {rings} exceeds {max} cells")]
+    TooManyCells {
+        /// Sectors.
+        sectors: usize,
+        /// Rings the zones make.
+        rings: usize,
+        /// [`MAX_CELLS`].
+        max: usize,
+    },
     /// The ring zones are empty, do not start at 0, are not increasing, or make too many rings.
     #[error("ground.ring_zones: {reason}")]
     RingZones {
@@ -193,7 +206,7 @@ impl GroundParams {
     /// sensor height, range, ring width or band; [`GroundParamsError::Negative`] for a negative
     /// tolerance, slope or step; [`GroundParamsError::Misordered`] for empty range or obstacle
     /// bands; [`GroundParamsError::CountOutOfRange`] for `sectors`;
-    /// [`GroundParamsError::RingZones`] for a bad ring layout.
+    /// [`GroundParamsError::RingZones`] for a bad ring layout; [`GroundParamsError::TooManyCells`].
     pub fn validate(&self) -> Result<(), GroundParamsError> {
         positive("sensor_height_m", self.sensor_height_m)?;
         non_negative("sensor_height_tolerance_m", self.sensor_height_tolerance_m)?;
@@ -223,7 +236,15 @@ impl GroundParams {
         )?;
         non_negative("max_depth_below_ground_m", self.max_depth_below_ground_m)?;
         positive("plane_band_m", self.plane_band_m)?;
-        self.ring_edges_m().map(|_| ())
+        let rings = self.ring_edges_m()?.len() - 1;
+        if self.sectors * rings > MAX_CELLS {
+            return Err(GroundParamsError::TooManyCells {
+                sectors: self.sectors,
+                rings,
+                max: MAX_CELLS,
+            });
+        }
+        Ok(())
     }
 
     /// The ring edges from `min_range_m` to `max_range_m`, increasing: ring `k` spans
@@ -410,5 +431,14 @@ mod tests {
             ..d()
         });
         assert!(msg.contains("zone 1"), "{msg}");
+        let msg = bad(GroundParams {
+            sectors: 3600,
+            ring_zones: vec![RingZone {
+                from_m: 0.0,
+                ring_width_m: 0.1,
+            }],
+            ..d()
+        });
+        assert!(msg.contains("3600 × 780"), "{msg}");
     }
 }

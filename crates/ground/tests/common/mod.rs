@@ -211,6 +211,10 @@ pub struct Summary {
     pub obstacle_share: [f64; 3],
     /// Largest obstacle share over the median.
     pub worst_over_median: f64,
+    /// Obstacle share beyond 5 m: smallest, median, largest over the frames.
+    pub far_obstacle_share: [f64; 3],
+    /// Largest obstacle share beyond 5 m over its median.
+    pub far_worst_over_median: f64,
     /// Ground share: smallest, median, largest.
     pub ground_share: [f64; 3],
     /// Corridor false obstacles over corridor points, all frames pooled.
@@ -250,12 +254,16 @@ impl Summary {
     pub fn of(frames: &[FrameMeasure]) -> Self {
         let obstacle_share = min_median_max(frames.iter().map(|f| f.obstacle_share).collect());
         let ground_share = min_median_max(frames.iter().map(|f| f.ground_share).collect());
+        let far_obstacle_share =
+            min_median_max(frames.iter().map(|f| f.far_obstacle_share).collect());
         let ms = min_median_max(frames.iter().map(|f| f.ms).collect());
         let corridor: usize = frames.iter().map(|f| f.corridor_points).sum();
         let false_obstacle: usize = frames.iter().map(|f| f.corridor_false_obstacle).sum();
         Self {
             obstacle_share,
             worst_over_median: obstacle_share[2] / obstacle_share[1].max(1e-12),
+            far_obstacle_share,
+            far_worst_over_median: far_obstacle_share[2] / far_obstacle_share[1].max(1e-12),
             ground_share,
             corridor_false_obstacle_share: false_obstacle as f64 / corridor.max(1) as f64,
             corridor_points: [corridor, frames.iter().map(|f| f.corridor_obstacle).sum()],
@@ -282,9 +290,11 @@ impl fmt::Display for Summary {
         };
         write!(
             f,
-            "obstacle min/med/max {} (worst {:.2}x median), ground {}, corridor {}/{} obstacle, false obstacles {:.3}% (worst frame {:.3}%), flat obstacles {:.2}% (worst {:.2}%), lifted ground {:.2}% (worst {:.2}%), {:.2} ms",
+            "obstacle min/med/max {} (worst {:.2}x median; beyond 5 m {}, {:.2}x), ground {}, corridor {}/{} obstacle, false obstacles {:.3}% (worst frame {:.3}%), flat obstacles {:.2}% (worst {:.2}%), lifted ground {:.2}% (worst {:.2}%), {:.2} ms",
             pct(self.obstacle_share),
             self.worst_over_median,
+            pct(self.far_obstacle_share),
+            self.far_worst_over_median,
             pct(self.ground_share),
             self.corridor_points[1],
             self.corridor_points[0],
