@@ -9,7 +9,6 @@ use ground::{GroundMethod, GroundParams, GroundSegmenter};
 use std::hint::black_box;
 
 #[path = "../tests/common/mod.rs"]
-#[allow(dead_code)]
 mod common;
 
 fn scans() -> Vec<(&'static str, Vec<[f32; 3]>)> {
