@@ -159,18 +159,24 @@ fn square_of(p: &[f32; 3], side_m: f32) -> (i32, i32) {
 
 /// Measures one frame.
 pub fn measure(points: &[[f32; 3]], result: &Segmentation) -> FrameMeasure {
-    let stats = result.stats();
-    let n = stats.points.max(1) as f64;
+    let mut m = measure_labels(points, result.labels());
+    m.ms = result.stats().elapsed.as_secs_f64() * 1e3;
+    m
+}
+
+/// Measures one frame's labels (from any method).
+pub fn measure_labels(points: &[[f32; 3]], labels: &[PointLabel]) -> FrameMeasure {
+    let n = points.len().max(1) as f64;
+    let count = |want: PointLabel| labels.iter().filter(|&&l| l == want).count() as f64;
     let mut m = FrameMeasure {
-        ground_share: stats.ground as f64 / n,
-        obstacle_share: stats.obstacle as f64 / n,
-        ms: stats.elapsed.as_secs_f64() * 1e3,
+        ground_share: count(PointLabel::Ground) / n,
+        obstacle_share: count(PointLabel::Obstacle) / n,
         ..FrameMeasure::default()
     };
     let fine = squares(points, 0.5);
     let coarse = squares(points, 1.0);
     let (mut flat, mut lifted, mut far) = (0usize, 0usize, 0usize);
-    for (p, &label) in points.iter().zip(result.labels()) {
+    for (p, &label) in points.iter().zip(labels) {
         match label {
             PointLabel::Obstacle => {
                 far += usize::from(p[0].hypot(p[1]) > 5.0);
@@ -185,7 +191,7 @@ pub fn measure(points: &[[f32; 3]], result: &Segmentation) -> FrameMeasure {
     m.far_obstacle_share = far as f64 / n;
     m.lifted_ground_share = lifted as f64 / n;
     let road = corridor_road(points);
-    for (p, &label) in points.iter().zip(result.labels()) {
+    for (p, &label) in points.iter().zip(labels) {
         if !in_corridor(p) {
             continue;
         }
