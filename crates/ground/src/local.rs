@@ -2,18 +2,30 @@
 //!
 //! Each cell's candidate is the centroid (range, height) of its lowest points: those at most
 //! `seed_band_m` above the cell's lowest point. Walking each sector outward from the sensor, a
-//! candidate is accepted as ground if no accepted node nearer the sensor forbids it: ground
-//! rises or falls by at most `max_slope` per metre plus one `max_step_m` (a kerb) from every
-//! earlier node — the sensor's own ground, `sensor_height_m` below it within
-//! `sensor_height_tolerance_m`, counts as the first node. Since the bound holds against every
-//! earlier node and not only the last, steps cannot be chained up a car's side: a car's hood
-//! or roof is refused, and the sector keeps the ground it had before.
+//! candidate becomes a ground node unless one of these refuses it (each guards against a
+//! failure seen on the KITTI scans or the synthetic scenes of the tests):
+//!
+//! - **the blind radius**: nearer than where the sensor's steepest beam meets the prior ground
+//!   (measured on the scan, 3.7 m for KITTI's HDL-64E), no ground can be seen, only what
+//!   stands on it — a wall or a parked car alongside;
+//! - **the slope cone**: the ground rises or falls by at most `max_slope` per metre plus one
+//!   `max_step_m` (a kerb) from *every* earlier node, the vehicle's own ground at range 0
+//!   included, so steps cannot be chained up a car's side;
+//! - **unseen stretches**: across more than 3 m without a node (behind an occlusion, between
+//!   sparse far beams) and before the first node, only `max_slope_unseen` per metre around the
+//!   sector's recent trend: a ramp is seen all the way up, a car's hood beyond a parked car is
+//!   not;
+//! - **rising cells must be surfaces**: a candidate more than 5 cm above the last node needs
+//!   half its cell's points within the seed band of the slope cone through the lowest point:
+//!   the lowest returns of a wall or a car's flank rise too, but most of their cell stands
+//!   above them.
 //!
 //! Between accepted nodes the ground height is interpolated linearly in range, so a ramp is
 //! followed inside cells too; beyond a sector's last node it stays level.
 //!
-//! Cell statistics are order-independent: a minimum, and sums of offsets from it quantised to
-//! integers (exact in any order), so labels do not depend on the point order.
+//! Cell statistics are order-independent: a minimum (ties broken by range), counts, and sums
+//! of offsets from the minimum quantised to integers (exact in any order), so labels do not
+//! depend on the point order.
 
 use crate::params::GroundParams;
 use crate::polar::{NO_CELL, PolarLayout};
