@@ -350,3 +350,59 @@ fn reset<T: Clone>(v: &mut Vec<T>, len: usize, value: T) {
     v.clear();
     v.resize(len, value);
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_trend_is_the_least_squares_gradient_within_the_slope_limit() {
+        let line: Vec<(f32, f32)> = (0..5)
+            .map(|k| (10.0 + k as f32, -1.73 + 0.05 * k as f32))
+            .collect();
+        assert!((trend(&line, 0.2) - 0.05).abs() < 1e-5);
+        let steep: Vec<(f32, f32)> = (0..5).map(|k| (10.0 + k as f32, k as f32)).collect();
+        assert_eq!(trend(&steep, 0.2), 0.2);
+        // Under 2 m of range, or a single node: level.
+        assert_eq!(trend(&[(10.0, -1.7), (11.5, -1.5)], 0.2), 0.0);
+        assert_eq!(trend(&[(10.0, -1.7)], 0.2), 0.0);
+        assert_eq!(trend(&[], 0.2), 0.0);
+    }
+
+    #[test]
+    fn profiles_interpolate_between_nodes_and_stay_level_after_the_last() {
+        let params = GroundParams::default();
+        let mut local = LocalHeight::default();
+        // One sector of 5 cells; nodes in cells 1 (at 4 m, −1.7) and 3 (at 8 m, −1.5).
+        local.node = vec![(f32::NAN, f32::NAN); 5];
+        local.node[1] = (4.0, -1.7);
+        local.node[3] = (8.0, -1.5);
+        local.profile = vec![CellProfile::default(); 5];
+        local.profiles(&params, 0..5);
+        // Before the first node: from the prior (0 m, −1.73) to (4 m, −1.7).
+        assert!((local.profile[0].z_at(2.0) - (-1.715)).abs() < 1e-6);
+        // Cell 1, both sides of its node.
+        assert!((local.profile[1].z_at(3.0) - (-1.7075)).abs() < 1e-6);
+        assert!((local.profile[1].z_at(5.0) - (-1.65)).abs() < 1e-6);
+        // Cell 2 has no node: one line from node 1 to node 3.
+        assert!((local.profile[2].z_at(6.0) - (-1.6)).abs() < 1e-6);
+        // After the last node: level.
+        assert!((local.profile[3].z_at(9.0) - (-1.5)).abs() < 1e-6);
+        assert!((local.profile[4].z_at(30.0) - (-1.5)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_blind_radius_is_where_the_steepest_return_meets_the_prior_ground() {
+        let params = GroundParams::default();
+        // Steepest return: 1 m down at 2 m, a depression of 0.5: blind radius 1.73 / 0.5.
+        let points = [[2.0, 0.0, -1.0], [10.0, 0.0, -1.73], [5.0, 0.0, 1.0]];
+        let ranges = [2.0, 10.0, 5.0];
+        let blind = blind_radius_m(&params, &points, &[0, 1, 2], &ranges);
+        assert!((blind - 3.46).abs() < 1e-5, "{blind}");
+        // Invalid points do not count; nothing below the sensor: no blind zone.
+        assert_eq!(
+            blind_radius_m(&params, &points, &[NO_CELL, NO_CELL, 2], &ranges),
+            0.0
+        );
+    }
+}

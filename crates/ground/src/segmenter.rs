@@ -241,3 +241,46 @@ fn label_point(
         Ground::Unknown => (PointLabel::Invalid, f32::NAN),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn labels_follow_the_height_bands() {
+        let t = Thresholds::new(&GroundParams::default());
+        assert_eq!(t.label(-0.31), PointLabel::BelowGround);
+        assert_eq!(t.label(-0.3), PointLabel::Ground);
+        assert_eq!(t.label(0.0), PointLabel::Ground);
+        assert_eq!(t.label(0.29), PointLabel::Ground);
+        assert_eq!(t.label(0.3), PointLabel::Obstacle);
+        assert_eq!(t.label(2.5), PointLabel::Obstacle);
+        assert_eq!(t.label(2.51), PointLabel::Overhanging);
+        assert_eq!(t.label(f32::INFINITY), PointLabel::Overhanging);
+        assert_eq!(t.label(f32::NEG_INFINITY), PointLabel::BelowGround);
+        assert_eq!(t.label(f32::NAN), PointLabel::Invalid);
+    }
+
+    #[test]
+    fn buffers_are_reused_across_scans() {
+        let mut segmenter = GroundSegmenter::new(GroundParams::default()).expect("defaults");
+        let big: Vec<[f32; 3]> = (0..1000)
+            .map(|i| [5.0 + 0.01 * i as f32, 0.0, -1.73])
+            .collect();
+        segmenter.segment(&big);
+        let capacity = segmenter.cell.capacity();
+        let result = segmenter.segment(&big[..10]);
+        assert_eq!(result.len(), 10);
+        assert_eq!(segmenter.cell.capacity(), capacity);
+    }
+
+    #[test]
+    fn invalid_params_are_refused_by_name() {
+        let err = GroundSegmenter::new(GroundParams {
+            seed_band_m: -1.0,
+            ..GroundParams::default()
+        })
+        .expect_err("refused");
+        assert!(err.to_string().contains("ground.seed_band_m"), "{err}");
+    }
+}
