@@ -372,12 +372,15 @@ mod tests {
     #[test]
     fn profiles_interpolate_between_nodes_and_stay_level_after_the_last() {
         let params = GroundParams::default();
-        let mut local = LocalHeight::default();
         // One sector of 5 cells; nodes in cells 1 (at 4 m, −1.7) and 3 (at 8 m, −1.5).
-        local.node = vec![(f32::NAN, f32::NAN); 5];
-        local.node[1] = (4.0, -1.7);
-        local.node[3] = (8.0, -1.5);
-        local.profile = vec![CellProfile::default(); 5];
+        let mut node = vec![(f32::NAN, f32::NAN); 5];
+        node[1] = (4.0, -1.7);
+        node[3] = (8.0, -1.5);
+        let mut local = LocalHeight {
+            node,
+            profile: vec![CellProfile::default(); 5],
+            ..LocalHeight::default()
+        };
         local.profiles(&params, 0..5);
         // Before the first node: from the prior (0 m, −1.73) to (4 m, −1.7).
         assert!((local.profile[0].z_at(2.0) - (-1.715)).abs() < 1e-6);
