@@ -8,9 +8,20 @@
 //! `intensity` in any order among other fields, of type `F` with size 4 or 8 (intensity may also
 //! be an unsigned or signed integer), `COUNT` 1 for those fields, `DATA ascii` or `DATA binary`.
 //! `binary_compressed` is refused with a clear error.
+//!
+//! Both readers treat the file as hostile: nothing is allocated in proportion to a number read
+//! from a header before that number has been checked, with overflow-checked arithmetic, against
+//! the bytes actually present, and no file above [`MAX_SCAN_BYTES`] is read at all. A PCD whose
+//! `POINTS` disagrees with `WIDTH × HEIGHT` is refused rather than guessed at.
 
 use std::fs;
+use std::io::Read;
 use std::path::{Path, PathBuf};
+
+/// Largest scan file read, in bytes (2 GiB). A Velodyne HDL-64E scan is about 2 MB as KITTI
+/// `.bin` and 5 MB as ascii PCD; even a merged map-sized cloud of 100 million points fits. The
+/// bound keeps a mistaken path (a disk image, a device) from exhausting memory.
+pub const MAX_SCAN_BYTES: u64 = 2 << 30;
 
 /// Why a scan file could not be read. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -92,6 +103,16 @@ pub enum ScanError {
         /// File length in bytes.
         len: usize,
     },
+    /// The file is larger than [`MAX_SCAN_BYTES`].
+    #[error("{path}: {len} bytes or more, above the {max}-byte limit for a scan")]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Bytes seen (at least this many).
+        len: u64,
+        /// The limit.
+        max: u64,
+    },
     /// The file's extension is neither `.pcd` nor `.bin`.
     #[error("{path}: unknown scan format (expected .pcd or .bin)")]
     UnknownFormat {
@@ -165,16 +186,40 @@ pub fn list_scans(dir: &Path) -> Result<Vec<PathBuf>, ScanError> {
     Ok(paths)
 }
 
+/// Reads a whole file of at most [`MAX_SCAN_BYTES`], checking the length before reading and
+/// bounding the read itself (for files whose metadata lies: devices, pipes, growing files).
+fn read_bounded(path: &Path) -> Result<Vec<u8>, ScanError> {
+    let io = |source| ScanError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let too_large = |len| ScanError::TooLarge {
+        path: path.to_path_buf(),
+        len,
+        max: MAX_SCAN_BYTES,
+    };
+    let file = fs::File::open(path).map_err(io)?;
+    let len = file.metadata().map_err(io)?.len();
+    if len > MAX_SCAN_BYTES {
+        return Err(too_large(len));
+    }
+    let mut bytes = Vec::with_capacity(usize::try_from(len).unwrap_or(0));
+    file.take(MAX_SCAN_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > MAX_SCAN_BYTES {
+        return Err(too_large(bytes.len() as u64));
+    }
+    Ok(bytes)
+}
+
 /// Reads a KITTI Velodyne `.bin` file: little-endian `f32` records `x y z intensity`.
 ///
 /// # Errors
 ///
 /// [`ScanError::Io`], or [`ScanError::KittiLength`] if the length is not a multiple of 16.
 pub fn read_kitti_bin(path: &Path) -> Result<Scan, ScanError> {
-    let bytes = fs::read(path).map_err(|source| ScanError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = read_bounded(path)?;
     parse_kitti_bin(&bytes, path)
 }
 
@@ -210,10 +255,7 @@ pub fn parse_kitti_bin(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
 ///
 /// Any [`ScanError`], naming the file.
 pub fn read_pcd(path: &Path) -> Result<Scan, ScanError> {
-    let bytes = fs::read(path).map_err(|source| ScanError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = read_bounded(path)?;
     parse_pcd(&bytes, path)
 }
 
@@ -344,9 +386,21 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
             counts.len()
         )));
     }
-    let expected = match (points, width) {
+    let organised = match width {
+        Some(w) => Some(
+            w.checked_mul(height)
+                .ok_or_else(|| header_error(format!("WIDTH {w} x HEIGHT {height} overflows")))?,
+        ),
+        None => None,
+    };
+    let expected = match (points, organised) {
+        (Some(p), Some(wh)) if p != wh => {
+            return Err(header_error(format!(
+                "POINTS {p} disagrees with WIDTH x HEIGHT = {wh}"
+            )));
+        }
         (Some(p), _) => p,
-        (None, Some(w)) => w.saturating_mul(height),
+        (None, Some(wh)) => wh,
         (None, None) => return Err(header_error("neither POINTS nor WIDTH given".into())),
     };
     let mut fields = Vec::with_capacity(names.len());
@@ -360,8 +414,17 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
             offset,
             column,
         });
-        offset += sizes[i] * counts[i];
-        column += counts[i];
+        let overflow = || {
+            header_error(format!(
+                "field `{}`: SIZE {} x COUNT {} makes the record size overflow",
+                names[i], sizes[i], counts[i]
+            ))
+        };
+        offset = sizes[i]
+            .checked_mul(counts[i])
+            .and_then(|len| offset.checked_add(len))
+            .ok_or_else(overflow)?;
+        column = column.checked_add(counts[i]).ok_or_else(overflow)?;
     }
     let record_len = offset;
     let find = |name: &'static str, required: bool| -> Result<Option<PcdField>, ScanError> {
@@ -402,15 +465,24 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
         });
     };
     let fi = find("intensity", false)?;
-    let mut scan = Scan {
-        points_in_sensor: Vec::with_capacity(expected),
-        intensity: Vec::with_capacity(if fi.is_some() { expected } else { 0 }),
-    };
     let data = &bytes[cursor..];
+    // What the data can hold at most, so that no header number sizes an allocation: a binary
+    // record is `record_len` bytes (at least 12: x, y, z are 4 or 8 bytes); an ascii point is a
+    // line of at least `column` (at least 3) numbers, each followed by a separator.
+    let capacity = match encoding.as_str() {
+        "binary" => data.len() / record_len.max(1),
+        _ => data.len() / column.saturating_mul(2).max(1) + 1,
+    }
+    .min(expected);
+    let mut scan = Scan {
+        points_in_sensor: Vec::with_capacity(capacity),
+        intensity: Vec::with_capacity(if fi.is_some() { capacity } else { 0 }),
+    };
     match encoding.as_str() {
         "binary" => {
             let found = data.len() / record_len.max(1);
-            if found < expected || record_len == 0 {
+            let needed = expected.checked_mul(record_len);
+            if needed.is_none_or(|n| n > data.len()) || record_len == 0 {
                 return Err(ScanError::Truncated {
                     path: path.to_path_buf(),
                     expected,
@@ -430,7 +502,7 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
         }
         "ascii" => {
             let text = String::from_utf8_lossy(data);
-            let mut values: Vec<f32> = Vec::with_capacity(column);
+            let mut values: Vec<f32> = Vec::with_capacity(column.min(64));
             for (i, line) in text.lines().enumerate() {
                 if scan.points_in_sensor.len() == expected {
                     break;
@@ -575,6 +647,102 @@ mod tests {
             vec![[1.0, 2.0, 3.0], [-4.0, 5.5, -1.0]]
         );
         assert_eq!(scan.intensity, vec![0.5, 0.25]);
+    }
+
+    /// A header with `x y z` F4 and the given extra lines, then the data.
+    fn hostile(extra_header: &str, data: &str) -> Vec<u8> {
+        format!("VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n{extra_header}{data}")
+            .into_bytes()
+    }
+
+    #[test]
+    fn hostile_point_counts_are_refused_before_allocating() {
+        let twelve_bytes = "0123456789ab";
+        for points in ["4000000000", "18446744073709551615"] {
+            for encoding in ["binary", "ascii"] {
+                let bytes = hostile(&format!("POINTS {points}\nDATA {encoding}\n"), twelve_bytes);
+                let err = parse_pcd(&bytes, Path::new("h.pcd")).unwrap_err();
+                assert!(
+                    matches!(
+                        err,
+                        ScanError::Truncated { .. } | ScanError::AsciiData { .. }
+                    ),
+                    "{points} {encoding}: {err}"
+                );
+                assert!(err.to_string().starts_with("h.pcd:"));
+            }
+        }
+        // WIDTH x HEIGHT overflowing, and POINTS disagreeing with it.
+        let bytes = hostile("WIDTH 4294967296\nHEIGHT 4294967296\nDATA binary\n", "");
+        let err = parse_pcd(&bytes, Path::new("h.pcd"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("overflows"), "{err}");
+        let bytes = hostile("WIDTH 2\nHEIGHT 3\nPOINTS 5\nDATA binary\n", "");
+        let err = parse_pcd(&bytes, Path::new("h.pcd"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("POINTS 5 disagrees with WIDTH x HEIGHT = 6"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn hostile_field_sizes_and_counts_are_refused() {
+        // SIZE near usize::MAX on an extra field: the record size overflows.
+        let size = "VERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 18446744073709551612\nTYPE F F F U\n\
+                    COUNT 1 1 1 2\nPOINTS 1\nDATA binary\n0123456789ab";
+        let err = parse_pcd(size.as_bytes(), Path::new("h.pcd"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("record size overflow"), "{err}");
+        // SIZE that fits but a record far longer than the file.
+        let size = "VERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 18446744073709551500\nTYPE F F F U\n\
+                    POINTS 1\nDATA binary\n0123456789ab";
+        let err = parse_pcd(size.as_bytes(), Path::new("h.pcd")).unwrap_err();
+        assert!(matches!(err, ScanError::Truncated { .. }), "{err}");
+        // COUNT 10^12 on an ascii extra field: every line is short, nothing is allocated for it.
+        let count = "VERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\n\
+                     COUNT 1 1 1 1000000000000\nPOINTS 1\nDATA ascii\n1 2 3 4\n";
+        let err = parse_pcd(count.as_bytes(), Path::new("h.pcd"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("line 8") && err.contains("header declares 1000000000003"),
+            "{err}"
+        );
+        // COUNT near usize::MAX: the column count overflows.
+        let count = "VERSION 0.7\nFIELDS x y z a b\nSIZE 4 4 4 1 1\nTYPE F F F U U\n\
+                     COUNT 1 1 1 18446744073709551615 18446744073709551615\nPOINTS 1\nDATA ascii\n1 2 3\n";
+        let err = parse_pcd(count.as_bytes(), Path::new("h.pcd"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("overflow"), "{err}");
+        // COUNT on x itself is unsupported, however large.
+        let count = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1000000000000 1 1\n\
+                     POINTS 1\nDATA ascii\n1 2 3\n";
+        assert!(matches!(
+            parse_pcd(count.as_bytes(), Path::new("h.pcd")),
+            Err(ScanError::UnsupportedField { .. })
+        ));
+    }
+
+    #[test]
+    fn files_above_the_bound_are_refused_unread() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["big.bin", "big.pcd"] {
+            let path = dir.path().join(name);
+            // Sparse: no disk space is used, and the reader must not read it.
+            let file = std::fs::File::create(&path).unwrap();
+            file.set_len(MAX_SCAN_BYTES + 1).unwrap();
+            let err = read_scan(&path).unwrap_err();
+            assert!(
+                matches!(err, ScanError::TooLarge { len, .. } if len == MAX_SCAN_BYTES + 1),
+                "{err}"
+            );
+            assert!(err.to_string().contains(name));
+        }
     }
 
     #[test]

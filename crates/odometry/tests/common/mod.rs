@@ -1,0 +1,5 @@
+//! Test support shared by the integration tests and the bench.
+
+#![allow(dead_code)]
+
+pub mod scene;
