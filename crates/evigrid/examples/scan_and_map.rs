@@ -12,9 +12,9 @@
 
 use std::path::PathBuf;
 
+use evigrid::Params;
 use evigrid::pipeline::Pipeline;
 use evigrid::pose::Isometry3;
-use evigrid::Params;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -39,7 +39,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // A roof lidar 1.73 m above the road.
     let world_from_sensor = Isometry3::from_xyz_rpy(x_m, y_m, 1.73, 0.0, 0.0, yaw);
     for frame in 0..3 {
-        let stats = pipeline.process(&scan.points_in_sensor, &world_from_sensor, 0.1 * frame as f64)?;
+        let stats = pipeline.process(
+            &scan.points_in_sensor,
+            &world_from_sensor,
+            0.1 * frame as f64,
+        )?;
         eprintln!(
             "frame {frame}: sensor model {:.1} ms, step {:.1} ms",
             stats.sensor_ms, stats.step_ms
@@ -50,7 +54,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for decision in pipeline.decisions() {
         counts[*decision as usize] += 1;
     }
-    let names = ["unknown", "free", "building", "unmapped", "stopped", "moving"];
+    let names = [
+        "unknown", "free", "building", "unmapped", "stopped", "moving",
+    ];
     for (name, count) in names.iter().zip(counts) {
         println!("{name:>9} {count}");
     }
