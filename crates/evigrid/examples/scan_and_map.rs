@@ -28,7 +28,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // The map becomes a per-cell context raster in a local metric frame (SPEC §4).
     let loaded = geodata::load_map(
-        &PathBuf::from(map_path),
+        PathBuf::from(map_path),
         &geodata::LoadOptions { origin: None },
     )?;
     let raster = geodata::ContextRaster::new(&loaded.map);
