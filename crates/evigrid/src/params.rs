@@ -24,6 +24,9 @@ use serde::{Deserialize, Deserializer, Serialize};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ParamsError {
+    /// A parameter of the local ground model is out of range (named by the ground crate).
+    #[error("sensor.{0}")]
+    Ground(#[from] ground::GroundParamsError),
     /// A mass, confidence, rate, step or threshold outside `[0, 1]` (or not a number).
     #[error("{name} = {value} is outside [0, 1]")]
     OutOfUnitRange {
@@ -142,6 +145,7 @@ impl Params {
         positive("sensor.angular_resolution_deg", s.angular_resolution_deg)?;
         positive("sensor.max_range_m", s.max_range_m)?;
         positive("sensor.ground_band_m", s.ground_band_m)?;
+        s.ground_params().validate()?;
         if !(s.min_range_m >= 0.0 && s.min_range_m < s.max_range_m) {
             return Err(ParamsError::Misordered {
                 low_name: "sensor.min_range_m",
@@ -280,6 +284,23 @@ pub struct SensorParams {
     /// vehicle's own body and invalid zero-range returns. By default 2.0 m (provisional: a roof
     /// lidar on a car; 0 for a bumper-mounted scanner).
     pub min_range_m: f64,
+    /// The local ground model of [`GroundModel::Local`] (`[sensor.ground]`). Its obstacle heights
+    /// and ranges are not read: the sensor model hands it the four of this section, so that one
+    /// key decides each.
+    pub ground: ground::GroundParams,
+}
+
+impl SensorParams {
+    /// The local ground model's parameters with this section's obstacle heights and ranges.
+    pub fn ground_params(&self) -> ground::GroundParams {
+        ground::GroundParams {
+            min_obstacle_height_m: self.min_obstacle_height_m,
+            max_obstacle_height_m: self.max_obstacle_height_m,
+            min_range_m: self.min_range_m,
+            max_range_m: self.max_range_m,
+            ..self.ground.clone()
+        }
+    }
 }
 
 impl Default for SensorParams {
@@ -294,6 +315,7 @@ impl Default for SensorParams {
             ground_model: GroundModel::Plane,
             ground_band_m: 0.2,
             min_range_m: 2.0,
+            ground: ground::GroundParams::default(),
         }
     }
 }
@@ -308,6 +330,11 @@ pub enum GroundModel {
     /// above it, ground returns within the ground band of it.
     #[default]
     Plane,
+    /// 3-D lidar on real streets: a local ground height per polar cell, grown outward from the
+    /// sensor with slope limits (crate `ground`, parameters in `[sensor.ground]`). Holds on
+    /// slopes, crowned roads and kerbs where one plane per scan turns ground rings into
+    /// obstacles.
+    Local,
 }
 
 /// Confidence in the map, per context (SPEC §4, eq 34-38).

@@ -1,15 +1,17 @@
 //! Points into sectors: each levelled point is told ground, obstacle or neither, and every
 //! sector keeps the range of its nearest obstacle and of its farthest ground return.
 
+use ground::PointLabel;
+
 use super::ground_plane::GroundPlane;
 use crate::window::Window;
 
 /// Points classified per parallel task: enough that a task's per-sector arrays cost little.
 pub(super) const CLASSIFY_CHUNK: usize = 8192;
 
-/// How the points of a scan are told apart: ground (within the band of the fitted plane),
-/// obstacle (within the obstacle heights above it, or every point without a ground model) or
-/// neither.
+/// How the points of a scan are told apart: ground (within the band of the fitted plane, or
+/// labelled so by the local ground model), obstacle (within the obstacle heights above the
+/// plane, labelled so, or every point without a ground model) or neither.
 pub(super) struct PointClassifier<'a> {
     pub(super) plane: Option<&'a GroundPlane>,
     pub(super) ground_band_m: f64,
@@ -35,8 +37,28 @@ pub(super) struct Classified {
 }
 
 impl PointClassifier<'_> {
+    /// Notes a ground return: its sector's farthest ground range and its cell.
+    fn ground_return(&self, q: [f64; 3], out: &mut Classified) {
+        out.ground_points += 1;
+        let s = sector_of(q, self.sectors_per_radian, self.sectors);
+        let range_m = horizontal_range(q);
+        out.ground_range[s] = out.ground_range[s].max(range_m);
+        let (sensor_x, sensor_y) = self.sensor_xy;
+        if let Some(idx) = self
+            .window
+            .storage_index_of_point(sensor_x + q[0], sensor_y + q[1])
+        {
+            out.ground_cells.push((idx, s as u32, range_m));
+        }
+    }
+
     /// Classifies `points` into `out`, whose buffers are cleared and reused.
-    pub(super) fn chunk(&self, points: &[[f64; 3]], out: &mut Classified) {
+    pub(super) fn chunk(
+        &self,
+        points: &[[f64; 3]],
+        labels: Option<&[PointLabel]>,
+        out: &mut Classified,
+    ) {
         out.ground_points = 0;
         out.unclassified_points = 0;
         out.dropped_outside_window = 0;
@@ -47,22 +69,21 @@ impl PointClassifier<'_> {
         out.ground_cells.clear();
         out.obstacle_cells.clear();
         let (sensor_x, sensor_y) = self.sensor_xy;
-        for &q in points {
-            let is_obstacle = match self.plane {
-                None => true,
-                Some(plane) => {
+        for (i, &q) in points.iter().enumerate() {
+            let is_obstacle = match (labels, self.plane) {
+                (Some(labels), _) => match labels.get(i) {
+                    Some(PointLabel::Ground) => {
+                        self.ground_return(q, out);
+                        continue;
+                    }
+                    Some(PointLabel::Obstacle) => true,
+                    _ => false,
+                },
+                (None, None) => true,
+                (None, Some(plane)) => {
                     let h = plane.height_of(q);
                     if h.abs() <= self.ground_band_m {
-                        out.ground_points += 1;
-                        let s = sector_of(q, self.sectors_per_radian, self.sectors);
-                        let range_m = horizontal_range(q);
-                        out.ground_range[s] = out.ground_range[s].max(range_m);
-                        if let Some(idx) = self
-                            .window
-                            .storage_index_of_point(sensor_x + q[0], sensor_y + q[1])
-                        {
-                            out.ground_cells.push((idx, s as u32, range_m));
-                        }
+                        self.ground_return(q, out);
                         continue;
                     }
                     self.obstacle_heights_m.contains(&h)

@@ -81,12 +81,23 @@ pub struct SensorModel {
     classified: Vec<Classified>,
     /// Indices of the ground plane's inliers (scratch of the fit).
     inliers: Vec<usize>,
+    /// The local ground model ([`GroundModel::Local`] only), with its buffers.
+    segmenter: Option<ground::GroundSegmenter>,
+    /// The levelled points in `f32` for the local ground model, and its label per point.
+    levelled_f32: Vec<[f32; 3]>,
+    labels: Vec<ground::PointLabel>,
 }
 
 impl SensorModel {
     /// A sensor model with these parameters (read from the `[sensor]` section).
     pub fn new(params: SensorParams) -> Self {
+        let segmenter = (params.ground_model == GroundModel::Local)
+            .then(|| ground::GroundSegmenter::new(params.ground_params()).ok())
+            .flatten();
         Self {
+            segmenter,
+            levelled_f32: Vec::new(),
+            labels: Vec::new(),
             params,
             levelled: Vec::new(),
             obstacle_range: Vec::new(),
@@ -155,6 +166,25 @@ impl SensorModel {
         }
         let plane = match self.params.ground_model {
             GroundModel::None => None,
+            GroundModel::Local => {
+                self.levelled_f32.clear();
+                self.levelled_f32
+                    .extend(self.levelled.iter().map(|q| q.map(|v| v as f32)));
+                self.labels.clear();
+                match &mut self.segmenter {
+                    Some(segmenter) => {
+                        let segmentation = segmenter.segment(&self.levelled_f32);
+                        self.labels.extend_from_slice(segmentation.labels());
+                    }
+                    // Parameters the ground crate refuses (not validated by the caller): no
+                    // ground model, so no point is trusted.
+                    None => {
+                        stats.unclassified_points = self.levelled.len();
+                        return stats;
+                    }
+                }
+                None
+            }
             GroundModel::Plane => {
                 let plane = fit_ground_plane_into(
                     &self.levelled,
@@ -177,6 +207,7 @@ impl SensorModel {
         // ranges by min/max, cells in point order, so the result does not depend on the number
         // of threads.
         let [sensor_x, sensor_y, _] = world_from_sensor.translation;
+        let local_labels = (self.params.ground_model == GroundModel::Local).then_some(&self.labels);
         let classify = PointClassifier {
             plane: plane.as_ref(),
             ground_band_m: self.params.ground_band_m,
@@ -190,10 +221,19 @@ impl SensorModel {
         let chunk_count = self.levelled.len().div_ceil(CLASSIFY_CHUNK);
         self.classified
             .resize_with(chunk_count, Classified::default);
-        self.levelled
-            .par_chunks(CLASSIFY_CHUNK)
-            .zip(self.classified.par_iter_mut())
-            .for_each(|(points, out)| classify.chunk(points, out));
+        match local_labels {
+            Some(labels) => self
+                .levelled
+                .par_chunks(CLASSIFY_CHUNK)
+                .zip(labels.par_chunks(CLASSIFY_CHUNK))
+                .zip(self.classified.par_iter_mut())
+                .for_each(|((points, labels), out)| classify.chunk(points, Some(labels), out)),
+            None => self
+                .levelled
+                .par_chunks(CLASSIFY_CHUNK)
+                .zip(self.classified.par_iter_mut())
+                .for_each(|(points, out)| classify.chunk(points, None, out)),
+        }
         self.obstacle_range.clear();
         self.obstacle_range.resize(sectors, f64::INFINITY);
         self.ground_range.clear();
