@@ -145,7 +145,6 @@ impl Params {
         positive("sensor.angular_resolution_deg", s.angular_resolution_deg)?;
         positive("sensor.max_range_m", s.max_range_m)?;
         positive("sensor.ground_band_m", s.ground_band_m)?;
-        s.ground_params().validate()?;
         if !(s.min_range_m >= 0.0 && s.min_range_m < s.max_range_m) {
             return Err(ParamsError::Misordered {
                 low_name: "sensor.min_range_m",
@@ -185,6 +184,8 @@ impl Params {
             "decision.unknown_threshold",
             self.decision.unknown_threshold,
         )?;
+        // Last: the sensor's own keys are named first when they are what is wrong.
+        self.sensor.ground_params().validate()?;
         Ok(())
     }
 }
@@ -720,6 +721,10 @@ unknown_threshold = 0.7
     fn each_out_of_range_parameter_is_named() {
         let cases = [
             ("[sensor]\nmu_free = 1.5", "sensor.mu_free"),
+            (
+                "[sensor.ground]\nmax_slope = -0.1",
+                "sensor.ground.max_slope",
+            ),
             ("[sensor]\nmu_occupied = -0.1", "sensor.mu_occupied"),
             ("[map]\nbeta_building = 2", "map.beta_building"),
             ("[map]\nbeta_road = -1", "map.beta_road"),
