@@ -148,3 +148,122 @@ fn bad_input_exits_with_status_2_naming_the_file() {
     assert_eq!(output.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&output.stderr).contains("line 2"));
 }
+
+/// Three scans with poses 1 m apart eastwards, written into `dir`; returns the scans folder and
+/// the pose file.
+fn small_drive(shared: &Path, dir: &Path, x0_m: f64) -> (PathBuf, PathBuf) {
+    let scans = dir.join("scans");
+    link_scans(shared, &scans, 3);
+    let poses = dir.join("poses.txt");
+    let lines: String = (0..3)
+        .map(|k| {
+            format!(
+                "{} {} 0 1.73 0 0 0\n",
+                0.1 * f64::from(k),
+                x0_m + f64::from(k)
+            )
+        })
+        .collect();
+    std::fs::write(&poses, lines).unwrap();
+    (scans, poses)
+}
+
+#[test]
+fn runs_without_a_map_and_says_so() {
+    let Some(shared) = shared() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let (scans, poses) = small_drive(&shared, tmp.path(), 0.0);
+    std::fs::write(
+        tmp.path().join("p.toml"),
+        "[window]\nwidth_cells = 200\nheight_cells = 160\n",
+    )
+    .unwrap();
+    let output = evigrid()
+        .args(["run", "--json", "--scans"])
+        .arg(&scans)
+        .arg("--poses")
+        .arg(&poses)
+        .arg("--config")
+        .arg(tmp.path().join("p.toml"))
+        .arg("--out")
+        .arg(tmp.path().join("out"))
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    assert_eq!(summary["frames"], 3);
+    assert!(summary["map"].is_null());
+    assert_eq!(summary["prior"], "vacuous (no map)");
+    // Without a map nothing can be mapped infrastructure.
+    assert_eq!(summary["final_classes"][2], 0);
+    assert!(summary["final_classes"][1].as_u64().unwrap() > 2000);
+}
+
+#[test]
+fn poses_far_from_the_map_are_an_error_naming_the_first() {
+    let Some(shared) = shared() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    // 50 km east of the village's centre.
+    let (scans, poses) = small_drive(&shared, tmp.path(), 50_000.0);
+    let output = evigrid()
+        .args(["run", "--map"])
+        .arg(shared.join("data/osm/bavarian-village.osm"))
+        .arg("--scans")
+        .arg(&scans)
+        .arg("--poses")
+        .arg(&poses)
+        .arg("--out")
+        .arg(tmp.path().join("out"))
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("poses.txt")
+            && stderr.contains("pose 1 (scan 1)")
+            && stderr.contains("m outside the extent"),
+        "{stderr}"
+    );
+    assert!(output.stdout.is_empty());
+    assert!(!tmp.path().join("out").exists());
+}
+
+#[test]
+fn wgs84_poses_without_a_map_need_an_origin() {
+    let Some(shared) = shared() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let (scans, poses) = small_drive(&shared, tmp.path(), 0.0);
+    std::fs::write(
+        &poses,
+        "# frame: wgs84\n0 -33.9 151.2 0 0 0 0\n0.1 -33.9 151.2 0 0 0 0\n0.2 -33.9 151.2 0 0 0 0\n",
+    )
+    .unwrap();
+    let run = |origin: Option<&str>| {
+        let mut command = evigrid();
+        command
+            .args(["run", "--scans"])
+            .arg(&scans)
+            .arg("--poses")
+            .arg(&poses)
+            .arg("--out")
+            .arg(tmp.path().join("out"));
+        if let Some(origin) = origin {
+            command.args(["--origin", origin]);
+        }
+        command.output().unwrap()
+    };
+    let without = run(None);
+    assert_eq!(without.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&without.stderr).contains("need --map or --origin"));
+    // A southern, eastern origin is a value, not an option.
+    let with = run(Some("-33.9,151.2"));
+    assert!(
+        with.status.success(),
+        "{}",
+        String::from_utf8_lossy(&with.stderr)
+    );
+}

@@ -31,9 +31,10 @@ use crate::exit::BadInput;
 #[derive(Debug, Args)]
 #[command(after_long_help = POSES_HELP)]
 pub struct RunArgs {
-    /// Vector map: OSM PBF, OSM XML (optionally gzipped) or GeoJSON.
+    /// Vector map: OSM PBF, OSM XML (optionally gzipped) or GeoJSON. Without one the map prior is
+    /// vacuous (the `no-map` variant) and the summary says so.
     #[arg(long)]
-    map: PathBuf,
+    map: Option<PathBuf>,
     /// Directory of scans: PCD v0.7 (ascii or binary) or KITTI `.bin`, processed in file-name
     /// order.
     #[arg(long)]
@@ -49,7 +50,8 @@ pub struct RunArgs {
     #[arg(long)]
     config: Option<PathBuf>,
     /// Origin of the map's local frame as `LAT,LON` in degrees; by default the map's centre.
-    #[arg(long, value_name = "LAT,LON")]
+    /// Without a map, WGS84 poses need it.
+    #[arg(long, value_name = "LAT,LON", allow_hyphen_values = true)]
     origin: Option<String>,
     /// Print the summary as JSON on standard output.
     #[arg(long)]
@@ -97,8 +99,11 @@ struct FrameRecord {
 /// The summary written to `summary.json` (and to stdout with `--json`).
 #[derive(Debug, Serialize)]
 struct Summary {
-    map: String,
-    map_stats: geodata::MapStats,
+    /// The map, or `null` for a run without one.
+    map: Option<String>,
+    /// `map`, or `vacuous (no map)`: what the GISGrid held.
+    prior: &'static str,
+    map_stats: Option<geodata::MapStats>,
     scans: String,
     poses: String,
     params: Params,
@@ -131,12 +136,26 @@ pub fn run(args: RunArgs) -> Result<()> {
         .validate()
         .map_err(|e| BadInput::new(format!("{}: {e}", config_name(&args))))?;
     let origin = args.origin.as_deref().map(parse_origin).transpose()?;
-    let loaded = geodata::load_map(&args.map, &geodata::LoadOptions { origin })
-        .map_err(|e| BadInput::new(e.to_string()))?;
-    let raster = geodata::ContextRaster::new(&loaded.map);
-    let projection = loaded.projection;
+    let loaded = match &args.map {
+        Some(map) => Some(
+            geodata::load_map(map, &geodata::LoadOptions { origin })
+                .map_err(|e| BadInput::new(e.to_string()))?,
+        ),
+        None => None,
+    };
+    let raster = loaded
+        .as_ref()
+        .map(|loaded| geodata::ContextRaster::new(&loaded.map));
+    let projection = match (&loaded, origin) {
+        (Some(loaded), _) => Some(loaded.projection),
+        (None, Some((lat, lon))) => Some(
+            geodata::TransverseMercator::new(lat, lon)
+                .map_err(|e| BadInput::new(format!("--origin: {e}")))?,
+        ),
+        (None, None) => None,
+    };
     let project = |lat: f64, lon: f64| {
-        let (x, y) = projection.forward(lat, lon);
+        let (x, y) = projection.as_ref()?.forward(lat, lon);
         (x.is_finite() && y.is_finite()).then_some((x, y))
     };
 
@@ -161,10 +180,23 @@ pub fn run(args: RunArgs) -> Result<()> {
         )));
     }
 
+    if let Some(loaded) = &loaded {
+        check_poses_on_map(&poses, &loaded.map.extent).map_err(|e| {
+            BadInput::new(format!(
+                "{}: {e} of the map {}",
+                args.poses.display(),
+                args.map
+                    .as_deref()
+                    .unwrap_or(std::path::Path::new(""))
+                    .display()
+            ))
+        })?;
+    }
+
     let frames_dir = args.out.join("frames");
     fs::create_dir_all(&frames_dir)
         .with_context(|| format!("cannot create {}", frames_dir.display()))?;
-    let mut pipeline = Pipeline::new(params.clone(), Some(raster))
+    let mut pipeline = Pipeline::new(params.clone(), raster)
         .map_err(|e| BadInput::new(format!("{}: {e}", config_name(&args))))?;
 
     let progress = ProgressBar::new(scan_paths.len() as u64);
@@ -242,8 +274,13 @@ pub fn run(args: RunArgs) -> Result<()> {
 
     let sum = |f: fn(&FrameRecord) -> usize| per_frame.iter().map(f).sum::<usize>();
     let summary = Summary {
-        map: args.map.display().to_string(),
-        map_stats: loaded.stats,
+        map: args.map.as_ref().map(|m| m.display().to_string()),
+        prior: if loaded.is_some() {
+            "map"
+        } else {
+            "vacuous (no map)"
+        },
+        map_stats: loaded.map(|loaded| loaded.stats),
         scans: args.scans.display().to_string(),
         poses: args.poses.display().to_string(),
         params,
@@ -270,11 +307,39 @@ pub fn run(args: RunArgs) -> Result<()> {
         let [unknown, f, i, u, s, m] = summary.final_classes;
         println!(
             "{} frames, {:.1} ms per frame; final cells: {f} free, {i} mapped infrastructure, \
-             {u} unmapped infrastructure, {s} stopped, {m} moving, {unknown} unknown; outputs in {}",
+             {u} unmapped infrastructure, {s} stopped, {m} moving, {unknown} unknown; prior: {}; \
+             outputs in {}",
             summary.frames,
             summary.mean_process_ms,
+            summary.prior,
             args.out.display()
         );
+    }
+    Ok(())
+}
+
+/// How far a pose may lie outside the map's extent: the sensor sees about this far, so a pose
+/// farther out sees nothing of the map (a wrong map, origin or pose frame).
+const MAP_MARGIN_M: f64 = 100.0;
+
+/// The first pose farther than [`MAP_MARGIN_M`] outside the map's extent, as an error.
+fn check_poses_on_map(
+    poses: &[PoseLine],
+    extent: &geo::Rect<f64>,
+) -> std::result::Result<(), String> {
+    let (min, max) = (extent.min(), extent.max());
+    for (k, pose) in poses.iter().enumerate() {
+        let [x, y, _] = pose.world_from_sensor.translation;
+        let dx = (min.x - x).max(x - max.x).max(0.0);
+        let dy = (min.y - y).max(y - max.y).max(0.0);
+        let distance_m = dx.hypot(dy);
+        if distance_m > MAP_MARGIN_M || !distance_m.is_finite() {
+            return Err(format!(
+                "pose {} (scan {}) lies {distance_m:.0} m outside the extent",
+                k + 1,
+                k + 1
+            ));
+        }
     }
     Ok(())
 }
@@ -344,8 +409,12 @@ fn parse_poses(
             return Err(format!("line {number}: values must be finite"));
         }
         let (x, y) = if wgs84 {
-            project(a, b)
-                .ok_or_else(|| format!("line {number}: cannot project lat {a}, lon {b}"))?
+            project(a, b).ok_or_else(|| {
+                format!(
+                    "line {number}: cannot project lat {a}, lon {b} (WGS84 poses need --map or \
+                         --origin)"
+                )
+            })?
         } else {
             (a, b)
         };
