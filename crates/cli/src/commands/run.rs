@@ -8,7 +8,6 @@
 //! `evigrid::pipeline::Pipeline`'s.
 
 use std::fs;
-use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -22,10 +21,10 @@ use evigrid::render::{
     trace_image, write_masses, write_png,
 };
 use evigrid::sensor_model::Isometry3;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 
 use crate::exit::BadInput;
+use crate::input::read_params;
 
 /// Arguments of `evigrid run`.
 #[derive(Debug, Args)]
@@ -123,18 +122,8 @@ struct Summary {
 /// Runs `evigrid run`.
 pub fn run(args: RunArgs) -> Result<()> {
     let started = Instant::now();
-    let params = match &args.config {
-        None => Params::default(),
-        Some(path) => {
-            let text = fs::read_to_string(path)
-                .map_err(|e| BadInput::new(format!("{}: {e}", path.display())))?;
-            Params::from_toml_str(&text)
-                .map_err(|e| BadInput::new(format!("{}: {e}", path.display())))?
-        }
-    };
-    params
-        .validate()
-        .map_err(|e| BadInput::new(format!("{}: {e}", config_name(&args))))?;
+    // Validated as it is read: the defaults are valid by construction.
+    let params = read_params(args.config.as_deref())?;
     let origin = args.origin.as_deref().map(parse_origin).transpose()?;
     let loaded = match &args.map {
         Some(map) => Some(
@@ -199,13 +188,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     let mut pipeline = Pipeline::new(params.clone(), raster)
         .map_err(|e| BadInput::new(format!("{}: {e}", config_name(&args))))?;
 
-    let progress = ProgressBar::new(scan_paths.len() as u64);
-    if !std::io::stderr().is_terminal() {
-        progress.set_draw_target(ProgressDrawTarget::hidden());
-    }
-    if let Ok(style) = ProgressStyle::with_template("{bar:40} {pos}/{len} scans {elapsed} {msg}") {
-        progress.set_style(style);
-    }
+    let progress = crate::progress::bar(scan_paths.len() as u64, "run");
     let mut per_frame = Vec::with_capacity(scan_paths.len());
     for (k, (path, pose)) in scan_paths.iter().zip(&poses).enumerate() {
         let t0 = Instant::now();
