@@ -27,16 +27,30 @@ impl fmt::Display for BadInput {
 
 impl std::error::Error for BadInput {}
 
+/// The error chain on one line, `outer: inner: …`, leaving out a cause whose text the message
+/// before it already ends with (I/O errors wrapped with their own text would print twice: "No
+/// space left on device (os error 28): No space left on device (os error 28)").
+pub fn one_line_chain(error: &anyhow::Error) -> String {
+    let mut message = String::new();
+    for cause in error.chain() {
+        let text = cause.to_string();
+        if message.ends_with(&text) {
+            continue;
+        }
+        if !message.is_empty() {
+            message.push_str(": ");
+        }
+        message.push_str(&text);
+    }
+    message.replace('\n', " ")
+}
+
 /// Prints the error chain on one line to standard error and chooses the exit status.
 pub fn report(result: anyhow::Result<()>) -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            let message = error
-                .chain()
-                .map(ToString::to_string)
-                .collect::<Vec<_>>()
-                .join(": ");
+            let message = one_line_chain(&error);
             eprintln!("evigrid: {message}");
             if error.chain().any(|cause| cause.is::<BadInput>()) {
                 ExitCode::from(2)
@@ -44,5 +58,28 @@ pub fn report(result: anyhow::Result<()>) -> ExitCode {
                 ExitCode::from(1)
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use anyhow::Context;
+
+    #[test]
+    fn a_cause_repeating_its_wrapper_is_printed_once() {
+        let full = std::io::Error::from_raw_os_error(28);
+        let text = full.to_string();
+        let error = Err::<(), _>(std::io::Error::other(full))
+            .context("out/masses.bin")
+            .err()
+            .map(|e| one_line_chain(&e));
+        assert_eq!(error, Some(format!("out/masses.bin: {text}")));
+    }
+
+    #[test]
+    fn the_chain_is_one_line() {
+        let error = anyhow::anyhow!("line one\nline two").context("file.toml");
+        assert_eq!(one_line_chain(&error), "file.toml: line one line two");
     }
 }

@@ -1,6 +1,7 @@
 //! Reading what the user gave, and saying which input an error comes from.
 
 use std::fs;
+use std::io::Read;
 use std::path::Path;
 
 use anyhow::Result;
@@ -8,13 +9,38 @@ use evigrid::Params;
 
 use crate::exit::BadInput;
 
+/// Largest text input read (parameters, scenarios, mass functions, pose lists): these are
+/// hand-written files of a few kB; a larger one is a wrong path.
+pub const MAX_TEXT_BYTES: u64 = 16 << 20;
+
+/// Reads a small text input whole, as bad input naming it when it is not a regular file
+/// (checked before opening: opening a FIFO with no writer blocks forever), larger than
+/// [`MAX_TEXT_BYTES`] (bounded while reading: devices report no size) or not UTF-8.
+pub fn read_text(path: &Path) -> Result<String> {
+    let bad = |why: String| BadInput::new(format!("{}: {why}", path.display()));
+    let meta = fs::metadata(path).map_err(|e| bad(e.to_string()))?;
+    if !meta.is_file() {
+        return Err(bad("not a regular file".into()));
+    }
+    let mut bytes = Vec::new();
+    fs::File::open(path)
+        .and_then(|file| file.take(MAX_TEXT_BYTES + 1).read_to_end(&mut bytes))
+        .map_err(|e| bad(e.to_string()))?;
+    if bytes.len() as u64 > MAX_TEXT_BYTES {
+        return Err(bad(format!(
+            "larger than {} MiB; expected a small text file",
+            MAX_TEXT_BYTES >> 20
+        )));
+    }
+    String::from_utf8(bytes).map_err(|_| bad("not UTF-8 text".into()))
+}
+
 /// The parameters of `--config FILE` (SPEC §7 layout), or the defaults without one.
 pub fn read_params(path: Option<&Path>) -> Result<Params> {
     let Some(path) = path else {
         return Ok(Params::default());
     };
-    let text =
-        fs::read_to_string(path).map_err(|e| BadInput::new(format!("{}: {e}", path.display())))?;
+    let text = read_text(path)?;
     Params::from_toml_str(&text).map_err(|e| BadInput::new(format!("{}: {e}", path.display())))
 }
 
@@ -68,6 +94,18 @@ mod tests {
         let path = Path::new("a/b.toml");
         assert_eq!(with_path(path, "no roads"), "a/b.toml: no roads");
         assert_eq!(with_path(path, "a/b.toml: no roads"), "a/b.toml: no roads");
+    }
+
+    #[test]
+    fn special_files_are_refused_without_reading_them() {
+        // /dev/zero never ends; a FIFO with no writer would block the open itself.
+        for path in ["/dev/zero", "/dev/null", "/"] {
+            let message = read_text(Path::new(path))
+                .err()
+                .map(|e| e.to_string())
+                .unwrap_or_default();
+            assert_eq!(message, format!("{path}: not a regular file"));
+        }
     }
 
     #[test]

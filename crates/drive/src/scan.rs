@@ -198,6 +198,13 @@ fn read_bounded(path: &Path) -> Result<Vec<u8>, ScanError> {
         len,
         max: MAX_SCAN_BYTES,
     };
+    // Checked before opening: opening a FIFO with no writer blocks forever.
+    if !fs::metadata(path).map_err(io)?.is_file() {
+        return Err(io(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file",
+        )));
+    }
     let file = fs::File::open(path).map_err(io)?;
     let len = file.metadata().map_err(io)?.len();
     if len > MAX_SCAN_BYTES {

@@ -11,6 +11,15 @@ pub(crate) fn read_text(path: &Path) -> Result<String, ReadError> {
         path: path.to_path_buf(),
         source,
     };
+    // Checked before opening: opening a FIFO with no writer blocks forever.
+    if let Ok(meta) = std::fs::metadata(path)
+        && !meta.is_file()
+    {
+        return Err(ReadError::File {
+            path: path.to_path_buf(),
+            message: "not a regular file".into(),
+        });
+    }
     let file = std::fs::File::open(path).map_err(io)?;
     let too_large = |len| ReadError::TooLarge {
         path: path.to_path_buf(),

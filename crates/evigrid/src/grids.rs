@@ -127,6 +127,16 @@ impl PerceptionGrid {
         self.width * self.height
     }
 
+    /// Bytes of the grid's heap storage (what the memory budget counts).
+    pub fn heap_bytes(&self) -> usize {
+        4 * (self.masses.capacity()
+            + self.zeta.capacity()
+            + self.conflict_fo.capacity()
+            + self.conflict_of.capacity())
+            + self.seen.capacity()
+            + std::mem::size_of::<PlaneBits>() * self.nonzero.capacity()
+    }
+
     /// True for a grid without cells.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
@@ -431,6 +441,11 @@ impl SensorGrid {
         self.width * self.height
     }
 
+    /// Bytes of the grid's heap storage (what the memory budget counts).
+    pub fn heap_bytes(&self) -> usize {
+        4 * (self.m_free.capacity() + self.m_occupied.capacity()) + self.may_hold_mass.capacity()
+    }
+
     /// True for a grid without cells.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
@@ -524,6 +539,11 @@ impl GisGrid {
     /// Number of cells, `width · height`.
     pub fn len(&self) -> usize {
         self.width * self.height
+    }
+
+    /// Bytes of the grid's heap storage (what the memory budget counts).
+    pub fn heap_bytes(&self) -> usize {
+        std::mem::size_of::<MapContext>() * self.context.capacity()
     }
 
     /// True for a grid without cells.

@@ -27,6 +27,26 @@ pub enum ParamsError {
     /// A parameter of the local ground model is out of range (named by the ground crate).
     #[error("sensor.{0}")]
     Ground(#[from] ground::GroundParamsError),
+    /// A window whose grids would not fit the memory budget (or whose cell count overflows).
+    #[error(
+        "window.width_cells x window.height_cells = {width} x {height}: the grids would need \
+         {needed}, over the {budget_mib} MiB memory budget (at most {max_cells} cells, \
+         e.g. {max_side} x {max_side})"
+    )]
+    WindowTooLarge {
+        /// Requested width, cells.
+        width: usize,
+        /// Requested height, cells.
+        height: usize,
+        /// Memory the window's grids would take, as printed (`16 EiB or more` on overflow).
+        needed: String,
+        /// [`MEMORY_BUDGET_BYTES`] in MiB.
+        budget_mib: u64,
+        /// Most cells the budget allows.
+        max_cells: u64,
+        /// Side of the largest square window the budget allows.
+        max_side: u64,
+    },
     /// A mass, confidence, rate, step or threshold outside `[0, 1]` (or not a number).
     #[error("{name} = {value} is outside [0, 1]")]
     OutOfUnitRange {
@@ -139,6 +159,7 @@ impl Params {
                 height: self.window.height_cells,
             });
         }
+        check_window_size(self.window.width_cells, self.window.height_cells)?;
         let s = &self.sensor;
         unit("sensor.mu_free", s.mu_free)?;
         unit("sensor.mu_occupied", s.mu_occupied)?;
@@ -187,6 +208,47 @@ impl Params {
         // Last: the sensor's own keys are named first when they are what is wrong.
         self.sensor.ground_params().validate()?;
         Ok(())
+    }
+}
+
+/// Memory the grids of a window may take: the fusion's state of every cell must fit in RAM next
+/// to the scan, the map and the outputs, on the laptops and vehicle computers evigrid runs on.
+/// At [`WINDOW_BYTES_PER_CELL`] this allows about 10 million cells (3 200 × 3 200, 1.6 km at
+/// 0.5 m); the real-time target is 1 000 × 1 000.
+pub const MEMORY_BUDGET_BYTES: u64 = 1536 << 20;
+
+/// Bytes every window cell costs across the pipeline's grids: the PerceptionGrid's 32 mass
+/// planes, ζ and the two conflicts (f32), its seen flag, the SensorGrid's two masses, the
+/// GISGrid context, the decision and the moving trace, plus room for the motion stage's
+/// per-cell planes. A test holds it above what the pipeline allocates.
+pub const WINDOW_BYTES_PER_CELL: u64 = 32 * 4 + 3 * 4 + 1 + 2 * 4 + 1 + 1 + 1 + 48;
+
+/// Checks that a `width × height` window fits [`MEMORY_BUDGET_BYTES`] (with checked arithmetic:
+/// a count that overflows is refused too). Used by [`Params::validate`] and by every tool that
+/// sizes grids from user input.
+///
+/// # Errors
+/// [`ParamsError::WindowTooLarge`].
+pub fn check_window_size(width: usize, height: usize) -> Result<(), ParamsError> {
+    let bytes = (width as u64)
+        .checked_mul(height as u64)
+        .and_then(|cells| cells.checked_mul(WINDOW_BYTES_PER_CELL));
+    match bytes {
+        Some(bytes) if bytes <= MEMORY_BUDGET_BYTES => Ok(()),
+        _ => {
+            let max_cells = MEMORY_BUDGET_BYTES / WINDOW_BYTES_PER_CELL;
+            Err(ParamsError::WindowTooLarge {
+                width,
+                height,
+                needed: bytes.map_or_else(
+                    || "16 EiB or more".to_string(),
+                    |b| format!("{} MiB", b.div_ceil(1 << 20)),
+                ),
+                budget_mib: MEMORY_BUDGET_BYTES >> 20,
+                max_cells,
+                max_side: max_cells.isqrt(),
+            })
+        }
     }
 }
 
@@ -614,6 +676,43 @@ mod tests {
         assert_eq!(p.fusion.discount_mode, DiscountMode::ClassRates);
         assert_eq!(p.fusion.residual, ResidualPolicy::ToOmega);
         Ok(())
+    }
+
+    #[test]
+    fn windows_beyond_the_memory_budget_are_refused_before_allocating() {
+        // The reproducers of issue 15: 2^32 wrapped width × height to 0 and panicked; 100000²
+        // and 5000² aborted or took over 6 GB.
+        for (w, h) in [
+            (1 << 32, 1),
+            (usize::MAX, 2),
+            (100_000, 100_000),
+            (5000, 5000),
+        ] {
+            let text = format!("[window]\nwidth_cells = {w}\nheight_cells = {h}\n");
+            match Params::from_toml_str(&text) {
+                Err(ParamsError::WindowTooLarge { width, height, .. }) => {
+                    assert_eq!((width, height), (w, h));
+                }
+                other => panic!("{w} x {h}: {other:?}"),
+            }
+        }
+        let message = check_window_size(5000, 5000).map_err(|e| e.to_string());
+        assert_eq!(
+            message,
+            Err(
+                "window.width_cells x window.height_cells = 5000 x 5000: the grids would need \
+                 4769 MiB, over the 1536 MiB memory budget (at most 8053063 cells, e.g. 2837 x \
+                 2837)"
+                    .to_string()
+            )
+        );
+        assert!(
+            check_window_size(usize::MAX, usize::MAX)
+                .is_err_and(|e| e.to_string().contains("16 EiB"))
+        );
+        // The real-time target and the largest square fit.
+        check_window_size(1000, 1000).unwrap_or_else(|e| panic!("{e}"));
+        check_window_size(2837, 2837).unwrap_or_else(|e| panic!("{e}"));
     }
 
     #[test]

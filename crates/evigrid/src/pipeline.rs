@@ -613,6 +613,25 @@ mod tests {
     }
 
     #[test]
+    fn the_memory_budget_counts_every_per_cell_allocation() -> Result<(), PipelineError> {
+        let mut params = params();
+        (params.window.width_cells, params.window.height_cells) = (128, 96);
+        let cells = 128 * 96;
+        let pipeline = Pipeline::new(params, None)?;
+        let per_cell = (pipeline.perception().heap_bytes()
+            + pipeline.sensor_grid().heap_bytes()
+            + pipeline.gis().heap_bytes()
+            + pipeline.decisions().len() * std::mem::size_of::<Decision>()
+            + pipeline.trace().as_slice().len()) as f64
+            / cells as f64;
+        assert!(
+            per_cell <= crate::params::WINDOW_BYTES_PER_CELL as f64,
+            "{per_cell} bytes per cell"
+        );
+        Ok(())
+    }
+
+    #[test]
     fn refuses_time_going_back_and_bad_poses() {
         let mut pipeline = Pipeline::new(params(), None).unwrap();
         pipeline.process(&[], &Isometry3::IDENTITY, 1.0).unwrap();

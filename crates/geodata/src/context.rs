@@ -81,18 +81,27 @@ impl CellWindow {
         let first_row = (rect.min().y / cell_size_m).floor() as i64;
         let last_col = (rect.max().x / cell_size_m).floor() as i64;
         let last_row = (rect.max().y / cell_size_m).floor() as i64;
+        // Checked: `as i64` saturates for a world-sized extent at a small cell, and the span of
+        // two saturated ends overflows.
+        let span = |first: i64, last: i64| {
+            last.checked_sub(first)
+                .and_then(|d| d.checked_add(1))
+                .and_then(|n| usize::try_from(n).ok())
+                .unwrap_or(0)
+        };
         Self {
             first_col,
             first_row,
-            width: usize::try_from(last_col - first_col + 1).unwrap_or(0),
-            height: usize::try_from(last_row - first_row + 1).unwrap_or(0),
+            width: span(first_col, last_col),
+            height: span(first_row, last_row),
             cell_size_m,
         }
     }
 
-    /// Number of cells, `width · height`.
+    /// Number of cells, `width · height` (saturating: a window that large is refused by every
+    /// user before anything is allocated).
     pub fn len(&self) -> usize {
-        self.width * self.height
+        self.width.saturating_mul(self.height)
     }
 
     /// True when the window holds no cell.

@@ -19,6 +19,24 @@ pub enum MapError {
         /// What the operating system said.
         source: std::io::Error,
     },
+    /// The path is not a regular file (a directory, a FIFO, a device): reading it could block
+    /// forever or never end.
+    #[error("{path}: not a regular file")]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+    },
+    /// The map, or a gzipped map once decompressed, is larger than evigrid reads.
+    #[error(
+        "{what} is larger than {max_mib} MiB, the most evigrid reads (cut the area you need out \
+         of it, e.g. with `osmium extract`)"
+    )]
+    TooLarge {
+        /// What is too large: `the file` or `the decompressed map`.
+        what: &'static str,
+        /// The limit, MiB.
+        max_mib: u64,
+    },
     /// An error in the content of a file, with the file's name.
     #[error("{path}: {source}")]
     InFile {
@@ -116,7 +134,7 @@ impl MapError {
     /// Attaches the file name to a content error (I/O errors already carry it).
     pub(crate) fn in_file(self, path: impl Into<PathBuf>) -> Self {
         match self {
-            Self::Io { .. } | Self::InFile { .. } => self,
+            Self::Io { .. } | Self::InFile { .. } | Self::NotAFile { .. } => self,
             other => Self::InFile {
                 path: path.into(),
                 source: Box::new(other),

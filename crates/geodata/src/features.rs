@@ -174,26 +174,31 @@ impl MapFeatures {
 
     /// Bounding box of every kept feature's coordinates.
     pub fn feature_bounds(&self) -> Option<Rect<f64>> {
+        bounds_of(self.feature_coords())
+    }
+
+    /// Bounding box of every kept feature's coordinates with western longitudes counted from
+    /// 180° to 360° (`lon + 360` for `lon < 0`): for a map across the antimeridian, the box that
+    /// does not go round the world.
+    pub fn feature_bounds_east_of_antimeridian(&self) -> Option<Rect<f64>> {
+        bounds_of(self.feature_coords().map(|c| {
+            geo::coord! {
+                x: if c.x < 0.0 { c.x + 360.0 } else { c.x },
+                y: c.y,
+            }
+        }))
+    }
+
+    fn feature_coords(&self) -> impl Iterator<Item = geo::Coord<f64>> + '_ {
         use geo::CoordsIter;
         let polygons = self
             .buildings
             .iter()
             .chain(self.road_areas.iter().map(|a| &a.polygon))
             .chain(&self.parking);
-        let coords = polygons
+        polygons
             .flat_map(|p| p.exterior().coords_iter())
-            .chain(self.roads.iter().flat_map(|r| r.line.coords_iter()));
-        let mut bounds: Option<Rect<f64>> = None;
-        for c in coords {
-            bounds = Some(match bounds {
-                None => Rect::new(c, c),
-                Some(rect) => Rect::new(
-                    geo::coord! { x: rect.min().x.min(c.x), y: rect.min().y.min(c.y) },
-                    geo::coord! { x: rect.max().x.max(c.x), y: rect.max().y.max(c.y) },
-                ),
-            });
-        }
-        bounds
+            .chain(self.roads.iter().flat_map(|r| r.line.coords_iter()))
     }
 
     /// Converts the features to road-surface and building polygons in local metres, with
@@ -223,4 +228,19 @@ impl MapFeatures {
         let pieces = roads.len() - areas;
         (buildings, roads, pieces)
     }
+}
+
+/// Bounding box of `coords`, `None` for none.
+fn bounds_of(coords: impl Iterator<Item = geo::Coord<f64>>) -> Option<Rect<f64>> {
+    let mut bounds: Option<Rect<f64>> = None;
+    for c in coords {
+        bounds = Some(match bounds {
+            None => Rect::new(c, c),
+            Some(rect) => Rect::new(
+                geo::coord! { x: rect.min().x.min(c.x), y: rect.min().y.min(c.y) },
+                geo::coord! { x: rect.max().x.max(c.x), y: rect.max().y.max(c.y) },
+            ),
+        });
+    }
+    bounds
 }

@@ -177,11 +177,49 @@ pub struct LoadedMap {
 /// ```
 pub fn load_map(path: impl AsRef<Path>, options: &LoadOptions) -> Result<LoadedMap, MapError> {
     let path = path.as_ref();
-    let bytes = std::fs::read(path).map_err(|source| MapError::Io {
+    let bytes = read_map_file(path)?;
+    load_map_from_bytes(&bytes, options).map_err(|e| e.in_file(path))
+}
+
+/// Largest map file read, and largest gzipped map once decompressed, bytes. Parsing holds the
+/// map's nodes and ways in memory on top of the bytes, so this keeps a whole load within the
+/// memory a drive run may take; a city's PBF extract is a few MB.
+pub const MAX_MAP_BYTES: u64 = 512 << 20;
+
+/// Reads a map file whole, refusing what is not a regular file (checked before opening: opening
+/// a FIFO with no writer blocks) and more than [`MAX_MAP_BYTES`] (bounded while reading too:
+/// metadata of special files lies).
+fn read_map_file(path: &Path) -> Result<Vec<u8>, MapError> {
+    let io = |source| MapError::Io {
         path: path.to_owned(),
         source,
-    })?;
-    load_map_from_bytes(&bytes, options).map_err(|e| e.in_file(path))
+    };
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() {
+        return Err(MapError::NotAFile {
+            path: path.to_owned(),
+        });
+    }
+    let too_large = || {
+        MapError::TooLarge {
+            what: "the file",
+            max_mib: MAX_MAP_BYTES >> 20,
+        }
+        .in_file(path)
+    };
+    if meta.len() > MAX_MAP_BYTES {
+        return Err(too_large());
+    }
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .map_err(io)?
+        .take(MAX_MAP_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > MAX_MAP_BYTES {
+        return Err(too_large());
+    }
+    Ok(bytes)
 }
 
 /// Loads a map from bytes in memory (e.g. a map embedded with `include_bytes!`).
@@ -204,12 +242,20 @@ fn read_features(bytes: &[u8], format: MapFormat) -> Result<MapFeatures, MapErro
         MapFormat::OsmXml => Ok(read_osm_xml(bytes)?.into_features()),
         MapFormat::GeoJson => parse_geojson(bytes, CoordinateKind::Wgs84),
         MapFormat::OsmXmlGzip => {
+            // Bounded: a few MB of gzip can expand to gigabytes.
             let mut xml = Vec::new();
             flate2::read::MultiGzDecoder::new(bytes)
+                .take(MAX_MAP_BYTES + 1)
                 .read_to_end(&mut xml)
                 .map_err(|e| MapError::Gzip {
                     message: e.to_string(),
                 })?;
+            if xml.len() as u64 > MAX_MAP_BYTES {
+                return Err(MapError::TooLarge {
+                    what: "the decompressed map",
+                    max_mib: MAX_MAP_BYTES >> 20,
+                });
+            }
             match MapFormat::detect(&xml)? {
                 MapFormat::OsmXmlGzip => Err(MapError::Gzip {
                     message: "gzip inside gzip".to_owned(),
@@ -226,10 +272,10 @@ fn project(
     format: MapFormat,
     options: &LoadOptions,
 ) -> Result<LoadedMap, MapError> {
-    let extent = features.extent().ok_or(MapError::Empty)?;
+    let extent = across_antimeridian(features.extent().ok_or(MapError::Empty)?, &features);
     let (origin_lat, origin_lon) = options.origin.unwrap_or((
         (extent.min().y + extent.max().y) / 2.0,
-        (extent.min().x + extent.max().x) / 2.0,
+        normalise_lon((extent.min().x + extent.max().x) / 2.0),
     ));
     let projection = TransverseMercator::new(origin_lat, origin_lon)?;
     let to_local = |c: Coord<f64>| {
@@ -247,11 +293,12 @@ fn project(
         road_areas: features.road_areas.len(),
         parking_areas: features.parking.len(),
         skipped: features.skipped.clone(),
+        // As GeoJSON's bbox (RFC 7946 §5.2): across the antimeridian, min_lon > max_lon.
         extent_wgs84: GeoBox {
             min_lat: extent.min().y,
-            min_lon: extent.min().x,
+            min_lon: normalise_lon(extent.min().x),
             max_lat: extent.max().y,
-            max_lon: extent.max().x,
+            max_lon: normalise_lon(extent.max().x),
         },
         extent_m: MetricBox {
             min_x_m: extent_m.min().x,
@@ -273,6 +320,35 @@ fn project(
 
 /// The metric bounding box of a lat/lon box: meridians and parallels are curves in the
 /// projection, so sample the box's edges densely rather than only its corners.
+/// The extent of a map that crosses the antimeridian as a box that does not go round the
+/// world: when the features fit in less than half the globe with western longitudes counted
+/// from 180° to 360°, but not as given, the box runs from the western end past 180°. A map
+/// centred on the antimeridian would otherwise get its origin at longitude 0, half a world away.
+fn across_antimeridian(extent: Rect<f64>, features: &MapFeatures) -> Rect<f64> {
+    if extent.width() <= 180.0 {
+        return extent;
+    }
+    match features.feature_bounds_east_of_antimeridian() {
+        Some(wrapped) if wrapped.width() < 180.0 => Rect::new(
+            Coord {
+                x: wrapped.min().x,
+                y: extent.min().y,
+            },
+            Coord {
+                x: wrapped.max().x,
+                y: extent.max().y,
+            },
+        ),
+        _ => extent,
+    }
+}
+
+/// A longitude in (−180°, 180°].
+fn normalise_lon(lon: f64) -> f64 {
+    let wrapped = (lon + 180.0).rem_euclid(360.0) - 180.0;
+    if wrapped == -180.0 { 180.0 } else { wrapped }
+}
+
 fn project_box(extent: Rect<f64>, to_local: impl Fn(Coord<f64>) -> Coord<f64>) -> Rect<f64> {
     const SAMPLES: usize = 16;
     let (min, max) = (extent.min(), extent.max());

@@ -48,15 +48,41 @@ pub struct Drive {
     next_index: usize,
 }
 
+/// Widest map a drive is simulated on, metres. The world's spatial indexes and the truth cover
+/// the map's whole extent; 50 km holds any city extract, and a continent-wide map (a GeoJSON
+/// line across the globe once needed a 2.7 TB index) is refused instead.
+pub const MAX_MAP_SPAN_M: f64 = 50_000.0;
+
+/// Checks that a drive can be simulated on `map` at all: its extent is at most
+/// [`MAX_MAP_SPAN_M`] across. Tools call it before any work; [`Drive::new`] calls it too.
+///
+/// # Errors
+/// [`SimError::MapTooLarge`].
+pub fn check_map_span(map: &LocalMap) -> Result<(), SimError> {
+    let (width_m, height_m) = (map.extent.width(), map.extent.height());
+    // `!(<=)` also refuses a non-finite extent.
+    if width_m <= MAX_MAP_SPAN_M && height_m <= MAX_MAP_SPAN_M {
+        Ok(())
+    } else {
+        Err(SimError::MapTooLarge {
+            width_m,
+            height_m,
+            max_m: MAX_MAP_SPAN_M,
+        })
+    }
+}
+
 impl Drive {
     /// Builds a drive on `map`: the world is the map's buildings and roads, populated as the
     /// scenario says, with its map errors applied (the pipeline gets [`Drive::pipeline_map`]).
     ///
     /// # Errors
-    /// [`SimError::InvalidScenario`] for a bad scenario, [`SimError::NoRoads`] when the map has no
+    /// [`SimError::InvalidScenario`] for a bad scenario, [`SimError::MapTooLarge`] for a map
+    /// wider than [`MAX_MAP_SPAN_M`], [`SimError::NoRoads`] when the map has no
     /// road wide enough to drive on, [`SimError::NoEgoRoute`] when the waypoints cannot be joined.
     pub fn new(map: &LocalMap, scenario: &Scenario) -> Result<Self, SimError> {
         scenario.validate()?;
+        check_map_span(map)?;
         let mut world = World::from_polygons(&map.buildings, &map.roads, &map.extent);
         let mut net = RoadNetwork::new(&world);
         if net.anchor_count() == 0 {

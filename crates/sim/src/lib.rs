@@ -72,6 +72,19 @@ pub enum SimError {
         /// Road polygons in the map.
         road_polygons: usize,
     },
+    /// The map is too large for a simulated world (its indexes cover the whole extent).
+    #[error(
+        "the map spans {width_m:.0} m x {height_m:.0} m; simulated drives need a map at most \
+         {max_m:.0} m across (cut one out with `evigrid map crop`)"
+    )]
+    MapTooLarge {
+        /// East–west extent, metres.
+        width_m: f64,
+        /// North–south extent, metres.
+        height_m: f64,
+        /// [`drive::MAX_MAP_SPAN_M`](crate::drive::MAX_MAP_SPAN_M).
+        max_m: f64,
+    },
     /// The ego route cannot reach a waypoint along the roads.
     #[error("no road route to ego waypoint {waypoint}")]
     NoEgoRoute {

@@ -45,8 +45,15 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
             "--sizes: every size must be a positive number of cells",
         ));
     }
-    if args.rounds == 0 {
-        return Err(BadInput::new("--rounds must be at least 1"));
+    for &size in &args.sizes {
+        evigrid::params::check_window_size(size, size)
+            .map_err(|e| BadInput::new(format!("--sizes {size}: {e}")))?;
+    }
+    if args.rounds == 0 || args.rounds > 10_000 {
+        return Err(BadInput::new(format!(
+            "--rounds {}: expected 1 to 10000",
+            args.rounds
+        )));
     }
     if !(args.cell_size.is_finite() && args.cell_size > 0.0) {
         return Err(BadInput::new(format!(

@@ -104,15 +104,7 @@ struct ClassProbabilities {
 
 /// Runs `evigrid cell`.
 pub fn run(args: CellArgs) -> anyhow::Result<()> {
-    let params = match &args.config {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| BadInput::new(format!("{}: {e}", path.display())))?;
-            Params::from_toml_str(&text)
-                .map_err(|e| BadInput::new(format!("{}: {e}", path.display())))?
-        }
-        None => Params::default(),
-    };
+    let params = crate::input::read_params(args.config.as_deref())?;
     if !(args.dt >= 0.0 && args.dt.is_finite()) {
         return Err(BadInput::new(format!(
             "--dt {}: must be a finite number of seconds ≥ 0",
@@ -130,6 +122,10 @@ pub fn run(args: CellArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Most observations one `--observe` list may expand to: far more steps than a cell needs to
+/// converge (discounting forgets within tens), small enough to print.
+const MAX_OBSERVATIONS: usize = 100_000;
+
 /// Parses `free*2,occupied,0.6/0.1,none`.
 fn parse_observations(list: &str, params: &Params) -> anyhow::Result<Vec<Observation>> {
     let mut observations = Vec::new();
@@ -144,6 +140,7 @@ fn parse_observations(list: &str, params: &Params) -> anyhow::Result<Vec<Observa
                 if n == 0 {
                     return Err(bad("the repeat count must be at least 1"));
                 }
+
                 (token.trim(), n)
             }
             None => (item, 1),
@@ -180,6 +177,11 @@ fn parse_observations(list: &str, params: &Params) -> anyhow::Result<Vec<Observa
                 Observation { free, occupied }
             }
         };
+        if repeat > MAX_OBSERVATIONS - observations.len() {
+            return Err(bad(&format!(
+                "the list expands to more than {MAX_OBSERVATIONS} observations"
+            )));
+        }
         observations.extend(std::iter::repeat_n(observation, repeat));
     }
     Ok(observations)
@@ -331,7 +333,16 @@ mod tests {
     fn bad_observations_are_rejected() {
         let p = Params::default();
         for bad in [
-            "fre", "free*0", "free*x", "0.7/0.4", "-0.1/0.2", "a/b", "0.5", "",
+            "fre",
+            "free*0",
+            "free*x",
+            "free*1000000000000",
+            "free*60000,occupied*60000",
+            "0.7/0.4",
+            "-0.1/0.2",
+            "a/b",
+            "0.5",
+            "",
         ] {
             assert!(parse_observations(bad, &p).is_err(), "{bad}");
         }

@@ -66,6 +66,10 @@ Outputs (in --out, each written atomically):
                             columns prediction F I U S M O ?, darker = larger share of the row)
   per-class-iou.png         IoU of F, I, U, S, M, one bar per variant";
 
+/// Most seeds one evaluation runs: each is a whole simulated drive, so a thousand already takes
+/// hours; more is a typo.
+pub(crate) const MAX_SEEDS: u64 = 1000;
+
 /// Runs `evigrid eval`.
 pub fn run(args: EvalArgs) -> Result<()> {
     let started = Instant::now();
@@ -74,13 +78,20 @@ pub fn run(args: EvalArgs) -> Result<()> {
     if args.seeds == 0 {
         return Err(BadInput::new("--seeds 0: at least one seed is needed"));
     }
+    if args.seeds > MAX_SEEDS {
+        return Err(BadInput::new(format!(
+            "--seeds {}: at most {MAX_SEEDS} drives per evaluation",
+            args.seeds
+        )));
+    }
     let variants = parse_variants(&args.variants)?;
     let params = read_params(args.config.as_deref())?;
-    let scenario_text = fs::read_to_string(&args.scenario)
-        .map_err(|e| BadInput::new(format!("{}: {e}", args.scenario.display())))?;
+    let scenario_text = crate::input::read_text(&args.scenario)?;
     let scenario = Scenario::from_toml(&scenario_text)
         .map_err(|e| BadInput::new(one_line(&format!("{}: {e}", args.scenario.display()))))?;
     let loaded = geodata::load_map(&args.map, &geodata::LoadOptions { origin: None })
+        .map_err(|e| BadInput::new(with_path(&args.map, &e.to_string())))?;
+    sim::drive::check_map_span(&loaded.map)
         .map_err(|e| BadInput::new(with_path(&args.map, &e.to_string())))?;
 
     let seeds: Vec<u64> = (0..args.seeds)

@@ -115,8 +115,22 @@ pub fn run(args: TuneArgs) -> Result<()> {
     if args.seeds == 0 {
         return Err(BadInput::new("--seeds 0: at least one seed is needed"));
     }
-    if args.rounds == 0 {
-        return Err(BadInput::new("--rounds 0: at least one round is needed"));
+    let max_seeds = crate::commands::eval::MAX_SEEDS;
+    for (flag, seeds) in [
+        ("--seeds", args.seeds),
+        ("--holdout-seeds", args.holdout_seeds),
+    ] {
+        if seeds > max_seeds {
+            return Err(BadInput::new(format!(
+                "{flag} {seeds}: at most {max_seeds} drives per scenario"
+            )));
+        }
+    }
+    if args.rounds == 0 || args.rounds > 100 {
+        return Err(BadInput::new(format!(
+            "--rounds {}: expected 1 to 100 rounds",
+            args.rounds
+        )));
     }
     if !args.holdout_scenario.is_empty() && args.holdout_seeds == 0 {
         return Err(BadInput::new(
@@ -253,10 +267,11 @@ fn read_drives(
         if !drives.maps.contains_key(map_path) {
             let loaded = geodata::load_map(map_path, &geodata::LoadOptions { origin: None })
                 .map_err(|e| BadInput::new(with_path(map_path, &e.to_string())))?;
+            sim::drive::check_map_span(&loaded.map)
+                .map_err(|e| BadInput::new(with_path(map_path, &e.to_string())))?;
             drives.maps.insert(map_path.clone(), loaded.map);
         }
-        let text = fs::read_to_string(scenario_path)
-            .map_err(|e| BadInput::new(format!("{}: {e}", scenario_path.display())))?;
+        let text = crate::input::read_text(scenario_path)?;
         let scenario = Scenario::from_toml(&text)
             .map_err(|e| BadInput::new(one_line(&format!("{}: {e}", scenario_path.display()))))?;
         let name = scenario_path.file_stem().map_or_else(

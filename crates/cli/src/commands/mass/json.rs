@@ -42,14 +42,21 @@ pub struct Input {
 pub fn read_input(path: &Path) -> anyhow::Result<Input> {
     let (label, text) = if path == Path::new("-") {
         let mut text = String::new();
+        // Bounded like a file: a pipe that never ends must not grow memory without bound.
         std::io::stdin()
+            .take(crate::input::MAX_TEXT_BYTES + 1)
             .read_to_string(&mut text)
             .map_err(|e| BadInput::new(format!("<stdin>: cannot read: {e}")))?;
+        if text.len() as u64 > crate::input::MAX_TEXT_BYTES {
+            return Err(BadInput::new(format!(
+                "<stdin>: larger than {} MiB; expected a mass function",
+                crate::input::MAX_TEXT_BYTES >> 20
+            )));
+        }
         ("<stdin>".to_owned(), text)
     } else {
         let label = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| BadInput::new(format!("{label}: cannot read: {e}")))?;
+        let text = crate::input::read_text(path)?;
         (label, text)
     };
     let mass = parse_mass(&text).map_err(|problem| BadInput::new(format!("{label}: {problem}")))?;
