@@ -6,6 +6,7 @@
 mod commands;
 mod exit;
 mod input;
+mod out_dir;
 mod progress;
 
 use clap::{Parser, Subcommand};

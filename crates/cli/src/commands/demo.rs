@@ -52,6 +52,9 @@ pub struct DemoArgs {
     /// Output directory (created if missing).
     #[arg(long, default_value = "evigrid-demo")]
     out: PathBuf,
+    /// Write into an existing --out folder that is not an evigrid output folder.
+    #[arg(long)]
+    force: bool,
     /// Run only the first N frames of the drive (at 10 Hz); the whole drive by default.
     #[arg(long)]
     frames: Option<usize>,
@@ -99,6 +102,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         params: Params::default(),
         ..EvalConfig::default()
     };
+    let out_dir = crate::out_dir::OutDir::prepare(&args.out, args.force, "demo")?;
     let frames_dir = args.out.join("frames");
     fs::create_dir_all(&frames_dir)
         .with_context(|| format!("cannot create {}", frames_dir.display()))?;
@@ -148,6 +152,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let params = config.params_for(&scenario);
     let json = super::eval::write_outputs(&args.out, &report, &params, "evigrid demo", seconds)?;
     append_attribution(&args.out.join("report.md"))?;
+    out_dir.finish()?;
 
     if args.json {
         println!("{json}");

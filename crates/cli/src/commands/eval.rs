@@ -53,6 +53,9 @@ pub struct EvalArgs {
     /// Output directory (created if missing).
     #[arg(long)]
     out: PathBuf,
+    /// Write into an existing --out folder that is not an evigrid output folder.
+    #[arg(long)]
+    force: bool,
     /// Print the whole report as JSON on standard output instead of the table.
     #[arg(long)]
     json: bool,
@@ -94,6 +97,8 @@ pub fn run(args: EvalArgs) -> Result<()> {
     sim::drive::check_map_span(&loaded.map)
         .map_err(|e| BadInput::new(with_path(&args.map, &e.to_string())))?;
 
+    let out_dir = crate::out_dir::OutDir::prepare(&args.out, args.force, "eval")?;
+
     let seeds: Vec<u64> = (0..args.seeds)
         .map(|k| scenario.seed.wrapping_add(k))
         .collect();
@@ -123,6 +128,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         "evigrid eval",
         started.elapsed().as_secs_f64(),
     )?;
+    out_dir.finish()?;
 
     if args.json {
         println!("{json}");

@@ -205,6 +205,7 @@ fn render(args: &RenderArgs) -> Result<()> {
             args.cell
         )));
     }
+    crate::out_dir::check_out_file(&args.out, &[&args.file])?;
     let loaded = load(&args.file, None)?;
     let extent = loaded.map.extent;
     let window = geodata::CellWindow::covering(&extent, args.cell);
@@ -370,6 +371,7 @@ fn crop(args: &CropArgs) -> Result<()> {
             args.bbox
         )));
     }
+    crate::out_dir::check_out_file(&args.out, &[&args.file])?;
     let loaded = load(&args.file, None)?;
     let bbox = geodata::GeoBox {
         min_lat: lat1.min(lat2),

@@ -64,6 +64,9 @@ pub struct TuneArgs {
     /// Output directory (created if missing).
     #[arg(long)]
     out: PathBuf,
+    /// Write into an existing --out folder that is not an evigrid output folder.
+    #[arg(long)]
+    force: bool,
     /// Print the whole result as JSON on standard output instead of the tables.
     #[arg(long)]
     json: bool,
@@ -152,6 +155,7 @@ pub fn run(args: TuneArgs) -> Result<()> {
         "--holdout-map",
         "--holdout-scenario",
     )?;
+    let out_dir = crate::out_dir::OutDir::prepare(&args.out, args.force, "tune")?;
     let tuning_seeds: Vec<Vec<u64>> = seeds_of(&tuning, 0, args.seeds);
     let holdout_seeds: Vec<Vec<u64>> = seeds_of(&holdout, args.seeds, args.holdout_seeds);
     let tuning_sets = sets(&tuning, &tuning_seeds);
@@ -202,6 +206,7 @@ pub fn run(args: TuneArgs) -> Result<()> {
     };
     let seconds = started.elapsed().as_secs_f64();
     let json = write_outputs(&args.out, &output, seconds)?;
+    out_dir.finish()?;
     if args.json {
         println!("{json}");
     } else {
