@@ -211,9 +211,15 @@ mod tests {
         let tmp = tempfile::tempdir()?;
         fs::write(tmp.path().join("thesis.tex"), "precious")?;
         let refused = message(OutDir::prepare(tmp.path(), false, "run"));
-        assert!(refused.contains("is not an evigrid output folder"), "{refused}");
+        assert!(
+            refused.contains("is not an evigrid output folder"),
+            "{refused}"
+        );
         OutDir::prepare(tmp.path(), true, "run")?;
-        assert_eq!(fs::read_to_string(tmp.path().join("thesis.tex"))?, "precious");
+        assert_eq!(
+            fs::read_to_string(tmp.path().join("thesis.tex"))?,
+            "precious"
+        );
         Ok(())
     }
 
@@ -230,7 +236,10 @@ mod tests {
         dir.finish()?;
         fs::write(at("notes.txt"), "mine, written after the run")?;
         let marker = fs::read_to_string(at(MARKER))?;
-        assert_eq!(marker, "command: run\nfile: frames/f-000001.png\nfile: summary.json\n");
+        assert_eq!(
+            marker,
+            "command: run\nfile: frames/f-000001.png\nfile: summary.json\n"
+        );
         OutDir::prepare(tmp.path(), false, "run")?;
         assert!(!tmp.path().join("summary.json").exists());
         assert!(!tmp.path().join("frames").exists());
@@ -259,9 +268,13 @@ mod tests {
         let tmp = tempfile::tempdir()?;
         let file = tmp.path().join("f");
         fs::write(&file, "")?;
-        assert!(message(OutDir::prepare(&file, true, "run")).ends_with("exists and is not a folder"));
-        assert!(message(OutDir::prepare(Path::new("/dev/null"), true, "run"))
-            .ends_with("exists and is not a folder"));
+        assert!(
+            message(OutDir::prepare(&file, true, "run")).ends_with("exists and is not a folder")
+        );
+        assert!(
+            message(OutDir::prepare(Path::new("/dev/null"), true, "run"))
+                .ends_with("exists and is not a folder")
+        );
         Ok(())
     }
 
@@ -272,9 +285,13 @@ mod tests {
         fs::write(&input, "pbf")?;
         let same = tmp.path().join("./map.osm.pbf");
         assert!(message(check_out_file(&same, &[&input])).contains("is the input"));
-        assert!(message(check_out_file(Path::new("/dev/full"), &[])).contains("not a regular file"));
-        assert!(message(check_out_file(&tmp.path().join("no/such/x.png"), &[]))
-            .contains("does not exist"));
+        assert!(
+            message(check_out_file(Path::new("/dev/full"), &[])).contains("not a regular file")
+        );
+        assert!(
+            message(check_out_file(&tmp.path().join("no/such/x.png"), &[]))
+                .contains("does not exist")
+        );
         check_out_file(&tmp.path().join("new.png"), &[&input])?;
         Ok(())
     }

@@ -21,9 +21,14 @@ impl Scratch {
     /// # Errors
     /// The temporary directory cannot be created.
     pub fn new() -> std::io::Result<Self> {
-        Ok(Self {
-            dir: tempfile::tempdir()?,
-        })
+        // In memory where the system has it: path-based targets write a file per execution.
+        let shm = Path::new("/dev/shm");
+        let dir = if shm.is_dir() {
+            tempfile::tempdir_in(shm).or_else(|_| tempfile::tempdir())?
+        } else {
+            tempfile::tempdir()?
+        };
+        Ok(Self { dir })
     }
 
     /// Writes `bytes` to the scratch file `name` and returns its path; `None` if the write

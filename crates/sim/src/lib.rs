@@ -66,6 +66,19 @@ pub enum SimError {
         /// Its value.
         value: f64,
     },
+    /// A scenario value is beyond what a simulated drive can be asked for (it would run for
+    /// days or exhaust memory).
+    #[error("scenario: {field} = {value} is over the limit of {max} ({why})")]
+    ScenarioLimit {
+        /// The offending field (or the quantity derived from fields).
+        field: &'static str,
+        /// Its value.
+        value: f64,
+        /// The largest value accepted.
+        max: f64,
+        /// What the limit protects.
+        why: &'static str,
+    },
     /// The map has no road wide enough to drive on.
     #[error("the map has no drivable road ({road_polygons} road polygons)")]
     NoRoads {

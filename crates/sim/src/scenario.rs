@@ -108,7 +108,25 @@ pub struct EgoConfig {
     pub speed_mps: f64,
     /// Waypoints in local metres; the route follows the roads through them. Empty: a random route
     /// long enough for the whole drive, drawn from the seed.
+    #[serde(deserialize_with = "exact_pairs")]
     pub waypoints: Vec<[f64; 2]>,
+}
+
+/// Reads `[[x, y], …]` refusing pairs of any other length: the TOML reader would silently drop a
+/// third value (a waypoint given as `[x, y, z]` is a mistake worth naming).
+fn exact_pairs<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<[f64; 2]>, D::Error> {
+    let rows: Vec<Vec<f64>> = Vec::deserialize(d)?;
+    rows.into_iter()
+        .enumerate()
+        .map(|(k, row)| {
+            <[f64; 2]>::try_from(row.as_slice()).map_err(|_| {
+                serde::de::Error::custom(format!(
+                    "waypoint {k} has {} values, expected [x, y] in metres",
+                    row.len()
+                ))
+            })
+        })
+        .collect()
 }
 
 impl Default for EgoConfig {
@@ -311,6 +329,101 @@ impl Scenario {
         if let Some(w) = self.ego.waypoints.iter().flatten().find(|v| !v.is_finite()) {
             return bad("ego.waypoints", *w);
         }
+        self.check_limits()
+    }
+
+    /// Upper bounds: a hostile or mistyped scenario (`duration_s = 1e9`, `moving_cars = 1e9`)
+    /// must be refused, not simulated for days.
+    fn check_limits(&self) -> Result<(), SimError> {
+        const RUN_TIME: &str = "the drive would run for hours";
+        const MEMORY: &str = "the scan or world would not fit in memory";
+        const PHYSICS: &str = "not a road vehicle or a lidar";
+        let (t, s, e) = (&self.traffic, &self.sensor, &self.errors);
+        let count = |n: usize| n as f64;
+        let limits: [(&'static str, f64, f64, &'static str); 17] = [
+            (
+                "duration_s x sensor.rate_hz (frames)",
+                self.duration_s * s.rate_hz,
+                100_000.0,
+                RUN_TIME,
+            ),
+            ("sensor.rate_hz", s.rate_hz, 100.0, PHYSICS),
+            ("sensor.max_range_m", s.max_range_m, 1_000.0, PHYSICS),
+            (
+                "sensor.layers x sensor.points_per_layer",
+                count(s.layer_count()) * count(s.points_per_layer_count()),
+                4_000_000.0,
+                MEMORY,
+            ),
+            (
+                "traffic.moving_cars",
+                count(t.moving_cars),
+                10_000.0,
+                RUN_TIME,
+            ),
+            (
+                "traffic.parked_cars",
+                count(t.parked_cars),
+                10_000.0,
+                RUN_TIME,
+            ),
+            (
+                "traffic.pedestrians",
+                count(t.pedestrians),
+                10_000.0,
+                RUN_TIME,
+            ),
+            (
+                "traffic.infrastructure",
+                count(t.infrastructure),
+                10_000.0,
+                RUN_TIME,
+            ),
+            ("traffic.spawn_within_m", t.spawn_within_m, 50_000.0, MEMORY),
+            ("traffic.car_speed_mps", t.car_speed_mps[1], 100.0, PHYSICS),
+            (
+                "traffic.walking_speed_mps",
+                t.walking_speed_mps[1],
+                20.0,
+                PHYSICS,
+            ),
+            ("ego.speed_mps", self.ego.speed_mps, 100.0, PHYSICS),
+            (
+                "ego.waypoints (count)",
+                count(self.ego.waypoints.len()),
+                10_000.0,
+                RUN_TIME,
+            ),
+            (
+                "errors.missing_buildings",
+                count(e.missing_buildings),
+                100_000.0,
+                RUN_TIME,
+            ),
+            (
+                "errors.phantom_buildings",
+                count(e.phantom_buildings),
+                100_000.0,
+                RUN_TIME,
+            ),
+            (
+                "errors.map_offset_m",
+                e.map_offset_m[0].hypot(e.map_offset_m[1]),
+                1_000.0,
+                PHYSICS,
+            ),
+            ("errors.pose_sigma_m", e.pose_sigma_m, 100.0, PHYSICS),
+        ];
+        for (field, value, max, why) in limits {
+            if value > max {
+                return Err(SimError::ScenarioLimit {
+                    field,
+                    value,
+                    max,
+                    why,
+                });
+            }
+        }
         Ok(())
     }
 
@@ -356,5 +469,47 @@ mod tests {
                 ..
             })
         ));
+    }
+
+    #[test]
+    fn scenarios_that_would_run_for_days_are_refused() {
+        // The reproducers of issue 15: each ran forever.
+        for (text, field) in [
+            ("duration_s = 1e9\n", "duration_s x sensor.rate_hz (frames)"),
+            (
+                "[sensor]\nrate_hz = 1e6\n",
+                "duration_s x sensor.rate_hz (frames)",
+            ),
+            (
+                "[traffic]\nmoving_cars = 1000000000\n",
+                "traffic.moving_cars",
+            ),
+            (
+                "[sensor]\nlayers = 256\npoints_per_layer = 100000\n",
+                "sensor.layers x sensor.points_per_layer",
+            ),
+        ] {
+            match Scenario::from_toml(text) {
+                Err(SimError::ScenarioLimit { field: f, .. }) => assert_eq!(f, field, "{text}"),
+                other => panic!("{text}: {other:?}"),
+            }
+        }
+        let message = Scenario::from_toml("[traffic]\nmoving_cars = 1000000000\n")
+            .err()
+            .map(|e| e.to_string());
+        assert_eq!(
+            message.as_deref(),
+            Some(
+                "scenario: traffic.moving_cars = 1000000000 is over the limit of 10000 (the drive \
+                 would run for hours)"
+            )
+        );
+    }
+
+    #[test]
+    fn a_waypoint_with_three_values_is_refused() {
+        let result = Scenario::from_toml("[ego]\nwaypoints = [[1.0, 2.0], [1.0, 2.0, 3.0]]\n");
+        let message = result.err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(message.contains("waypoint 1 has 3 values"), "{message}");
     }
 }
