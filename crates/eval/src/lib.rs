@@ -59,11 +59,13 @@ pub enum EvalError {
     /// evigrid refused the parameters or a frame.
     #[error(transparent)]
     Pipeline(#[from] evigrid::pipeline::PipelineError),
-    /// A variant name is not one of `full`, `no-map`, `moras2011`, `log-odds`.
-    #[error("unknown variant {name:?} (expected full, no-map, moras2011 or log-odds)")]
+    /// A variant name is not one of [`Variant::ALL`]'s (nor a deprecated name).
+    #[error("unknown variant {name:?} (expected one of {expected})")]
     UnknownVariant {
         /// The name given.
         name: String,
+        /// The names accepted, comma-separated.
+        expected: String,
     },
     /// An evaluation was asked with no seed.
     #[error("no seed to evaluate")]

@@ -56,11 +56,12 @@ pub trait GridMethod {
     fn decide(&self, out: &mut [Label]);
 }
 
-/// evigrid's method: `full` with [`Prior::Map`], `no-map` with [`Prior::Vacuous`].
+/// evigrid's fusion as SPEC §5 specifies it: `kurdej2013` with [`Prior::Map`], `no-map` with
+/// [`Prior::Vacuous`].
 impl GridMethod for Fusion {
     fn name(&self) -> &'static str {
         match self.prior() {
-            Prior::Map => "full",
+            Prior::Map => "kurdej2013",
             Prior::Vacuous => "no-map",
         }
     }

@@ -3,7 +3,8 @@
 //! The numbering is that of [`evigrid::Decision`] (0 unknown, then F, I, U, S, M in the frame
 //! order of Ω_PG), so a decision of the paper's method converts by its code, and O (occupied and
 //! static, class not resolved) follows as the one label evigrid never decides: a two-class
-//! baseline says it of an occupied cell that is not moving.
+//! baseline says it of an occupied cell that is not moving. `Edge` is truth only: a cell a
+//! building covers in part but not at its centre (the boundary band, see [`crate::truth`]).
 //!
 //! ```
 //! use sim::Label;
@@ -15,8 +16,8 @@
 use evigrid::Decision;
 use serde::{Deserialize, Serialize};
 
-/// The class of a cell: in truth one of F, I, U, S, M, or `Unknown` for a cell not to be scored;
-/// as a prediction any of the seven.
+/// The class of a cell: in truth one of F, I, U, S, M, `Edge` (the boundary band of a building),
+/// or `Unknown` for a cell not to be scored; as a prediction any but `Edge`.
 #[repr(u8)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Label {
@@ -35,11 +36,14 @@ pub enum Label {
     M = 5,
     /// Occupied and static, class not resolved (two-class baselines only).
     O = 6,
+    /// Truth only: a cell partly covered by a building whose centre is outside it (the
+    /// boundary band). Static, but free or infrastructure are both defensible there.
+    Edge = 7,
 }
 
 impl Label {
     /// Every label, in code order.
-    pub const ALL: [Label; 7] = [
+    pub const ALL: [Label; 8] = [
         Label::Unknown,
         Label::F,
         Label::I,
@@ -47,6 +51,7 @@ impl Label {
         Label::S,
         Label::M,
         Label::O,
+        Label::Edge,
     ];
 
     /// The five classes of Ω_PG that truth uses, in frame order.
@@ -57,9 +62,9 @@ impl Label {
         Self::ALL.get(code as usize).copied()
     }
 
-    /// Short name: `unknown`, or the class letter.
+    /// Short name: `unknown`, `edge`, or the class letter.
     pub fn name(self) -> &'static str {
-        ["unknown", "F", "I", "U", "S", "M", "O"][self as usize]
+        ["unknown", "F", "I", "U", "S", "M", "O", "edge"][self as usize]
     }
 }
 
@@ -99,6 +104,7 @@ mod tests {
         for (code, label) in Label::ALL.iter().enumerate() {
             assert_eq!(Label::from_code(code as u8), Some(*label));
         }
-        assert_eq!(Label::from_code(7), None);
+        assert_eq!(Label::from_code(7), Some(Label::Edge));
+        assert_eq!(Label::from_code(8), None);
     }
 }
