@@ -133,6 +133,19 @@ impl ConfusionMatrix {
         self.counts.iter().flatten().sum::<u64>() + self.edge.iter().sum::<u64>()
     }
 
+    /// This matrix with the boundary band counted as truth I: what the labelling rule before
+    /// the band (a building claims every cell it covers at any sample) would have scored, for
+    /// mapped buildings (the band of a building missing from the map was U then). Used to show
+    /// what the band changes.
+    pub fn band_as_infrastructure(&self) -> ConfusionMatrix {
+        let mut out = self.clone();
+        for (i, e) in out.counts[1].iter_mut().zip(&out.edge) {
+            *i += e;
+        }
+        out.edge = [0; 7];
+        out
+    }
+
     /// The coarse 3 × 4 view: rows truth F, O, M; columns predicted F, O, M, unknown.
     pub fn coarse(&self) -> [[u64; 4]; 3] {
         let row_of = [0usize, 1, 1, 1, 2];
@@ -651,6 +664,15 @@ mod tests {
         assert_relative_eq!(s.occupied_static_accuracy.unwrap_or(-1.0), 0.8);
         assert_relative_eq!(s.static_accuracy.unwrap_or(-1.0), 0.75);
         assert_eq!((s.edge_cell_frames, s.edge_predicted_moving), (3, 1));
+        // Band counted as I: I gains a TP and two FN; M is scored the same.
+        let old = m.band_as_infrastructure();
+        assert_eq!(old.total(), m.total());
+        assert_eq!(old.counts[1], [1, 2, 0, 0, 1, 0, 1]);
+        let o = old.scores();
+        assert_eq!(o.classes[4], s.classes[4]);
+        assert_eq!(o.static_accuracy, s.static_accuracy);
+        // Occupied static: I, I, U, S, S(→M), edge F, I, M(→M) → 6/8.
+        assert_relative_eq!(o.occupied_static_accuracy.unwrap_or(-1.0), 0.75);
     }
 
     #[test]
