@@ -108,7 +108,7 @@ impl EvalReport {
             s.push_str(&mask_row(v.variant.name(), &v.scores_visible));
         }
         s.push_str(
-            "\nTime and memory of the grid (remanence and latency are over the whole drive):\n\n",
+            "\nRemanence and latency (over the whole drive, not masked) and time per frame:\n\n",
         );
         s.push_str("| variant | remanence median / p95 (frames) | latency median / p95 (frames) | ms / frame |\n|---|---|---|---|\n");
         for v in &self.variants {
