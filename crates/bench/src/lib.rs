@@ -332,7 +332,7 @@ impl<'a> Cases<'a> {
         times.push((format!("wake@{n}"), time(wake_threads)));
         wake_threads();
         times.push((format!("copy@{n}"), time(|| floor.run(size))));
-        let mut stats = evigrid::step::StepStats::default();
+        let mut stats = evigrid::StepStats::default();
         times.push((
             "step@1".into(),
             one_thread.install(|| time(|| stats = evigrid::step(pg, sg, gg, params, 0.1))),

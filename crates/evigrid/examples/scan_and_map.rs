@@ -12,9 +12,9 @@
 
 use std::path::PathBuf;
 
+use evigrid::Isometry3;
 use evigrid::Params;
-use evigrid::pipeline::Pipeline;
-use evigrid::pose::Isometry3;
+use evigrid::Pipeline;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
