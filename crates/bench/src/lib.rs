@@ -21,6 +21,7 @@
 //! assert!(report.windows[0].ratio("copy/step@1").is_some_and(|r| r > 0.0));
 //! # Ok::<(), evigrid_bench::BenchError>(())
 //! ```
+#![deny(missing_docs)]
 
 pub mod copy;
 pub mod naive;

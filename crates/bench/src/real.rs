@@ -7,11 +7,7 @@
 //! - `frame`: the whole per-frame pipeline (window move, prior, sensor grid, step, decision) with
 //!   the vehicle driving 1 m per frame across the map.
 
-use evigrid::MapPrior;
-use evigrid::Pipeline;
-use evigrid::Window;
-use evigrid::{GisGrid, Params, SensorGrid};
-use evigrid::{Isometry3, SensorModel};
+use evigrid::{GisGrid, Isometry3, MapPrior, Params, Pipeline, SensorGrid, SensorModel, Window};
 use geodata::ContextRaster;
 use std::path::PathBuf;
 

@@ -8,9 +8,10 @@
 //! Run: `cargo bench -p evigrid --bench step`.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid, step};
-use evigrid::{N_SETS, OMEGA, class};
-use evigrid::{prior_beta, prior_focal_set};
+use evigrid::{
+    GisGrid, N_SETS, OMEGA, Params, PerceptionGrid, SensorGrid, class, prior_beta, prior_focal_set,
+    step,
+};
 use geodata::MapContext;
 use std::hint::black_box;
 

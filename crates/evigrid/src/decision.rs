@@ -152,16 +152,6 @@ pub fn decide_grid(pg: &PerceptionGrid, unknown_threshold: f64, out: &mut [Label
         });
 }
 
-/// The decisions by class index + 1, `Unknown` at 0.
-const DECISIONS: [Label; 6] = [
-    Label::Unknown,
-    Label::F,
-    Label::I,
-    Label::U,
-    Label::S,
-    Label::M,
-];
-
 /// [`decide`] on `N` cells held as lanes (`m[set][lane]`, +0 on the sets outside the bit mask
 /// `live`), written to `out` (at most `N` cells):
 /// the same operations in the same order per cell, so the same decisions, in loops over lanes
@@ -222,7 +212,8 @@ pub(crate) fn decide_lanes<const N: usize>(
         };
     }
     for (out, &index) in out.iter_mut().zip(&decided) {
-        *out = DECISIONS[usize::from(index)];
+        // `index` is a class index + 1 (0: unknown): the label of that code.
+        *out = Label::ALL[usize::from(index)];
     }
 }
 

@@ -93,5 +93,7 @@ mod tests {
             assert_eq!(class.name(), crate::grids::class::LETTERS[k].to_string());
         }
         assert_eq!(Label::from_class(5), Label::Unknown);
+        // The method decides through `from_class`: never O.
+        assert!((0..64).all(|k| Label::from_class(k) != Label::O));
     }
 }

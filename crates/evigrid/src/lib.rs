@@ -12,6 +12,25 @@
 //! operations rather than calling them; [`reference`](mod@crate::reference) evaluates the same
 //! step on one cell in f64 with the generic `belief` crate, and the tests hold the kernel to it.
 //!
+//! # The API
+//!
+//! The modules are private; what a user needs is re-exported here, flat:
+//! - the per-frame loop: [`Pipeline`] for one drive, or its two halves, the [`FrontEnd`]
+//!   (window, map prior, SensorGrid; SPEC §2-§4) and the [`Fusion`] of the paper's method
+//!   (SPEC §5-§6), so that other grid methods can share one front end;
+//! - [`Params`] (SPEC §7) and one type per section;
+//! - the cell labels ([`Label`], one numbering for decisions, truth and baselines), [`decide`],
+//!   [`decide_grid`] and [`betp`] (SPEC §6);
+//! - the stages, for callers that drive them one by one: the grids ([`PerceptionGrid`],
+//!   [`SensorGrid`], [`GisGrid`], the focal sets in [`class`]) on a world-fixed [`Window`], the
+//!   [`SensorModel`] with poses as [`Isometry3`], the [`MapPrior`] and its SPEC §4 table
+//!   ([`prior_focal_set`], [`prior_beta`]), the fusion [`step()`], the [`MovingTrace`];
+//! - [`reference`](mod@reference), the f64 yardstick.
+//!
+//! The method reads no file and writes none: scans and poses come from the `evigrid-drive`
+//! crate, maps from `geodata`, pictures and exports go through the `evigrid-output` crate. See
+//! `examples/scan_and_map.rs` for a scan and a map through [`Pipeline`] to a decision.
+//!
 //! ```
 //! use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid, Label, decide};
 //! use geodata::MapContext;

@@ -12,11 +12,10 @@
 
 #![allow(clippy::unwrap_used)]
 
-use evigrid::UnobservedCells;
-use evigrid::{FrameStats, Pipeline};
-use evigrid::{GroundModel, Isometry3};
-use evigrid::{Label, Params};
-use evigrid::{N_SETS, OMEGA, class};
+use evigrid::{
+    FrameStats, GroundModel, Isometry3, Label, N_SETS, OMEGA, Params, Pipeline, UnobservedCells,
+    class,
+};
 use geo::{Rect, coord, polygon};
 use geodata::{ContextRaster, LocalMap};
 

@@ -246,24 +246,8 @@ const _: () = assert!(OMEGA == N_SETS - 1);
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+    use crate::testing::{decisions, window};
     use std::fs;
-
-    /// A 3 × 2 window at cells (10..13, -1..1), scrolled so storage and world order differ.
-    fn window() -> Window {
-        let mut w = Window::new(3, 2, 0.5).unwrap();
-        w.move_to(10, -1);
-        w
-    }
-
-    /// Decisions in storage order from a function of the global cell.
-    fn decisions(w: &Window, f: impl Fn(i64, i64) -> Label) -> Vec<Label> {
-        (0..w.len())
-            .map(|idx| {
-                let c = w.cell_of_storage(idx).unwrap();
-                f(c.col, c.row)
-            })
-            .collect()
-    }
 
     #[test]
     fn occupancy_export_is_row_major_from_the_origin() {

@@ -31,6 +31,8 @@
 mod atomic;
 mod error;
 mod export;
+#[cfg(test)]
+mod testing;
 mod views;
 
 pub use atomic::{write_atomic, write_png};

@@ -151,23 +151,7 @@ pub fn trace_image(
 mod tests {
     use super::*;
     use crate::atomic::write_png;
-
-    /// A 3 × 2 window at cells (10..13, -1..1), scrolled so storage and world order differ.
-    fn window() -> Window {
-        let mut w = Window::new(3, 2, 0.5).unwrap();
-        w.move_to(10, -1);
-        w
-    }
-
-    /// Decisions in storage order from a function of the global cell.
-    fn decisions(w: &Window, f: impl Fn(i64, i64) -> Label) -> Vec<Label> {
-        (0..w.len())
-            .map(|idx| {
-                let c = w.cell_of_storage(idx).unwrap();
-                f(c.col, c.row)
-            })
-            .collect()
-    }
+    use crate::testing::{decisions, window};
 
     #[test]
     fn images_are_north_up_and_west_left() {

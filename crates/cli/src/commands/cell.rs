@@ -6,9 +6,7 @@
 use crate::exit::BadInput;
 use anyhow::Context as _;
 use clap::{Args, ValueEnum};
-use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid};
-use evigrid::{N_SETS, class};
-use evigrid::{betp, decide};
+use evigrid::{GisGrid, N_SETS, Params, PerceptionGrid, SensorGrid, betp, class, decide};
 use geodata::MapContext;
 use serde::Serialize;
 use std::path::PathBuf;
