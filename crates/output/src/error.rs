@@ -4,7 +4,8 @@ use std::path::PathBuf;
 
 use evigrid::Window;
 
-/// Why a picture or an export could not be written. Every variant names the file.
+/// Why a picture or an export could not be made or written. Every variant but `Size` names the
+/// file.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum OutputError {

@@ -3,8 +3,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use evigrid::{Label, PerceptionGrid, Window};
-use evigrid::{N_SETS, OMEGA, class};
+use evigrid::{Label, N_SETS, OMEGA, PerceptionGrid, Window, class};
 use serde::Serialize;
 
 use crate::atomic::write_atomic;

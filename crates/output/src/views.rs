@@ -1,7 +1,14 @@
 //! Pictures of the PerceptionGrid (SPEC §6, paper Fig. 2).
 //!
 //! Images are north-up: image row 0 is the window's northmost row, column 0 its westmost column,
-//! one pixel per cell.
+//! one pixel per cell. Three pictures follow the paper's Fig. 2:
+//! - the decision map ([`decision_image`]): free green, moving red, static blue (mapped
+//!   infrastructure, unmapped infrastructure and stopped objects in three shades of blue with
+//!   [`ClassColours::FIVE_CLASSES`], one blue with [`ClassColours::THREE_CLASSES`]), unknown black;
+//! - the pignistic view ([`pignistic_image`]): the mean of the class colours weighted by betP
+//!   (eq 15), black where the cell was never observed;
+//! - the trace of moving objects ([`trace_image`]): the decision map with every cell ever decided
+//!   moving during the drive painted red, from a [`MovingTrace`] kept world-fixed in the window.
 
 use evigrid::{Label, MovingTrace, PerceptionGrid, Window, betp};
 use image::{Rgb, RgbImage};
