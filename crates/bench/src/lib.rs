@@ -21,6 +21,7 @@
 //! assert!(report.windows[0].ratio("copy/step@1").is_some_and(|r| r > 0.0));
 //! # Ok::<(), evigrid_bench::BenchError>(())
 //! ```
+#![deny(missing_docs)]
 
 pub mod copy;
 pub mod naive;
@@ -332,7 +333,7 @@ impl<'a> Cases<'a> {
         times.push((format!("wake@{n}"), time(wake_threads)));
         wake_threads();
         times.push((format!("copy@{n}"), time(|| floor.run(size))));
-        let mut stats = evigrid::step::StepStats::default();
+        let mut stats = evigrid::StepStats::default();
         times.push((
             "step@1".into(),
             one_thread.install(|| time(|| stats = evigrid::step(pg, sg, gg, params, 0.1))),

@@ -7,11 +7,7 @@
 //! - `frame`: the whole per-frame pipeline (window move, prior, sensor grid, step, decision) with
 //!   the vehicle driving 1 m per frame across the map.
 
-use evigrid::map_prior::MapPrior;
-use evigrid::pipeline::Pipeline;
-use evigrid::sensor_model::{Isometry3, SensorModel};
-use evigrid::window::Window;
-use evigrid::{GisGrid, Params, SensorGrid};
+use evigrid::{GisGrid, Isometry3, MapPrior, Params, Pipeline, SensorGrid, SensorModel, Window};
 use geodata::ContextRaster;
 use std::path::PathBuf;
 
@@ -41,7 +37,7 @@ pub enum RealError {
     Map(#[from] geodata::MapError),
     /// The window or parameters are invalid for this size.
     #[error(transparent)]
-    Pipeline(#[from] evigrid::pipeline::PipelineError),
+    Pipeline(#[from] evigrid::PipelineError),
 }
 
 /// Prepared state of the real-data cases for one window size.
@@ -78,7 +74,7 @@ impl RealCases {
         params.window.width_cells = size;
         params.window.height_cells = size;
         let mut window =
-            Window::new(size, size, cell_size_m).map_err(evigrid::pipeline::PipelineError::from)?;
+            Window::new(size, size, cell_size_m).map_err(evigrid::PipelineError::from)?;
         let _ = window.recentre(0.0, 0.0);
         let mut gis = GisGrid::new(size, size);
         let mut prior = MapPrior::new(Some(raster.clone()));

@@ -10,8 +10,8 @@
 //! ```
 //! use eval::{GridMethod, Label};
 //! use eval::baselines::{LogOdds, LogOddsParams};
-//! use evigrid::pipeline::{FrontEnd, Fusion, Prior};
-//! use evigrid::sensor_model::{GroundModel, Isometry3};
+//! use evigrid::{FrontEnd, Fusion, Prior};
+//! use evigrid::{GroundModel, Isometry3};
 //!
 //! let mut params = evigrid::Params::default();
 //! (params.window.width_cells, params.window.height_cells) = (40, 40);
@@ -33,7 +33,7 @@
 //! # Ok::<(), eval::EvalError>(())
 //! ```
 
-use evigrid::pipeline::{FrontEnd, Fusion, Prior};
+use evigrid::{FrontEnd, Fusion, Prior};
 
 use crate::EvalError;
 use crate::Label;
@@ -73,7 +73,7 @@ impl GridMethod for Fusion {
 
     fn decide(&self, out: &mut [Label]) {
         for (label, &decision) in out.iter_mut().zip(self.decisions()) {
-            *label = Label::from(decision);
+            *label = decision;
         }
     }
 }

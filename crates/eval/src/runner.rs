@@ -30,8 +30,8 @@ use crate::method::GridMethod;
 use crate::metrics::{ConfusionMatrix, Latency, Remanence};
 use crate::report::{EvalReport, SeedScores, VariantReport};
 use evigrid::Params;
-use evigrid::pipeline::{FrontEnd, FrontEndStats, Fusion, Prior};
-use evigrid::window::Window;
+use evigrid::Window;
+use evigrid::{FrontEnd, FrontEndStats, Fusion, Prior};
 use geodata::{ContextRaster, LocalMap};
 use serde::{Deserialize, Serialize};
 use sim::drive::{Drive, Frame};
@@ -273,9 +273,7 @@ pub fn evaluate_observed(
         return Err(EvalError::NoVariants);
     }
     let params = config.params_for(scenario);
-    params
-        .validate()
-        .map_err(evigrid::pipeline::PipelineError::from)?;
+    params.validate().map_err(evigrid::PipelineError::from)?;
     let len = params.window.width_cells * params.window.height_cells;
     let mut totals: Vec<Runner> = Vec::new();
     let mut per_seed: Vec<Vec<SeedScores>> = vec![Vec::new(); variants.len()];

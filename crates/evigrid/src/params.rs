@@ -15,7 +15,7 @@
 //! assert_eq!(params.sensor.mu_free, 0.7); // default
 //! // Printed with the results it produced, and read back unchanged.
 //! assert_eq!(Params::from_toml_str(&params.to_toml_string()?)?, params);
-//! # Ok::<(), evigrid::params::ParamsError>(())
+//! # Ok::<(), evigrid::ParamsError>(())
 //! ```
 
 use serde::{Deserialize, Deserializer, Serialize};

@@ -25,11 +25,9 @@ use anyhow::{Context, Result};
 use clap::Args;
 use eval::{EvalConfig, FusionFrame, Progress, Variant};
 use evigrid::Params;
-use evigrid::render::{
-    ClassColours, decision_image, pignistic_image, trace_image, write_atomic, write_png,
-};
 use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, DynamicImage, RgbImage};
+use output::{ClassColours, decision_image, pignistic_image, trace_image, write_atomic, write_png};
 use rayon::prelude::*;
 use sim::Scenario;
 

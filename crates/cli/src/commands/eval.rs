@@ -19,7 +19,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use eval::{EvalConfig, EvalError, EvalReport, Progress, Variant, plots};
 use evigrid::Params;
-use evigrid::render::{write_atomic, write_png};
+use output::{write_atomic, write_png};
 use sim::{Scenario, SimError};
 
 use crate::exit::BadInput;

@@ -5,7 +5,7 @@
 //! ```
 //!
 //! Wiring only: reading files, the progress bar, writing pictures and the summary. The work is
-//! `evigrid::pipeline::Pipeline`'s.
+//! `evigrid::Pipeline`'s.
 
 use std::fs;
 use std::path::PathBuf;
@@ -14,13 +14,13 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 use drive::{list_scans, read_scan};
+use evigrid::Isometry3;
 use evigrid::Params;
-use evigrid::pipeline::{FrameStats, Pipeline};
-use evigrid::render::{
-    self, ClassColours, OccupancyGridExport, count_decisions, decision_image, pignistic_image,
+use evigrid::{FrameStats, Pipeline};
+use output::{
+    ClassColours, OccupancyGridExport, count_decisions, decision_image, pignistic_image,
     trace_image, write_masses, write_png,
 };
-use evigrid::sensor_model::Isometry3;
 use serde::Serialize;
 
 use crate::exit::BadInput;
@@ -281,7 +281,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     };
     let text = serde_json::to_string_pretty(&summary)?;
     let summary_path = args.out.join("summary.json");
-    render::write_atomic(&summary_path, |file| {
+    output::write_atomic(&summary_path, |file| {
         std::io::Write::write_all(file, text.as_bytes())
     })?;
     if args.json {

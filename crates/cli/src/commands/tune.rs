@@ -21,8 +21,8 @@ use anyhow::{Context, Result};
 use clap::Args;
 use eval::tune::{DriveSet, TuneOptions, TuneProgress, TuneReport, VariantScore};
 use eval::{EvalError, Variant};
-use evigrid::render::write_atomic;
 use geodata::LocalMap;
+use output::write_atomic;
 use serde::Serialize;
 use sim::{Scenario, SimError};
 
