@@ -32,6 +32,7 @@
 //! ```
 
 pub mod decision;
+pub mod ego_path;
 pub mod grids;
 pub mod map_prior;
 pub mod params;
