@@ -154,11 +154,14 @@ pub struct ScanPoses {
     pub world_from_sensor: Vec<Isometry3<f64>>,
 }
 
-/// Reads a pose file and gives every scan its pose by the module's rule.
+/// Reads a pose file and gives every scan its pose by the module's rule. With scan times, only
+/// the first `required` scans must lie in the poses' span: the poses of the others, up to the
+/// first outside it, are still given (the ego's path ahead).
 pub fn poses_from_file(
     scans: &ScanSet,
     options: &PoseFileOptions<'_>,
     projection: Option<&dyn Fn(f64, f64) -> (f64, f64)>,
+    required: usize,
 ) -> Result<ScanPoses> {
     let path = options.path;
     let bad = |e: &dyn std::fmt::Display| BadInput::new(e.to_string());
@@ -202,7 +205,7 @@ pub fn poses_from_file(
             world_from_sensor: poses,
         });
     }
-    at_scan_times(scans, &track, path)
+    at_scan_times(scans, &track, path, required)
 }
 
 /// Data lines of a file (for the count a KITTI odometry file must have).
@@ -229,12 +232,20 @@ fn check_count(path: &Path, poses: usize, scans: &ScanSet) -> Result<()> {
     )))
 }
 
-/// Every scan's pose interpolated at its time; the first scan outside the span is an error
-/// naming it.
-fn at_scan_times(scans: &ScanSet, track: &PoseTrack, source: &Path) -> Result<ScanPoses> {
-    let times = scans.times.clone().unwrap_or_default();
+/// Every scan's pose interpolated at its time; the first of the `required` first scans outside
+/// the span is an error naming it, later scans end the list there.
+fn at_scan_times(
+    scans: &ScanSet,
+    track: &PoseTrack,
+    source: &Path,
+    required: usize,
+) -> Result<ScanPoses> {
+    let mut times = scans.times.clone().unwrap_or_default();
     let mut poses = Vec::with_capacity(times.len());
-    for (scan, &t) in scans.paths.iter().zip(&times) {
+    for (k, (scan, &t)) in scans.paths.iter().zip(&times).enumerate() {
+        if k >= required && track.at(t).is_err() {
+            break;
+        }
         let pose = track.at(t).map_err(|e| {
             BadInput::new(format!(
                 "scan {} (time from {}): {e} of {}",
@@ -249,6 +260,7 @@ fn at_scan_times(scans: &ScanSet, track: &PoseTrack, source: &Path) -> Result<Sc
         })?;
         poses.push(pose);
     }
+    times.truncate(poses.len());
     Ok(ScanPoses {
         times,
         world_from_sensor: poses,

@@ -129,6 +129,8 @@ Outputs (in --out):
 struct FrameRecord {
     scan: String,
     time_s: f64,
+    /// The sensor's position in the world frame, metres.
+    position: [f64; 3],
     read_ms: f64,
     process_ms: f64,
     render_ms: f64,
@@ -141,6 +143,9 @@ struct FrameRecord {
     obstacle_share: f64,
     /// Obstacle points over the finite points within the sensor's range.
     obstacle_share_in_range: f64,
+    /// Cells the scan marked occupied over the cells it observed (occupied or free): an area
+    /// measure, which a wall beside the car does not inflate as it does the point shares.
+    obstacle_cell_share: f64,
     /// Cells within `EGO_PATH_RADIUS_M` of the ego's path over the next `EGO_PATH_LENGTH_M`.
     ego_path: EgoPathCheck,
     /// Of the observed ego-path cells, the share decided I, U, S or M (`null`: none observed).
@@ -193,6 +198,8 @@ struct Summary {
     obstacle_share: Option<ShareSpread>,
     /// The same for `obstacle_share_in_range`.
     obstacle_share_in_range: Option<ShareSpread>,
+    /// The same for `obstacle_cell_share`.
+    obstacle_cell_share: Option<ShareSpread>,
     per_frame: Vec<FrameRecord>,
 }
 
@@ -300,6 +307,7 @@ pub fn run(args: RunArgs) -> Result<()> {
                 &scans,
                 &options,
                 projection.is_some().then_some(project_dyn),
+                args.max_frames.unwrap_or(usize::MAX),
             )?;
             (poses, path.display().to_string(), matching)
         }
@@ -401,12 +409,14 @@ pub fn run(args: RunArgs) -> Result<()> {
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default(),
             time_s,
+            position: pose.translation,
             read_ms: ms(t1 - t0),
             process_ms: ms(t2 - t1),
             render_ms: ms(t3 - t2),
             ground_share: share(s.ground_points, s.points),
             obstacle_share: share(s.obstacle_points, s.points),
             obstacle_share_in_range: share(s.obstacle_points, in_range),
+            obstacle_cell_share: share(s.occupied_cells, s.occupied_cells + s.free_cells),
             ego_path_share: ego_path.share(),
             ego_path,
             stats,
@@ -458,6 +468,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         .iter()
         .map(|f| f.obstacle_share_in_range)
         .collect();
+    let cell_shares: Vec<f64> = per_frame.iter().map(|f| f.obstacle_cell_share).collect();
     let summary = Summary {
         map: args.map.as_ref().map(|m| m.display().to_string()),
         prior: if loaded.is_some() {
@@ -492,6 +503,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         },
         obstacle_share: ShareSpread::of(&obstacle_shares),
         obstacle_share_in_range: ShareSpread::of(&in_range_shares),
+        obstacle_cell_share: ShareSpread::of(&cell_shares),
         per_frame,
     };
     let text = serde_json::to_string_pretty(&summary)?;
@@ -526,17 +538,24 @@ pub fn run(args: RunArgs) -> Result<()> {
             e.occupied,
             e.moving
         );
-        if let Some(spread) = &summary.obstacle_share {
-            println!(
-                "obstacle points: median {:.1} % of a scan's points; worst frame {} at {:.1} %, \
-                 {} the median",
-                100.0 * spread.median,
-                spread.worst_frame,
-                100.0 * spread.worst,
-                spread
-                    .worst_to_median
-                    .map_or_else(|| "n/a ×".to_string(), |r| format!("{r:.2}×"))
-            );
+        for (spread, what) in [
+            (&summary.obstacle_share, "of a scan's points are obstacles"),
+            (
+                &summary.obstacle_cell_share,
+                "of the observed cells are occupied",
+            ),
+        ] {
+            if let Some(spread) = spread {
+                println!(
+                    "median {:.1} % {what}; worst frame {} at {:.1} %, {} the median",
+                    100.0 * spread.median,
+                    spread.worst_frame,
+                    100.0 * spread.worst,
+                    spread
+                        .worst_to_median
+                        .map_or_else(|| "n/a ×".to_string(), |r| format!("{r:.2}×"))
+                );
+            }
         }
     }
     Ok(())
@@ -545,11 +564,12 @@ pub fn run(args: RunArgs) -> Result<()> {
 /// One frame's numbers on one line.
 fn frame_line(k: usize, f: &FrameRecord) -> String {
     format!(
-        "frame {k:>4} {}: ground {:.1} %, obstacles {:.1} %; ego path {}/{} observed cells \
-         occupied or moving ({})",
+        "frame {k:>4} {}: points {:.1} % ground, {:.1} % obstacle; cells {:.1} % occupied; ego \
+         path {}/{} observed cells occupied or moving ({})",
         f.scan,
         100.0 * f.ground_share,
         100.0 * f.obstacle_share,
+        100.0 * f.obstacle_cell_share,
         f.ego_path.decided_occupied_or_moving(),
         f.ego_path.observed_cells,
         percent(f.ego_path_share)
