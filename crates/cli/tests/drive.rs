@@ -203,8 +203,8 @@ fn tum_and_kitti_pose_files_are_interpolated_at_the_scan_times() {
     // Velodyne's: the two differ by the lever arm's turn within 0.1 s (micrometres).
     assert_close(&positions(&from_tum), expected, 1e-4);
 
-    // The same poses as a KITTI odometry file (the sensor's own poses: no --calib), with a
-    // times file beside it, read back by its column count.
+    // The same poses as a KITTI odometry file (the sensor's own poses: no --calib), its format
+    // named rather than detected.
     let kitti = tmp.path().join("oxts.kitti");
     drive::poses::write_kitti_odometry(
         &mut std::fs::File::create(&kitti).unwrap(),
@@ -227,7 +227,7 @@ fn tum_and_kitti_pose_files_are_interpolated_at_the_scan_times() {
             .arg(&all)
             .arg("--times")
             .arg(&packet_times)
-            .arg("--poses")
+            .args(["--pose-format", "kitti", "--poses"])
             .arg(&kitti)
             .arg("--out")
             .arg(tmp.path().join("out-kitti"))

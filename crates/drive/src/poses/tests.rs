@@ -482,10 +482,7 @@ fn scan_times_in_either_kitti_form() {
     );
     let times = read_scan_times(&raw).unwrap();
     // 13:02:25 on 2011-09-26 is 1 317 042 145 s after the epoch.
-    assert!(
-        (times[0] - 1_317_042_145.964_389).abs() < 1e-6,
-        "{times:?}"
-    );
+    assert!((times[0] - 1_317_042_145.964_389).abs() < 1e-6, "{times:?}");
     assert!((times[1] - times[0] - 0.102_186_307).abs() < 1e-6);
     let plain = write(&dir, "times.txt", "0.0\n1.036594e-01\n");
     assert_eq!(read_scan_times(&plain).unwrap(), vec![0.0, 0.1036594]);
