@@ -108,7 +108,7 @@ fn a_kitti_raw_drive_without_a_map_keeps_the_ego_path_free() {
     // Over a hundred path cells per frame are seen; the target is at most 2 %.
     assert!(cell_frames > 40 * 100, "{ego}");
     assert!(decided * 50 <= cell_frames, "{ego}");
-    // Measured 89 of 5 591 (1.59 %): the car ahead in frames 0–9, nothing else.
+    // Measured 89 of 5 591 (1.59 %), all in frames 0–10: the vehicle ahead.
     assert_eq!(summary["params"]["sensor"]["ground_model"], "local");
     // The ground model holds: no frame's share of occupied cells far above the drive's median
     // (measured 1.17×).

@@ -277,7 +277,7 @@ pub struct SensorParams {
     /// ground height per polar cell, `[sensor.ground]`), `"plane"` (3-D lidar: one ground plane
     /// per scan) or `"none"` (planar or multi-layer scanner: every return is an obstacle). By
     /// default `"local"`: on KITTI raw drive 0013 (frames 80–119) the plane called 37 % of a
-    /// scan's points and 53 % of the observed cells obstacles (median over frames), the local
+    /// scan's points and 52 % of the observed cells obstacles (median over frames), the local
     /// model 27 % and 18 %, with the same ego-path figure (README, "Ground model").
     pub ground_model: GroundModel,
     /// Half-thickness of the ground band, metres: returns within it of the fitted plane are

@@ -279,7 +279,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         (Some(loaded), _) => Some(loaded.projection),
         (None, Some((lat, lon))) => Some(
             geodata::TransverseMercator::new(lat, lon)
-                .map_err(|e| BadInput::new(format!("--origin: {e}")))?,
+                .map_err(|e| BadInput::new(format!("origin of the local frame: {e}")))?,
         ),
         (None, None) => None,
     };
