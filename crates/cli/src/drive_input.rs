@@ -179,7 +179,12 @@ pub fn poses_from_file(
         cam0_from_velo,
     };
     if format == PoseFormat::KittiOdometry {
-        check_count(path, count_pose_lines(path)?, scans)?;
+        check_count(
+            path,
+            count_pose_lines(path)?,
+            scans,
+            "KITTI odometry poses have no times: one line per scan",
+        )?;
     }
     let no_projection = projection.is_none();
     let track = read_pose_track(path, Some(format), Some(&kitti), projection).map_err(|e| {
@@ -198,7 +203,12 @@ pub fn poses_from_file(
     };
     if scans.times.is_none() {
         // Line order: pose k is scan k's.
-        check_count(path, track.len(), scans)?;
+        check_count(
+            path,
+            track.len(),
+            scans,
+            "without scan timestamps, pose line k goes with scan k",
+        )?;
         let (times, poses) = track.into_parts();
         return Ok(ScanPoses {
             times,
@@ -219,13 +229,12 @@ fn count_pose_lines(path: &Path) -> Result<usize> {
         .count())
 }
 
-fn check_count(path: &Path, poses: usize, scans: &ScanSet) -> Result<()> {
+fn check_count(path: &Path, poses: usize, scans: &ScanSet, why: &str) -> Result<()> {
     if poses == scans.paths.len() {
         return Ok(());
     }
     Err(BadInput::new(format!(
-        "{}: {poses} poses for {} scans in {} (without scan timestamps, pose line k goes with \
-         scan k)",
+        "{}: {poses} poses for {} scans in {} ({why})",
         path.display(),
         scans.paths.len(),
         scans.dir.display()
