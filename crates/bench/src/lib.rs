@@ -83,7 +83,8 @@ pub enum BenchError {
 /// One timed case on one window size.
 #[derive(Clone, Debug, Serialize)]
 pub struct CaseTiming {
-    /// Case name: `copy`, `naive`, `step`, `sensor`, `prior`, `frame`, with `@1` (one thread) or
+    /// Case name: `copy`, `naive`, `step`, `sensor`, `prior`, `frame`, `ground`, `odometry`, with
+    /// `@1` (one thread) or
     /// `@N` (all N threads).
     pub case: String,
     /// Median milliseconds per run.
@@ -403,6 +404,8 @@ impl<'a> Cases<'a> {
                 "step@1".into(),
             ),
             ("frame@N/copy@N", format!("frame@{n}"), format!("copy@{n}")),
+            ("ground@1/step@1", "ground@1".into(), "step@1".into()),
+            ("odometry@1/step@1", "odometry@1".into(), "step@1".into()),
         ];
         let ratios: Vec<(String, f64)> = pairs
             .iter()

@@ -53,6 +53,7 @@
 #![deny(missing_docs)]
 
 mod decision;
+pub mod ego_path;
 mod grids;
 mod label;
 mod map_prior;
