@@ -21,6 +21,7 @@
 //! assert!(report.windows[0].ratio("copy/step@1").is_some_and(|r| r > 0.0));
 //! # Ok::<(), evigrid_bench::BenchError>(())
 //! ```
+#![deny(missing_docs)]
 
 pub mod copy;
 pub mod naive;
@@ -82,7 +83,8 @@ pub enum BenchError {
 /// One timed case on one window size.
 #[derive(Clone, Debug, Serialize)]
 pub struct CaseTiming {
-    /// Case name: `copy`, `naive`, `step`, `sensor`, `prior`, `frame`, with `@1` (one thread) or
+    /// Case name: `copy`, `naive`, `step`, `sensor`, `prior`, `frame`, `ground`, `odometry`, with
+    /// `@1` (one thread) or
     /// `@N` (all N threads).
     pub case: String,
     /// Median milliseconds per run.
@@ -332,7 +334,7 @@ impl<'a> Cases<'a> {
         times.push((format!("wake@{n}"), time(wake_threads)));
         wake_threads();
         times.push((format!("copy@{n}"), time(|| floor.run(size))));
-        let mut stats = evigrid::step::StepStats::default();
+        let mut stats = evigrid::StepStats::default();
         times.push((
             "step@1".into(),
             one_thread.install(|| time(|| stats = evigrid::step(pg, sg, gg, params, 0.1))),
@@ -402,6 +404,8 @@ impl<'a> Cases<'a> {
                 "step@1".into(),
             ),
             ("frame@N/copy@N", format!("frame@{n}"), format!("copy@{n}")),
+            ("ground@1/step@1", "ground@1".into(), "step@1".into()),
+            ("odometry@1/step@1", "odometry@1".into(), "step@1".into()),
         ];
         let ratios: Vec<(String, f64)> = pairs
             .iter()

@@ -6,11 +6,10 @@
 //! the two against each other on random cells before timing them; it is the `naive` row of
 //! `evigrid bench`, the baseline the kernel's speed is stated against.
 
-use evigrid::grids::{N_SETS, OMEGA, class};
-use evigrid::map_prior::{prior_beta, prior_focal_set};
-use evigrid::params::{DiscountMode, ResidualPolicy, UnobservedCells};
-use evigrid::step::{rate_for_step, set_rate_per_second};
-use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid};
+use evigrid::{
+    DiscountMode, GisGrid, N_SETS, OMEGA, Params, PerceptionGrid, ResidualPolicy, SensorGrid,
+    UnobservedCells, class, prior_beta, prior_focal_set, rate_for_step, set_rate_per_second,
+};
 use geodata::MapContext;
 
 /// Below this 1 − K the sensor and the map are in total conflict (the kernel's margin).

@@ -5,13 +5,13 @@
 //! - `prior`: the GISGrid cells that enter the window when it moves 1 m diagonally (10 m/s at the
 //!   sensor's 10 Hz), rasterised from a real OSM map;
 //! - `frame`: the whole per-frame pipeline (window move, prior, sensor grid, step, decision) with
-//!   the vehicle driving 1 m per frame across the map.
+//!   the vehicle driving 1 m per frame across the map;
+//! - `ground`: the local ground segmentation (crate `ground`, the `local` ground model's work) of
+//!   the same scan, on its own;
+//! - `odometry`: the lidar odometry registering the next of a sequence of consecutive scans (a
+//!   real drive: each round one more scan, so the local map and the motion are real).
 
-use evigrid::map_prior::MapPrior;
-use evigrid::pipeline::Pipeline;
-use evigrid::sensor_model::{Isometry3, SensorModel};
-use evigrid::window::Window;
-use evigrid::{GisGrid, Params, SensorGrid};
+use evigrid::{GisGrid, Isometry3, MapPrior, Params, Pipeline, SensorGrid, SensorModel, Window};
 use geodata::ContextRaster;
 use std::path::PathBuf;
 
@@ -27,6 +27,9 @@ pub struct RealInputs {
     pub scan: PathBuf,
     /// A map any of geodata's readers takes.
     pub map: PathBuf,
+    /// Consecutive scans of one drive, 0.1 s apart, for the `odometry` case (skipped when
+    /// empty; at least two are needed).
+    pub odometry_scans: Vec<PathBuf>,
 }
 
 /// Why the real inputs could not be prepared.
@@ -41,7 +44,13 @@ pub enum RealError {
     Map(#[from] geodata::MapError),
     /// The window or parameters are invalid for this size.
     #[error(transparent)]
-    Pipeline(#[from] evigrid::pipeline::PipelineError),
+    Pipeline(#[from] evigrid::PipelineError),
+    /// The ground segmentation's parameters are invalid.
+    #[error(transparent)]
+    Ground(#[from] ground::GroundParamsError),
+    /// The odometry refused a scan or its parameters.
+    #[error(transparent)]
+    Odometry(#[from] odometry::OdometryError),
 }
 
 /// Prepared state of the real-data cases for one window size.
@@ -61,6 +70,14 @@ pub struct RealCases {
     frames: [u32; 2],
     /// Direction of the next `prior` move: ±1.
     prior_direction: i64,
+    /// The local ground segmentation of the `ground` case; it takes the scan's points as they
+    /// are (a level sensor's own frame is its levelled frame).
+    segmenter: ground::GroundSegmenter,
+    /// The `odometry` case's scans, in order, and the odometry registering them.
+    odometry_scans: Vec<Vec<[f32; 3]>>,
+    odometry: Option<odometry::Odometry>,
+    /// Scans registered so far by `odometry`.
+    registered: usize,
 }
 
 impl RealCases {
@@ -78,7 +95,7 @@ impl RealCases {
         params.window.width_cells = size;
         params.window.height_cells = size;
         let mut window =
-            Window::new(size, size, cell_size_m).map_err(evigrid::pipeline::PipelineError::from)?;
+            Window::new(size, size, cell_size_m).map_err(evigrid::PipelineError::from)?;
         let _ = window.recentre(0.0, 0.0);
         let mut gis = GisGrid::new(size, size);
         let mut prior = MapPrior::new(Some(raster.clone()));
@@ -91,7 +108,21 @@ impl RealCases {
             Pipeline::new(params.clone(), Some(raster.clone()))?,
             Pipeline::new(params.clone(), Some(raster.clone()))?,
         ];
+        let segmenter = ground::GroundSegmenter::new(params.sensor.ground_params())?;
+        let odometry_scans = if inputs.odometry_scans.len() >= 2 {
+            inputs
+                .odometry_scans
+                .iter()
+                .map(|p| drive::read_scan(p).map(|s| s.points_in_sensor))
+                .collect::<Result<Vec<_>, _>>()?
+        } else {
+            Vec::new()
+        };
         Ok(RealCases {
+            segmenter,
+            odometry_scans,
+            odometry: None,
+            registered: 0,
             points: scan.points_in_sensor,
             sensor_model,
             params,
@@ -155,13 +186,49 @@ impl RealCases {
         let frame_one = one_thread.install(|| self.frame(0))?;
         crate::wake_threads();
         let frame_all = self.frame(1)?;
-        Ok(vec![
+        let (segmenter, points) = (&mut self.segmenter, &self.points);
+        let ground_s = one_thread.install(|| {
+            crate::time(|| {
+                segmenter.segment(points);
+            })
+        });
+        let mut times = vec![
             ("sensor@1".into(), sensor),
             ("prior@1".into(), prior_s),
             ("sensor+prior@1".into(), sensor + prior_s),
             ("frame@1".into(), frame_one),
             (format!("frame@{threads}"), frame_all),
-        ])
+            ("ground@1".into(), ground_s),
+        ];
+        if let Some(seconds) = one_thread.install(|| self.register_next())? {
+            times.push(("odometry@1".into(), seconds));
+        }
+        Ok(times)
+    }
+
+    /// Times the registration of the next scan of the sequence; at its end the odometry starts
+    /// again, its first scan registered untimed (the first scan only seeds the map).
+    fn register_next(&mut self) -> Result<Option<f64>, RealError> {
+        let n = self.odometry_scans.len();
+        if n < 2 {
+            return Ok(None);
+        }
+        if self.odometry.is_none() || self.registered >= n {
+            let mut fresh = odometry::Odometry::new(odometry::OdometryParams::default())?;
+            fresh.register(&self.odometry_scans[0], 0.0)?;
+            self.odometry = Some(fresh);
+            self.registered = 1;
+        }
+        let k = self.registered;
+        let (Some(odometry), Some(points)) = (&mut self.odometry, self.odometry_scans.get(k))
+        else {
+            return Ok(None);
+        };
+        let start = std::time::Instant::now();
+        odometry.register(points, k as f64 * 0.1)?;
+        let seconds = start.elapsed().as_secs_f64();
+        self.registered += 1;
+        Ok(Some(seconds))
     }
 
     /// Times one frame of pipeline `which`, the vehicle 1 m further along a diagonal each frame

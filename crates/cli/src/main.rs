@@ -4,6 +4,7 @@
 //! errors into exit codes. Every computation is in a library crate.
 
 mod commands;
+mod drive_input;
 mod exit;
 mod input;
 mod out_dir;
@@ -31,6 +32,8 @@ enum Command {
     Cell(commands::cell::CellArgs),
     /// The perception pipeline over a drive: scans + poses + map → decision maps and grids.
     Run(commands::run::RunArgs),
+    /// Lidar odometry: poses from the scans alone, written as TUM or KITTI odometry.
+    Odometry(commands::odometry::OdometryArgs),
     /// Speed of the fusion step against the memory floor and a naive baseline (ratios).
     Bench(commands::bench::BenchArgs),
     /// Variants side by side on simulated drives over a real map, scored against the truth.
@@ -48,6 +51,7 @@ fn main() -> std::process::ExitCode {
         Command::Map(cmd) => commands::map::run(cmd),
         Command::Cell(args) => commands::cell::run(args),
         Command::Run(args) => commands::run::run(args),
+        Command::Odometry(args) => commands::odometry::run(args),
         Command::Bench(args) => commands::bench::run(args),
         Command::Eval(args) => commands::eval::run(args),
         Command::Demo(args) => commands::demo::run(args),

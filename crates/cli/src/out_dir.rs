@@ -94,7 +94,7 @@ impl OutDir {
             }
         }
         let marker = self.path.join(MARKER);
-        evigrid::render::write_atomic(&marker, |file| {
+        output::write_atomic(&marker, |file| {
             std::io::Write::write_all(file, text.as_bytes())
         })
         .map_err(|e| BadInput::new(format!("{}: {e}", marker.display())))

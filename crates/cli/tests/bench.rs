@@ -103,3 +103,57 @@ fn bad_options_exit_2_with_one_line_naming_the_option() -> TestResult {
     }
     Ok(())
 }
+
+#[test]
+fn real_cases_time_the_ground_and_the_odometry_against_the_step() -> TestResult {
+    let drive =
+        "data/lidar/kitti-raw-0013/2011_09_26/2011_09_26_drive_0013_sync/velodyne_points/data";
+    let (Some(scans), Some(map)) = (
+        geodata::testdata::shared_file(drive),
+        geodata::testdata::shared_file("data/osm/bavarian-village.osm"),
+    ) else {
+        return Ok(());
+    };
+    let scan = scans.join("0000000000.bin");
+    let args = [
+        "bench",
+        "--json",
+        "--sizes",
+        "32",
+        "--rounds",
+        "2",
+        "--naive-rounds",
+        "0",
+        "--scan",
+        scan.to_str().ok_or("path")?,
+        "--map",
+        map.to_str().ok_or("path")?,
+        "--odometry-scans",
+        scans.to_str().ok_or("path")?,
+    ];
+    let out = evigrid(&args)?;
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+    let window = &report["windows"][0];
+    for case in ["ground@1", "odometry@1"] {
+        let timed = window["timings"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .any(|t| t["case"] == case && t["median_ms"].as_f64().is_some_and(|ms| ms > 0.0));
+        assert!(timed, "no {case} in {window}");
+    }
+    for ratio in ["ground@1/step@1", "odometry@1/step@1"] {
+        let found = window["ratios"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .any(|pair| pair[0] == ratio && pair[1].as_f64().is_some_and(|v| v > 0.0));
+        assert!(found, "no {ratio} in {window}");
+    }
+    Ok(())
+}

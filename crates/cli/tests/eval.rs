@@ -75,7 +75,7 @@ fn writes_metrics_report_and_plots_for_every_variant() {
     assert_eq!(report.seeds, vec![4, 5]);
     assert_eq!(report.frames_per_seed, 10);
     let names: Vec<&str> = report.variants.iter().map(|v| v.variant.name()).collect();
-    assert_eq!(names, ["full", "no-map", "moras2011", "log-odds"]);
+    assert_eq!(names, ["kurdej2013", "no-map", "moras2011", "log-odds"]);
     for v in &report.variants {
         assert!(
             v.confusion.total() > 0,
@@ -91,7 +91,7 @@ fn writes_metrics_report_and_plots_for_every_variant() {
     assert!(chart.width() > 100);
 
     let md = std::fs::read_to_string(s.out.join("report.md")).unwrap();
-    assert!(md.contains("| full |") && md.contains("| log-odds |"));
+    assert!(md.contains("| kurdej2013 |") && md.contains("| log-odds |"));
     assert!(md.contains("[window]") && md.contains("width_cells = 160"));
     assert!(md.contains("ground_model = \"none\""));
     assert!(md.contains("--seeds 2"));
@@ -105,13 +105,21 @@ fn writes_metrics_report_and_plots_for_every_variant() {
 #[test]
 fn table_lists_the_requested_variants_only() {
     let Some(s) = setup() else { return };
+    // `full`, the paper's variant's former name, is still accepted, with a warning.
     let output = eval(&s, &["--variants", "log-odds,full"]);
     assert!(output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("`full` is deprecated, use `kurdej2013`"),
+        "{stderr}"
+    );
     let stdout = String::from_utf8_lossy(&output.stdout);
     let lines: Vec<&str> = stdout.lines().collect();
     assert!(lines[0].starts_with("variant") && lines[0].contains("macro-F1"));
+    assert!(lines[0].contains("M prec") && lines[0].contains("occ-st"));
     assert!(lines[1].starts_with("log-odds"));
-    assert!(lines[2].starts_with("full"));
+    assert!(lines[2].starts_with("kurdej2013"));
+    assert!(lines[3].contains("cells in view"));
     assert!(!stdout.contains("no-map") && !stdout.contains("moras2011"));
     let report: eval::EvalReport =
         serde_json::from_str(&std::fs::read_to_string(s.out.join("metrics.json")).unwrap())

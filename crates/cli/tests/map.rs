@@ -176,3 +176,32 @@ fn bad_input_exits_2_with_one_line_naming_the_file() -> Result<(), Box<dyn std::
     assert!(text(&output.stderr).contains("--bbox"));
     Ok(())
 }
+
+#[test]
+fn an_unwritable_out_is_bad_input_and_leaves_no_temporary() -> Result<(), Box<dyn std::error::Error>>
+{
+    let Some(path) = osm_file("bavarian-village.osm") else {
+        return Ok(());
+    };
+    // `--out` names an existing directory: the temporary is written, the rename fails.
+    let dir = tempfile::tempdir()?;
+    let taken = dir.path().join("taken.png");
+    std::fs::create_dir(&taken)?;
+    std::fs::write(taken.join("inside"), b"x")?;
+    let output = evigrid(&[
+        "map",
+        "render",
+        path.to_str().ok_or("path")?,
+        "--out",
+        taken.to_str().ok_or("out")?,
+    ])?;
+    assert_eq!(output.status.code(), Some(2), "{}", text(&output.stderr));
+    assert!(
+        text(&output.stderr).contains("--out"),
+        "{}",
+        text(&output.stderr)
+    );
+    let names: Vec<_> = std::fs::read_dir(dir.path())?.collect::<Result<_, _>>()?;
+    assert_eq!(names.len(), 1, "{names:?}");
+    Ok(())
+}

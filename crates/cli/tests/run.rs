@@ -86,8 +86,11 @@ fn runs_end_to_end_on_real_scans() {
     assert!(i + u + s + m > 100, "{classes:?}");
     let frame0 = &summary["per_frame"][0]["stats"]["sensor"];
     assert_eq!(frame0["points"], 119_978);
-    let ground = frame0["ground_plane"]["offset_m"].as_f64().unwrap();
-    assert!((ground + 1.73).abs() < 0.15, "ground plane offset {ground}");
+    // The default ground model is the local one: no plane, and most of a street scan is ground.
+    assert!(frame0["ground_plane"].is_null());
+    let ground = summary["per_frame"][0]["ground_share"].as_f64().unwrap();
+    let obstacles = summary["per_frame"][0]["obstacle_share"].as_f64().unwrap();
+    assert!(ground > 0.4 && obstacles < 0.5, "{ground} {obstacles}");
     assert_eq!(summary["per_frame"][1]["stats"]["entered_cells"], 2 * 160);
     for name in [
         "frames/decision-000000.png",
@@ -146,7 +149,7 @@ fn bad_input_exits_with_status_2_naming_the_file() {
     std::fs::write(&poses, "0.0 0 0 1.73 0 0 0\nzero 1 0 1.73 0 0 0\n").unwrap();
     let output = run(&map, &poses);
     assert_eq!(output.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&output.stderr).contains("line 2"));
+    assert!(String::from_utf8_lossy(&output.stderr).contains("poses.txt:2"));
 }
 
 /// Three scans with poses 1 m apart eastwards, written into `dir`; returns the scans folder and

@@ -97,7 +97,7 @@ fn tunes_writes_the_best_parameters_and_compares_on_held_out_drives() {
         "values follow the search space order; δ_inc is the 11th"
     );
     let report = std::fs::read_to_string(tmp.path().join("out/report.md")).unwrap();
-    assert!(report.contains("| held-out | full |"), "{report}");
+    assert!(report.contains("| held-out | kurdej2013 |"), "{report}");
 }
 
 #[test]
@@ -165,6 +165,17 @@ fn bad_input_exits_2_with_one_line_naming_it() {
                 bad_params,
             ],
             "map.beta_road",
+        ),
+        (
+            vec![
+                "--map".into(),
+                missing.clone(),
+                "--scenario".into(),
+                scenario.clone(),
+                "--variant".into(),
+                "octomap".into(),
+            ],
+            "--variant: unknown variant \"octomap\"",
         ),
     ];
     if let Some(map) = map {

@@ -368,6 +368,38 @@ pub fn read_kitti_times(path: &Path) -> Result<Vec<f64>, ReadError> {
     Ok(times)
 }
 
+/// Reads scan times in either of KITTI's two forms, told apart by the first non-blank line: KITTI
+/// raw `timestamps.txt` (`2011-09-26 13:02:25.964389445`, seconds since the Unix epoch) or KITTI
+/// odometry `times.txt` (one number of seconds per line). Times must strictly increase.
+///
+/// # Errors
+///
+/// [`ReadError`] with the line: a malformed time or one that does not increase; or no times.
+pub fn read_scan_times(path: &Path) -> Result<Vec<f64>, ReadError> {
+    let text = read_text(path)?;
+    let dated = text
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty())
+        .is_some_and(|l| l.contains(':') && l.contains('-') && l.contains(' '));
+    if !dated {
+        return read_kitti_times(path);
+    }
+    let times = crate::timestamp::read_timestamps(path)?;
+    if times.is_empty() {
+        return Err(file_error(path, "no times"));
+    }
+    if let Some(i) = times.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(ReadError::NotIncreasing {
+            path: path.to_path_buf(),
+            line: i + 2,
+            time: times[i + 1],
+            previous: times[i],
+        });
+    }
+    Ok(times)
+}
+
 /// Writes times one per line (KITTI odometry `times.txt`), in shortest round-trip form.
 ///
 /// # Errors

@@ -1,7 +1,7 @@
 //! eval: scores grid methods against the simulator's truth, side by side on the same drives.
 //!
 //! **What.** [`evaluate`] drives a [`sim::Drive`] and feeds every scan to one shared
-//! [`FrontEnd`](evigrid::pipeline::FrontEnd) (window, map prior, SensorGrid), then to each
+//! [`FrontEnd`](evigrid::FrontEnd) (window, map prior, SensorGrid), then to each
 //! [`Variant`]'s [`GridMethod`]: evigrid's method with and without the map prior, and two
 //! [`baselines`] from the literature. Every method decides each cell in one label type
 //! ([`Label`], shared with the truth); [`metrics`] accumulates confusion matrices, scores,
@@ -58,12 +58,14 @@ pub enum EvalError {
     Sim(#[from] SimError),
     /// evigrid refused the parameters or a frame.
     #[error(transparent)]
-    Pipeline(#[from] evigrid::pipeline::PipelineError),
-    /// A variant name is not one of `full`, `no-map`, `moras2011`, `log-odds`.
-    #[error("unknown variant {name:?} (expected full, no-map, moras2011 or log-odds)")]
+    Pipeline(#[from] evigrid::PipelineError),
+    /// A variant name is not one of [`Variant::ALL`]'s (nor a deprecated name).
+    #[error("unknown variant {name:?} (expected one of {expected})")]
     UnknownVariant {
         /// The name given.
         name: String,
+        /// The names accepted, comma-separated.
+        expected: String,
     },
     /// An evaluation was asked with no seed.
     #[error("no seed to evaluate")]

@@ -10,8 +10,8 @@
 //! ```
 //! use eval::{GridMethod, Label};
 //! use eval::baselines::{LogOdds, LogOddsParams};
-//! use evigrid::pipeline::{FrontEnd, Fusion, Prior};
-//! use evigrid::sensor_model::{GroundModel, Isometry3};
+//! use evigrid::{FrontEnd, Fusion, Prior};
+//! use evigrid::{GroundModel, Isometry3};
 //!
 //! let mut params = evigrid::Params::default();
 //! (params.window.width_cells, params.window.height_cells) = (40, 40);
@@ -33,7 +33,7 @@
 //! # Ok::<(), eval::EvalError>(())
 //! ```
 
-use evigrid::pipeline::{FrontEnd, Fusion, Prior};
+use evigrid::{FrontEnd, Fusion, Prior};
 
 use crate::EvalError;
 use crate::Label;
@@ -56,11 +56,12 @@ pub trait GridMethod {
     fn decide(&self, out: &mut [Label]);
 }
 
-/// evigrid's method: `full` with [`Prior::Map`], `no-map` with [`Prior::Vacuous`].
+/// evigrid's fusion as SPEC §5 specifies it: `kurdej2013` with [`Prior::Map`], `no-map` with
+/// [`Prior::Vacuous`].
 impl GridMethod for Fusion {
     fn name(&self) -> &'static str {
         match self.prior() {
-            Prior::Map => "full",
+            Prior::Map => "kurdej2013",
             Prior::Vacuous => "no-map",
         }
     }
@@ -72,7 +73,7 @@ impl GridMethod for Fusion {
 
     fn decide(&self, out: &mut [Label]) {
         for (label, &decision) in out.iter_mut().zip(self.decisions()) {
-            *label = Label::from(decision);
+            *label = decision;
         }
     }
 }

@@ -3,33 +3,43 @@
 //!
 //! # What is scored
 //! Every frame, every cell of the window that is (a) not [`IGNORED`](sim::truth::IGNORED) in
-//! truth and (b) observed at least once since it entered the window (the caller's `observed`
-//! mask: the sensor grid had evidence there at least once) adds one (truth, prediction) pair to a
+//! truth and (b) inside the caller's scoring mask adds one (truth, prediction) pair to a
 //! confusion matrix. A cell is counted once per frame, so long-lived cells weigh more, as in a
-//! per-frame benchmark.
+//! per-frame benchmark. The runner keeps one matrix per mask (see "Three masks" below).
 //!
-//! Truth and predictions are both [`Label`]s. Truth is one of {F, I, U, S, M}. Predictions are
-//! one of {F, I, U, S, M, O, unknown}, where O
+//! Truth and predictions are both [`Label`]s. Truth is one of {F, I, U, S, M} or
+//! [`Label::Edge`], the boundary band of a building (a cell it covers in part, not at its
+//! centre; see [`sim::truth`]). Predictions are one of {F, I, U, S, M, O, unknown}, where O
 //! ("occupied, static, class not resolved") is what a two-class baseline says of an occupied
 //! cell that is not moving. Because a baseline cannot name I, U or S, two views are reported:
 //! - **five-class** scores on the matrix as is (O counts as a miss for I, U and S);
 //! - **coarse** scores on {F, O = I ∪ U ∪ S, M}: truth and predictions I, U, S, O merge into O,
 //!   which compares every method fairly on free / static-occupied / moving.
 //!
+//! # The boundary band
+//! A band cell is part wall, part open space: F and I (or U, O) are both right there, M is not.
+//! Its row of the matrix is kept apart ([`ConfusionMatrix::edge`]): it adds a false positive to
+//! M (and, in the coarse view, to coarse M) when predicted M, counts as static in the static
+//! accuracy, and touches no other class's score. Its count and how often it is called M are
+//! reported ([`Scores::edge_cell_frames`], [`Scores::edge_predicted_moving`]).
+//!
 //! # Definitions (per class c, counts over scored cell-frames)
 //! TP = truth c and predicted c; FP = predicted c, truth not c; FN = truth c, predicted not c
 //! (unknown included: failing to decide is a miss). Precision TP/(TP+FP), recall TP/(TP+FN),
 //! IoU TP/(TP+FP+FN), F1 2TP/(2TP+FP+FN); a ratio with a zero denominator is `None`. Macro-F1 is
 //! the mean F1 over the classes whose F1 is defined (a class absent from truth and prediction
-//! neither helps nor hurts).
+//! neither helps nor hurts). M precision is the precision of class M: of the cells called moving,
+//! the share that are.
 //!
 //! Static and dynamic accuracy follow the KTH DynamicMap benchmark (Zhang, Khoche & Jensfelt,
 //! "A Dynamic Points Removal Benchmark in Point Cloud Maps", ITSC 2023; their
 //! `scripts/py/eval/evaluate_all.py`): SA = correctly kept static / all truly static, DA =
 //! correctly flagged dynamic / all truly dynamic, HA = their harmonic mean. For grids: SA is the
-//! fraction of cells whose truth is F, I, U or S that are *not* predicted M (unknown counts as
-//! kept: it does not wrongly delete a static object); DA is the fraction of truly M cells
-//! predicted M.
+//! fraction of cells whose truth is F, I, U, S or edge that are *not* predicted M (unknown counts
+//! as kept: it does not wrongly delete a static object); DA is the fraction of truly M cells
+//! predicted M. Because free cells are most of the static ones, SA is close to 1 for any method
+//! that rarely says M; **occupied-static accuracy** is the same ratio over truth I, U and S
+//! only, the static objects a method could mistake for moving ones.
 //!
 //! Remanence: for a cell whose truth goes from M to F while the sensor observes it, the number of
 //! frames until it is first predicted F (0 = the same frame). Cells that leave the window, stop
@@ -38,13 +48,15 @@
 //! unseen), the frames from the episode's first return until a cell holding one of its returns
 //! is predicted M.
 //!
-//! # Why two scoring masks
-//! A scanner sees the near face of an object, never its inside: the cells inside a moving car
-//! were seen free before it came and are not observed while it is there, so under the "observed
-//! at least once" mask no method can get them right, which caps the M IoU far below 1. The
-//! evaluation therefore also keeps a second confusion matrix over the cells observed in the
-//! current frame (the sensor grid has evidence there now): it scores what the sensor can see,
-//! like point-wise benchmarks, at the price of not scoring the grid's memory of occluded cells.
+//! # Three masks
+//! - **In view** (the headline): cells the sensor has evidence in at this frame (a return or a
+//!   ray crossing). It scores what the sensor can see, like point-wise benchmarks.
+//! - **Observed at least once** since the cell entered the window: adds the grid's memory of
+//!   occluded cells. A scanner sees the near face of an object, never its inside: the cells
+//!   inside a moving car were seen free before it came and are not observed while it is there, so
+//!   no method can get them right (in `evigrid demo` they are most of the truly moving
+//!   cell-frames), which caps the M IoU far below 1 and flatters nothing but the free class.
+//! - **All** cells of the window: adds cells never observed, which every method leaves unknown.
 
 use crate::Label;
 use serde::{Deserialize, Serialize};
@@ -54,10 +66,20 @@ use std::collections::BTreeMap;
 pub const TRUTH_NAMES: [&str; 5] = ["F", "I", "U", "S", "M"];
 
 /// Row of each [`Label`] (by code) in [`ConfusionMatrix::counts`]: F, I, U, S, M; unknown and O
-/// are never truth.
-const ROW: [Option<usize>; 7] = [None, Some(0), Some(1), Some(2), Some(3), Some(4), None];
-/// Column of each [`Label`] (by code): F, I, U, S, M, O, unknown.
-const COLUMN: [usize; 7] = [6, 0, 1, 2, 3, 4, 5];
+/// are never truth, edge has its own row.
+const ROW: [Option<usize>; 8] = [
+    None,
+    Some(0),
+    Some(1),
+    Some(2),
+    Some(3),
+    Some(4),
+    None,
+    None,
+];
+/// Column of each [`Label`] (by code): F, I, U, S, M, O, unknown (edge is never a prediction;
+/// it would count as no decision).
+const COLUMN: [usize; 8] = [6, 0, 1, 2, 3, 4, 5, 6];
 
 /// Column of predicted M.
 const M_COLUMN: usize = COLUMN[Label::M as usize];
@@ -67,13 +89,20 @@ const M_COLUMN: usize = COLUMN[Label::M as usize];
 pub struct ConfusionMatrix {
     /// Rows: truth F, I, U, S, M. Columns: predicted F, I, U, S, M, O, unknown.
     pub counts: [[u64; 7]; 5],
+    /// Truth edge (the boundary band of a building), same columns. Absent in reports written
+    /// before the band existed: read as zeros.
+    #[serde(default)]
+    pub edge: [u64; 7],
 }
 
 impl ConfusionMatrix {
-    /// Adds one pair. A truth that is not a class (unknown: ignored cells) is skipped.
+    /// Adds one pair. A truth that is not scored (unknown: ignored cells) is skipped.
     pub fn add(&mut self, truth: Label, predicted: Label) {
+        let column = COLUMN[predicted as usize];
         if let Some(row) = ROW[truth as usize] {
-            self.counts[row][COLUMN[predicted as usize]] += 1;
+            self.counts[row][column] += 1;
+        } else if truth == Label::Edge {
+            self.edge[column] += 1;
         }
     }
 
@@ -94,11 +123,27 @@ impl ConfusionMatrix {
                 *x += y;
             }
         }
+        for (x, y) in self.edge.iter_mut().zip(&other.edge) {
+            *x += y;
+        }
     }
 
-    /// Total scored cell-frames.
+    /// Total scored cell-frames, the boundary band included.
     pub fn total(&self) -> u64 {
-        self.counts.iter().flatten().sum()
+        self.counts.iter().flatten().sum::<u64>() + self.edge.iter().sum::<u64>()
+    }
+
+    /// This matrix with the boundary band counted as truth I: what the labelling rule before
+    /// the band (a building claims every cell it covers at any sample) would have scored, for
+    /// mapped buildings (the band of a building missing from the map was U then). Used to show
+    /// what the band changes.
+    pub fn band_as_infrastructure(&self) -> ConfusionMatrix {
+        let mut out = self.clone();
+        for (i, e) in out.counts[1].iter_mut().zip(&out.edge) {
+            *i += e;
+        }
+        out.edge = [0; 7];
+        out
     }
 
     /// The coarse 3 × 4 view: rows truth F, O, M; columns predicted F, O, M, unknown.
@@ -116,10 +161,15 @@ impl ConfusionMatrix {
 
     /// Every score.
     pub fn scores(&self) -> Scores {
+        // The band adds false positives to M only (see the module docs).
+        let edge_moving = self.edge[M_COLUMN];
         let five: Vec<ClassScores> = (0..5)
             .map(|c| {
                 let tp = self.counts[c][c];
-                let fp: u64 = (0..5).filter(|&t| t != c).map(|t| self.counts[t][c]).sum();
+                let mut fp: u64 = (0..5).filter(|&t| t != c).map(|t| self.counts[t][c]).sum();
+                if c == 4 {
+                    fp += edge_moving;
+                }
                 let fn_: u64 = self.counts[c].iter().sum::<u64>() - tp;
                 ClassScores::new(TRUTH_NAMES[c], tp, fp, fn_)
             })
@@ -128,16 +178,25 @@ impl ConfusionMatrix {
         let coarse: Vec<ClassScores> = (0..3)
             .map(|c| {
                 let tp = coarse_m[c][c];
-                let fp: u64 = (0..3).filter(|&t| t != c).map(|t| coarse_m[t][c]).sum();
+                let mut fp: u64 = (0..3).filter(|&t| t != c).map(|t| coarse_m[t][c]).sum();
+                if c == 2 {
+                    fp += edge_moving;
+                }
                 let fn_: u64 = coarse_m[c].iter().sum::<u64>() - tp;
                 ClassScores::new(["F", "O", "M"][c], tp, fp, fn_)
             })
             .collect();
-        let static_total: u64 = self.counts[..4].iter().flatten().sum();
-        let static_kept: u64 = self.counts[..4]
-            .iter()
-            .map(|r| r.iter().sum::<u64>() - r[M_COLUMN])
-            .sum();
+        let edge_total: u64 = self.edge.iter().sum();
+        let kept = |rows: &[[u64; 7]]| -> (u64, u64) {
+            rows.iter().fold((0, 0), |(kept, total), r| {
+                let n: u64 = r.iter().sum();
+                (kept + n - r[M_COLUMN], total + n)
+            })
+        };
+        let (occupied_kept, occupied_total) = kept(&self.counts[1..4]);
+        let (free_kept, free_total) = kept(&self.counts[..1]);
+        let static_total = free_total + occupied_total + edge_total;
+        let static_kept = free_kept + occupied_kept + edge_total - edge_moving;
         let dynamic_total: u64 = self.counts[4].iter().sum();
         let dynamic_found = self.counts[4][M_COLUMN];
         let sa = ratio(static_kept, static_total);
@@ -151,6 +210,10 @@ impl ConfusionMatrix {
             macro_f1: macro_f1(&five),
             macro_f1_coarse: macro_f1(&coarse),
             moving_iou: five[4].iou,
+            moving_precision: five[4].precision,
+            occupied_static_accuracy: ratio(occupied_kept, occupied_total),
+            edge_cell_frames: edge_total,
+            edge_predicted_moving: edge_moving,
             static_accuracy: sa,
             dynamic_accuracy: da,
             harmonic_accuracy: ha,
@@ -219,7 +282,19 @@ pub struct Scores {
     pub macro_f1_coarse: Option<f64>,
     /// IoU of M.
     pub moving_iou: Option<f64>,
-    /// DynamicMap SA.
+    /// Precision of M: of the cell-frames predicted M, the share truly M.
+    #[serde(default)]
+    pub moving_precision: Option<f64>,
+    /// SA over truth I, U and S only.
+    #[serde(default)]
+    pub occupied_static_accuracy: Option<f64>,
+    /// Cell-frames of the boundary band scored.
+    #[serde(default)]
+    pub edge_cell_frames: u64,
+    /// Of those, predicted M.
+    #[serde(default)]
+    pub edge_predicted_moving: u64,
+    /// DynamicMap SA (truth F, I, U, S and edge).
     pub static_accuracy: Option<f64>,
     /// DynamicMap DA.
     pub dynamic_accuracy: Option<f64>,
@@ -557,6 +632,47 @@ mod tests {
             s.macro_f1_coarse.unwrap_or(-1.0),
             (4.0 / 7.0 + 0.75 + 0.5) / 3.0
         );
+    }
+
+    #[test]
+    fn edge_band_counts_only_against_m_and_occupied_static_ignores_free() {
+        let mut m = hand_matrix();
+        // Hand matrix: M precision 1/2; occupied static (I, I, U, S) none predicted M → 1.
+        let before = m.scores();
+        assert_relative_eq!(before.moving_precision.unwrap_or(-1.0), 0.5);
+        assert_eq!(before.occupied_static_accuracy, Some(1.0));
+        // Three band cells: F, I, and M predictions; one S cell predicted M.
+        m.add(P::Edge, P::F);
+        m.add(P::Edge, P::I);
+        m.add(P::Edge, P::M);
+        m.add(P::S, P::M);
+        assert_eq!(m.edge, [1, 1, 0, 0, 1, 0, 0]);
+        assert_eq!(m.total(), 14);
+        let s = m.scores();
+        // F and I scores do not see the band: F as before; I gains nothing from edge → I.
+        assert_eq!(s.classes[0], before.classes[0]);
+        assert_eq!(s.classes[1], before.classes[1]);
+        // M: TP 1, FP 1 (F→M) + 1 (S→M) + 1 (edge→M), FN 1 → precision 1/4, IoU 1/5.
+        assert_eq!(
+            (s.classes[4].tp, s.classes[4].fp, s.classes[4].fn_),
+            (1, 3, 1)
+        );
+        assert_relative_eq!(s.moving_precision.unwrap_or(-1.0), 0.25);
+        assert_relative_eq!(s.moving_iou.unwrap_or(-1.0), 0.2);
+        assert_eq!(s.coarse_classes[2].fp, 3);
+        // Occupied static: I, I, U, S, S(→M) → 4/5. SA: 8 + 1 static + 3 band = 12, 3 → M: 9/12.
+        assert_relative_eq!(s.occupied_static_accuracy.unwrap_or(-1.0), 0.8);
+        assert_relative_eq!(s.static_accuracy.unwrap_or(-1.0), 0.75);
+        assert_eq!((s.edge_cell_frames, s.edge_predicted_moving), (3, 1));
+        // Band counted as I: I gains a TP and two FN; M is scored the same.
+        let old = m.band_as_infrastructure();
+        assert_eq!(old.total(), m.total());
+        assert_eq!(old.counts[1], [1, 2, 0, 0, 1, 0, 1]);
+        let o = old.scores();
+        assert_eq!(o.classes[4], s.classes[4]);
+        assert_eq!(o.static_accuracy, s.static_accuracy);
+        // Occupied static: I, I, U, S, S(→M), edge F, I, M(→M) → 6/8.
+        assert_relative_eq!(o.occupied_static_accuracy.unwrap_or(-1.0), 0.75);
     }
 
     #[test]

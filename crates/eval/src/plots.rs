@@ -388,21 +388,20 @@ pub fn per_class_iou_chart(series: &[(&str, [Option<f64>; 5])]) -> RgbImage {
     image
 }
 
-/// [`confusion_heatmap`] of a variant's confusion matrix over the cells observed at least once,
-/// titled with the variant's name.
+/// [`confusion_heatmap`] of a variant's confusion matrix over the cells in view (the headline
+/// mask), titled with the variant's name.
 pub fn variant_heatmap(variant: &VariantReport) -> RgbImage {
-    confusion_heatmap(variant.variant.name(), &variant.confusion)
+    confusion_heatmap(variant.variant.name(), &variant.confusion_visible)
 }
 
-/// [`per_class_iou_chart`] of every variant of `report` (cells observed at least once), in the
-/// report's order.
+/// [`per_class_iou_chart`] of every variant of `report` (cells in view), in the report's order.
 pub fn report_iou_chart(report: &EvalReport) -> RgbImage {
     let series: Vec<(&str, [Option<f64>; 5])> = report
         .variants
         .iter()
         .map(|v| {
             let mut ious = [None; 5];
-            for (out, class) in ious.iter_mut().zip(&v.scores.classes) {
+            for (out, class) in ious.iter_mut().zip(&v.scores_visible.classes) {
                 *out = class.iou;
             }
             (v.variant.name(), ious)
@@ -440,7 +439,7 @@ mod tests {
         // Truth M: all 10 predicted unknown (column 6).
         m.counts[4][6] = 10;
         // Truth I, U, S: no cells → grey rows.
-        let image = confusion_heatmap("full", &m);
+        let image = confusion_heatmap("kurdej2013", &m);
         assert_eq!(image.width(), LEFT + 7 * CELL_WIDTH + MARGIN);
         assert_eq!(image.height(), TOP + 5 * CELL_HEIGHT + MARGIN);
         // A point in a cell's corner, away from its centred number.
@@ -480,7 +479,10 @@ mod tests {
     fn chart_bars_have_iou_heights_and_variant_colours() {
         use chart_layout::*;
         let series = [
-            ("full", [Some(1.0), Some(0.5), None, Some(0.0), Some(0.25)]),
+            (
+                "kurdej2013",
+                [Some(1.0), Some(0.5), None, Some(0.0), Some(0.25)],
+            ),
             (
                 "log-odds",
                 [Some(0.5), Some(0.0), None, Some(0.0), Some(0.75)],

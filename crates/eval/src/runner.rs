@@ -3,7 +3,8 @@
 //! For every seed, one [`Drive`] is simulated and each scan goes once through one shared
 //! [`FrontEnd`] (the window recentred on the pose, the map prior, the SensorGrid: evigrid's own
 //! sensor model, run once per scan), whose output every variant's [`GridMethod`] consumes:
-//! - `full`: evigrid's [`Fusion`] of the drive's pipeline map ([`Prior::Map`]);
+//! - `kurdej2013`: the paper's method as SPEC §5 specifies it, evigrid's [`Fusion`] of the
+//!   drive's pipeline map ([`Prior::Map`]); `full` is its former, deprecated name;
 //! - `no-map`: the same fusion with a vacuous GISGrid ([`Prior::Vacuous`]);
 //! - `moras2011`, `log-odds`: the [`baselines`](crate::baselines).
 //!
@@ -13,13 +14,14 @@
 //! ([`EvalConfig::params_for`], `none`), whatever the configuration says, and reports print
 //! those parameters. A cell is scored once it has been observed (the shared SensorGrid had
 //! evidence in it at least once since it entered the window), the same cells for every variant;
-//! a second confusion matrix scores only the cells observed in the frame itself
-//! (`scores_visible`, see [`crate::metrics`] for why both). Per frame only counts are added
+//! two more confusion matrices score the cells observed in the frame itself (`scores_visible`,
+//! the headline) and every cell of the window (`scores_all`); see [`crate::metrics`] for why.
+//! Per frame only counts are added
 //! ([`crate::metrics`]): memory does not depend on the length of the drive.
 //!
 //! Time per frame is wall-clock time of each variant's own work plus the shared front end it
 //! needs, as if it ran alone: the window and the SensorGrid for every variant, the map prior for
-//! `full` only.
+//! the variants that fuse it ([`Variant::uses_map`]).
 
 use crate::EvalError;
 use crate::Label;
@@ -28,8 +30,8 @@ use crate::method::GridMethod;
 use crate::metrics::{ConfusionMatrix, Latency, Remanence};
 use crate::report::{EvalReport, SeedScores, VariantReport};
 use evigrid::Params;
-use evigrid::pipeline::{FrontEnd, FrontEndStats, Fusion, Prior};
-use evigrid::window::Window;
+use evigrid::Window;
+use evigrid::{FrontEnd, FrontEndStats, Fusion, Prior};
 use geodata::{ContextRaster, LocalMap};
 use serde::{Deserialize, Serialize};
 use sim::drive::{Drive, Frame};
@@ -38,12 +40,14 @@ use sim::sensor::HitTarget;
 use sim::truth;
 use std::time::Instant;
 
-/// A method to evaluate.
+/// A method to evaluate. Adding one: a variant here, its name in [`Variant::name`], its place
+/// in [`Variant::ALL`], its method in the runner, and [`Variant::uses_map`] if it fuses the map.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Variant {
-    /// evigrid with the map prior.
-    #[serde(rename = "full")]
-    Full,
+    /// The paper's method (Kurdej et al. 2013), equation for equation SPEC §5, with the map
+    /// prior. Named `full` before the name said whose method it is (`full` is still read).
+    #[serde(rename = "kurdej2013", alias = "full")]
+    Kurdej2013,
     /// evigrid without a map.
     #[serde(rename = "no-map")]
     NoMap,
@@ -58,7 +62,7 @@ pub enum Variant {
 impl Variant {
     /// All variants, in report order.
     pub const ALL: [Variant; 4] = [
-        Variant::Full,
+        Variant::Kurdej2013,
         Variant::NoMap,
         Variant::Moras2011,
         Variant::LogOdds,
@@ -66,13 +70,15 @@ impl Variant {
     /// The name used on command lines and in reports.
     pub fn name(self) -> &'static str {
         match self {
-            Variant::Full => "full",
+            Variant::Kurdej2013 => "kurdej2013",
             Variant::NoMap => "no-map",
             Variant::Moras2011 => "moras2011",
             Variant::LogOdds => "log-odds",
         }
     }
-    /// Parses a name.
+    /// Former names still accepted by [`Variant::parse`], with what they now mean.
+    pub const DEPRECATED_NAMES: [(&'static str, Variant); 1] = [("full", Variant::Kurdej2013)];
+    /// Parses a name, or a deprecated name ([`Variant::DEPRECATED_NAMES`]).
     ///
     /// # Errors
     /// [`EvalError::UnknownVariant`] for any other name.
@@ -80,13 +86,20 @@ impl Variant {
         Self::ALL
             .into_iter()
             .find(|v| v.name() == name)
+            .or_else(|| {
+                Self::DEPRECATED_NAMES
+                    .iter()
+                    .find(|(old, _)| *old == name)
+                    .map(|&(_, v)| v)
+            })
             .ok_or_else(|| EvalError::UnknownVariant {
                 name: name.to_string(),
+                expected: Self::ALL.map(Variant::name).join(", "),
             })
     }
-    /// True if the variant fuses the map prior (it alone needs the front end's GISGrid).
+    /// True if the variant fuses the map prior (only those need the front end's GISGrid).
     pub fn uses_map(self) -> bool {
-        self == Variant::Full
+        matches!(self, Variant::Kurdej2013)
     }
 }
 
@@ -94,7 +107,7 @@ impl Variant {
 /// baselines' defaults.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct EvalConfig {
-    /// evigrid's parameters, for the shared front end, `full` and `no-map`. The sensor's ground
+    /// evigrid's parameters, for the shared front end, `kurdej2013` and `no-map`. The sensor's ground
     /// model is replaced by the scanner's (see [`EvalConfig::params_for`]).
     pub params: Params,
     /// The Moras 2011 baseline.
@@ -128,11 +141,11 @@ pub struct Progress {
     pub frames: usize,
 }
 
-/// What an observer of [`evaluate_observed`] sees after an evigrid variant (`full`, `no-map`)
-/// has processed a frame.
+/// What an observer of [`evaluate_observed`] sees after an evigrid variant (`kurdej2013`,
+/// `no-map`) has processed a frame.
 #[derive(Clone, Copy)]
 pub struct FusionFrame<'a> {
-    /// The variant (`full` or `no-map`).
+    /// The variant (`kurdej2013` or `no-map`).
     pub variant: Variant,
     /// Index of the seed in the seed list.
     pub seed_index: usize,
@@ -166,6 +179,7 @@ struct Runner {
     predicted: Vec<Label>,
     confusion: ConfusionMatrix,
     visible: ConfusionMatrix,
+    all: ConfusionMatrix,
     remanence: Remanence,
     latency: Latency,
     seconds: f64,
@@ -179,7 +193,9 @@ impl Runner {
         len: usize,
     ) -> Result<Self, EvalError> {
         let method = match variant {
-            Variant::Full => Method::Fusion(Box::new(Fusion::new(params.clone(), Prior::Map)?)),
+            Variant::Kurdej2013 => {
+                Method::Fusion(Box::new(Fusion::new(params.clone(), Prior::Map)?))
+            }
             Variant::NoMap => {
                 Method::Fusion(Box::new(Fusion::new(params.clone(), Prior::Vacuous)?))
             }
@@ -192,6 +208,7 @@ impl Runner {
             predicted: vec![Label::Unknown; len],
             confusion: ConfusionMatrix::default(),
             visible: ConfusionMatrix::default(),
+            all: ConfusionMatrix::default(),
             remanence: Remanence::new(len),
             latency: Latency::default(),
             seconds: 0.0,
@@ -202,6 +219,7 @@ impl Runner {
     fn merge(&mut self, other: &Runner) {
         self.confusion.merge(&other.confusion);
         self.visible.merge(&other.visible);
+        self.all.merge(&other.all);
         self.remanence.merge(&other.remanence);
         self.latency.merge(&other.latency);
         self.seconds += other.seconds;
@@ -233,7 +251,7 @@ pub fn evaluate(
     )
 }
 
-/// [`evaluate`], calling `observer` after every frame of every evigrid variant (`full`,
+/// [`evaluate`], calling `observer` after every frame of every evigrid variant (`kurdej2013`,
 /// `no-map`), so that a caller can render the views of the drive it scores without running the
 /// method a second time (`evigrid demo` does).
 ///
@@ -255,9 +273,7 @@ pub fn evaluate_observed(
         return Err(EvalError::NoVariants);
     }
     let params = config.params_for(scenario);
-    params
-        .validate()
-        .map_err(evigrid::pipeline::PipelineError::from)?;
+    params.validate().map_err(evigrid::PipelineError::from)?;
     let len = params.window.width_cells * params.window.height_cells;
     let mut totals: Vec<Runner> = Vec::new();
     let mut per_seed: Vec<Vec<SeedScores>> = vec![Vec::new(); variants.len()];
@@ -292,7 +308,8 @@ pub fn evaluate_observed(
             observer,
         )?;
         for (k, r) in runners.into_iter().enumerate() {
-            let s = r.confusion.scores();
+            // Per seed, the headline mask: cells in view.
+            let s = r.visible.scores();
             per_seed[k].push(SeedScores {
                 seed,
                 macro_f1: s.macro_f1,
@@ -314,6 +331,8 @@ pub fn evaluate_observed(
             confusion: r.confusion,
             scores_visible: r.visible.scores(),
             confusion_visible: r.visible,
+            scores_all: r.all.scores(),
+            confusion_all: r.all,
             remanence: r.remanence.summary(),
             latency: r.latency.summary(),
             ms_per_frame: r.seconds * 1000.0 / frames_total,
@@ -345,6 +364,7 @@ fn run_drive(
     let len = front_end.window().len();
     let mut observed = vec![false; len];
     let mut observed_now = vec![false; len];
+    let everywhere = vec![true; len];
     let mut truth_world = Vec::new();
     let mut truth_storage = vec![truth::IGNORED; len];
     let frames = drive.frame_count();
@@ -410,6 +430,7 @@ fn run_drive(
                 .add_frame(&truth_storage, &r.predicted, &observed);
             r.visible
                 .add_frame(&truth_storage, &r.predicted, &observed_now);
+            r.all.add_frame(&truth_storage, &r.predicted, &everywhere);
             let frame_no = frame.index as u32;
             for idx in 0..len {
                 r.remanence.update(
@@ -485,6 +506,16 @@ mod tests {
         for v in Variant::ALL {
             assert_eq!(Variant::parse(v.name()).unwrap(), v);
         }
+        // The paper's variant under its former name; serialised under its new one.
+        assert_eq!(Variant::parse("full").unwrap(), Variant::Kurdej2013);
+        assert_eq!(
+            serde_json::to_string(&Variant::Kurdej2013).unwrap(),
+            "\"kurdej2013\""
+        );
+        assert_eq!(
+            serde_json::from_str::<Variant>("\"full\"").unwrap(),
+            Variant::Kurdej2013
+        );
         assert!(matches!(
             Variant::parse("octomap"),
             Err(EvalError::UnknownVariant { .. })
@@ -502,7 +533,7 @@ mod tests {
     fn observer_sees_every_frame_of_every_pipeline_variant_and_changes_nothing() {
         let mut scenario = small_scenario(6);
         scenario.duration_s = 1.0;
-        let variants = [Variant::Full, Variant::LogOdds, Variant::NoMap];
+        let variants = [Variant::Kurdej2013, Variant::LogOdds, Variant::NoMap];
         let mut seen = Vec::new();
         let observed = evaluate_observed(
             &town(),
@@ -521,7 +552,7 @@ mod tests {
         let mut expected = Vec::new();
         for seed_index in 0..2 {
             for frame in 0..10 {
-                expected.push((seed_index, frame, Variant::Full));
+                expected.push((seed_index, frame, Variant::Kurdej2013));
                 expected.push((seed_index, frame, Variant::NoMap));
             }
         }
@@ -572,7 +603,16 @@ mod tests {
             assert_eq!(a.confusion, b.confusion);
         }
         let md = report.to_markdown();
-        assert!(md.contains("| full |") && md.contains("| log-odds |"));
+        assert!(md.contains("| kurdej2013 |") && md.contains("| log-odds |"));
+        // The masks nest: in view ⊆ observed once ⊆ all.
+        for v in &report.variants {
+            let (now, once, all) = (
+                v.confusion_visible.total(),
+                v.confusion.total(),
+                v.confusion_all.total(),
+            );
+            assert!(0 < now && now <= once && once <= all, "{now} {once} {all}");
+        }
         let json = serde_json::to_string(&report).unwrap();
         assert!(json.contains("\"no-map\""));
     }

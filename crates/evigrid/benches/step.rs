@@ -8,9 +8,10 @@
 //! Run: `cargo bench -p evigrid --bench step`.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use evigrid::grids::{N_SETS, OMEGA, class};
-use evigrid::map_prior::{prior_beta, prior_focal_set};
-use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid, step::step};
+use evigrid::{
+    GisGrid, N_SETS, OMEGA, Params, PerceptionGrid, SensorGrid, class, prior_beta, prior_focal_set,
+    step,
+};
 use geodata::MapContext;
 use std::hint::black_box;
 

@@ -12,9 +12,7 @@
 
 use std::path::PathBuf;
 
-use evigrid::Params;
-use evigrid::pipeline::Pipeline;
-use evigrid::pose::Isometry3;
+use evigrid::{Isometry3, Label, Params, Pipeline};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -50,15 +48,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     }
 
-    let mut counts = [0usize; 6];
-    for decision in pipeline.decisions() {
-        counts[*decision as usize] += 1;
-    }
-    let names = [
-        "unknown", "free", "building", "unmapped", "stopped", "moving",
-    ];
-    for (name, count) in names.iter().zip(counts) {
-        println!("{name:>9} {count}");
+    for label in Label::ALL {
+        let count = pipeline.decisions().iter().filter(|&&d| d == label).count();
+        println!("{:>9} {count}", label.name());
     }
     Ok(())
 }

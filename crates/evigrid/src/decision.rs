@@ -1,8 +1,8 @@
 //! Decision and pignistic probability per cell (SPEC §6, eq 15).
 //!
 //! ```
-//! use evigrid::decision::{Decision, betp, decide};
-//! use evigrid::grids::class::{F, M, S};
+//! use evigrid::{Label, betp, decide};
+//! use evigrid::class::{F, M, S};
 //!
 //! let mut m = [0.0_f32; 32];
 //! m[F] = 0.1;
@@ -11,56 +11,13 @@
 //! m[31] = 0.2; // Ω, a fifth to each class
 //! let p = betp(&m);
 //! assert!((p[4] - (0.1 + 0.3 + 0.04)).abs() < 1e-6); // M
-//! assert_eq!(decide(&m, true, 0.5), Decision::M);
-//! assert_eq!(decide(&m, false, 0.5), Decision::Unknown); // never observed
+//! assert_eq!(decide(&m, true, 0.5), Label::M);
+//! assert_eq!(decide(&m, false, 0.5), Label::Unknown); // never observed
 //! ```
 
 use crate::grids::{N_SETS, OMEGA, PerceptionGrid};
+use crate::label::Label;
 use rayon::prelude::*;
-
-/// The decided state of a cell.
-#[repr(u8)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Decision {
-    /// Never observed, too little evidence (m(Ω) above the threshold) or total conflict.
-    Unknown = 0,
-    /// Free space.
-    F = 1,
-    /// Mapped infrastructure (buildings).
-    I = 2,
-    /// Unmapped infrastructure.
-    U = 3,
-    /// Stopped object.
-    S = 4,
-    /// Moving object.
-    M = 5,
-}
-
-impl Decision {
-    /// The decision for class `k` of Ω_PG in frame order (0 = F … 4 = M); `Unknown` otherwise.
-    pub fn from_class(k: usize) -> Decision {
-        match k {
-            0 => Decision::F,
-            1 => Decision::I,
-            2 => Decision::U,
-            3 => Decision::S,
-            4 => Decision::M,
-            _ => Decision::Unknown,
-        }
-    }
-
-    /// Short name: `unknown`, or the class letter `F`, `I`, `U`, `S`, `M`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Decision::Unknown => "unknown",
-            Decision::F => "F",
-            Decision::I => "I",
-            Decision::U => "U",
-            Decision::S => "S",
-            Decision::M => "M",
-        }
-    }
-}
 
 /// Below this, 1 − m(∅) is treated as zero: the cell is in total conflict and has no betP.
 const MIN_NORMAL_MASS: f32 = 1e-6;
@@ -151,10 +108,10 @@ const FREE: usize = 0;
 /// or {F,S,M}, and betP splits that mass evenly between F and the occupied classes of G. Broken
 /// in favour of an occupied class, every such cell was decided U (pavement) or M (road), a third
 /// of the free cells of a one-minute drive.
-pub fn decide(m: &[f32; N_SETS], seen: bool, unknown_threshold: f64) -> Decision {
+pub fn decide(m: &[f32; N_SETS], seen: bool, unknown_threshold: f64) -> Label {
     // Compared in f32, the grid's precision: m(Ω) = 0.6_f32 is not above a threshold of 0.6.
     if !seen || m[OMEGA] > unknown_threshold as f32 || 1.0 - m[0] <= MIN_NORMAL_MASS {
-        return Decision::Unknown;
+        return Label::Unknown;
     }
     let p = betp(m);
     let mut best = TIE_ORDER[0];
@@ -164,9 +121,9 @@ pub fn decide(m: &[f32; N_SETS], seen: bool, unknown_threshold: f64) -> Decision
         }
     }
     if best != FREE && p[FREE] + TIE_TOLERANCE >= p[best] {
-        return Decision::Unknown;
+        return Label::Unknown;
     }
-    Decision::from_class(best)
+    Label::from_class(best)
 }
 
 /// Cells [`decide_grid`] decides together: 32 planes of 64 lanes (8 KiB) stay in L1.
@@ -177,7 +134,7 @@ const DECIDE_BLOCK: usize = 64;
 ///
 /// # Panics
 /// If `out.len() != pg.len()`.
-pub fn decide_grid(pg: &PerceptionGrid, unknown_threshold: f64, out: &mut [Decision]) {
+pub fn decide_grid(pg: &PerceptionGrid, unknown_threshold: f64, out: &mut [Label]) {
     assert_eq!(out.len(), pg.len(), "decision buffer size");
     let unknown_threshold = unknown_threshold as f32;
     out.par_chunks_mut(DECIDE_BLOCK)
@@ -195,16 +152,6 @@ pub fn decide_grid(pg: &PerceptionGrid, unknown_threshold: f64, out: &mut [Decis
         });
 }
 
-/// The decisions by class index + 1, `Unknown` at 0.
-const DECISIONS: [Decision; 6] = [
-    Decision::Unknown,
-    Decision::F,
-    Decision::I,
-    Decision::U,
-    Decision::S,
-    Decision::M,
-];
-
 /// [`decide`] on `N` cells held as lanes (`m[set][lane]`, +0 on the sets outside the bit mask
 /// `live`), written to `out` (at most `N` cells):
 /// the same operations in the same order per cell, so the same decisions, in loops over lanes
@@ -220,13 +167,13 @@ pub(crate) fn decide_lanes<const N: usize>(
     live: u32,
     seen: &[u8; N],
     unknown_threshold: f32,
-    out: &mut [Decision],
+    out: &mut [Label],
 ) {
     // A block no cell of which was ever seen, the usual case far from the vehicle, is unknown
     // without computing anything. (A fold, not `Iterator::any`: without an early exit it
     // vectorises.)
     if !seen.iter().fold(false, |any, &seen| any | (seen != 0)) {
-        out.fill(Decision::Unknown);
+        out.fill(Label::Unknown);
         return;
     }
     // betP before the division by 1 − m(∅): per class, the shares of the 16 sets that contain
@@ -265,7 +212,8 @@ pub(crate) fn decide_lanes<const N: usize>(
         };
     }
     for (out, &index) in out.iter_mut().zip(&decided) {
-        *out = DECISIONS[usize::from(index)];
+        // `index` is a class index + 1 (0: unknown): the label of that code.
+        *out = Label::ALL[usize::from(index)];
     }
 }
 
@@ -322,12 +270,12 @@ mod tests {
         let mut m = [0.0; N_SETS];
         m[F] = 0.4;
         m[OMEGA] = 0.6;
-        assert_eq!(decide(&m, true, 0.5), Decision::Unknown); // m(Ω) = 0.6 > 0.5
-        assert_eq!(decide(&m, true, 0.6), Decision::F); // not above
-        assert_eq!(decide(&m, false, 0.9), Decision::Unknown);
+        assert_eq!(decide(&m, true, 0.5), Label::Unknown); // m(Ω) = 0.6 > 0.5
+        assert_eq!(decide(&m, true, 0.6), Label::F); // not above
+        assert_eq!(decide(&m, false, 0.9), Label::Unknown);
         let mut conflict = [0.0; N_SETS];
         conflict[0] = 1.0;
-        assert_eq!(decide(&conflict, true, 0.5), Decision::Unknown);
+        assert_eq!(decide(&conflict, true, 0.5), Label::Unknown);
     }
 
     #[test]
@@ -336,40 +284,40 @@ mod tests {
         let mut m = [0.0; N_SETS];
         m[I | U] = 0.8;
         m[OMEGA] = 0.2;
-        assert_eq!(decide(&m, true, 0.5), Decision::U);
+        assert_eq!(decide(&m, true, 0.5), Label::U);
         // I 0.1 + 0.35 = 0.45 > U 0.35: no tie, I.
         m[I] = 0.1;
         m[I | U] = 0.7;
-        assert_eq!(decide(&m, true, 0.5), Decision::I);
+        assert_eq!(decide(&m, true, 0.5), Label::I);
         // O = {I,U,S,M} 0.8: I = U = S = M = 0.2 + 0.04; U wins (no map says "building").
         let mut o = [0.0; N_SETS];
         o[O] = 0.8;
         o[OMEGA] = 0.2;
-        assert_eq!(decide(&o, true, 0.5), Decision::U);
+        assert_eq!(decide(&o, true, 0.5), Label::U);
         // {S,M} 0.9: S = M = 0.45 + 0.02; M wins (no evidence that the object stays).
         let mut sm = [0.0; N_SETS];
         sm[S | M] = 0.9;
         sm[OMEGA] = 0.1;
-        assert_eq!(decide(&sm, true, 0.5), Decision::M);
+        assert_eq!(decide(&sm, true, 0.5), Label::M);
         // {I,S} 0.9: I = S; S wins over I.
         let mut is = [0.0; N_SETS];
         is[I | S] = 0.9;
         is[OMEGA] = 0.1;
-        assert_eq!(decide(&is, true, 0.5), Decision::S);
+        assert_eq!(decide(&is, true, 0.5), Label::S);
         // {F,M} 0.9: F = M; free or occupied is not known.
         let mut fm = [0.0; N_SETS];
         fm[F | M] = 0.9;
         fm[OMEGA] = 0.1;
-        assert_eq!(decide(&fm, true, 0.5), Decision::Unknown);
+        assert_eq!(decide(&fm, true, 0.5), Label::Unknown);
         // The map prior alone on pavement, {F,U,S,M} 0.97 (a cell long out of view): F = U = S
         // = M, unknown; with a trace of {F} left, F.
         let mut pavement = [0.0; N_SETS];
         pavement[F | U | S | M] = 0.97;
         pavement[OMEGA] = 0.03;
-        assert_eq!(decide(&pavement, true, 0.5), Decision::Unknown);
+        assert_eq!(decide(&pavement, true, 0.5), Label::Unknown);
         pavement[F] = 0.01;
         pavement[F | U | S | M] = 0.96;
-        assert_eq!(decide(&pavement, true, 0.5), Decision::F);
+        assert_eq!(decide(&pavement, true, 0.5), Label::F);
     }
 
     #[test]
@@ -379,14 +327,14 @@ mod tests {
         m[M] = 0.9;
         m[OMEGA] = 0.1;
         pg.set_cell_masses(1, &m);
-        let mut out = [Decision::F; 3];
+        let mut out = [Label::F; 3];
         decide_grid(&pg, 0.5, &mut out);
         // Never seen: unknown everywhere, whatever the masses.
-        assert_eq!(out, [Decision::Unknown; 3]);
+        assert_eq!(out, [Label::Unknown; 3]);
         pg.seen_mut().fill(1);
         decide_grid(&pg, 0.5, &mut out);
         // Cells 0 and 2 are vacuous (m(Ω) = 1 > 0.5); cell 1 is moving.
-        assert_eq!(out, [Decision::Unknown, Decision::M, Decision::Unknown]);
+        assert_eq!(out, [Label::Unknown, Label::M, Label::Unknown]);
         assert_eq!(out[1], decide(&pg.cell_masses(1), true, 0.5));
     }
 
@@ -424,7 +372,7 @@ mod tests {
                 pg.set_cell_masses(idx, m);
                 pg.seen_mut()[idx] = u8::from(*seen);
             }
-            let mut out = vec![Decision::Unknown; cells.len()];
+            let mut out = vec![Label::Unknown; cells.len()];
             decide_grid(&pg, threshold, &mut out);
             for (idx, (m, seen)) in cells.iter().enumerate() {
                 proptest::prop_assert_eq!(out[idx], decide(m, *seen, threshold), "cell {}", idx);

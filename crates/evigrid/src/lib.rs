@@ -12,8 +12,27 @@
 //! operations rather than calling them; [`reference`](mod@crate::reference) evaluates the same
 //! step on one cell in f64 with the generic `belief` crate, and the tests hold the kernel to it.
 //!
+//! # The API
+//!
+//! The modules are private; what a user needs is re-exported here, flat:
+//! - the per-frame loop: [`Pipeline`] for one drive, or its two halves, the [`FrontEnd`]
+//!   (window, map prior, SensorGrid; SPEC §2-§4) and the [`Fusion`] of the paper's method
+//!   (SPEC §5-§6), so that other grid methods can share one front end;
+//! - [`Params`] (SPEC §7) and one type per section;
+//! - the cell labels ([`Label`], one numbering for decisions, truth and baselines), [`decide`],
+//!   [`decide_grid`] and [`betp`] (SPEC §6);
+//! - the stages, for callers that drive them one by one: the grids ([`PerceptionGrid`],
+//!   [`SensorGrid`], [`GisGrid`], the focal sets in [`class`]) on a world-fixed [`Window`], the
+//!   [`SensorModel`] with poses as [`Isometry3`], the [`MapPrior`] and its SPEC §4 table
+//!   ([`prior_focal_set`], [`prior_beta`]), the fusion [`step()`], the [`MovingTrace`];
+//! - [`reference`](mod@reference), the f64 yardstick.
+//!
+//! The method reads no file and writes none: scans and poses come from the `evigrid-drive`
+//! crate, maps from `geodata`, pictures and exports go through the `evigrid-output` crate. See
+//! `examples/scan_and_map.rs` for a scan and a map through [`Pipeline`] to a decision.
+//!
 //! ```
-//! use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid, decision::{Decision, decide}};
+//! use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid, Label, decide};
 //! use geodata::MapContext;
 //!
 //! let params = Params::default();
@@ -22,31 +41,51 @@
 //! // A road cell seen free, then occupied: the object appeared, so its mass goes to M.
 //! sg.m_free_mut()[0] = 0.7;
 //! for _ in 0..3 {
-//!     evigrid::step::step(&mut pg, &sg, &gg, &params, 0.1);
+//!     evigrid::step(&mut pg, &sg, &gg, &params, 0.1);
 //! }
 //! sg.m_free_mut()[0] = 0.0;
 //! sg.m_occupied_mut()[0] = 0.8;
-//! evigrid::step::step(&mut pg, &sg, &gg, &params, 0.1);
+//! evigrid::step(&mut pg, &sg, &gg, &params, 0.1);
 //! let decided = decide(&pg.cell_masses(0), pg.seen()[0] != 0, params.decision.unknown_threshold);
-//! assert_eq!(decided, Decision::M);
+//! assert_eq!(decided, Label::M);
 //! ```
 
-pub mod decision;
-pub mod grids;
-pub mod map_prior;
-pub mod params;
-pub mod pipeline;
-pub mod pose;
-pub mod reference;
-pub mod render;
-pub mod sensor_model;
-pub mod step;
-pub mod trace;
-pub mod window;
+#![deny(missing_docs)]
 
-pub use decision::Decision;
-pub use grids::{GisGrid, PerceptionGrid, SensorGrid};
-pub use params::{Params, ParamsError};
-pub use pipeline::Pipeline;
-pub use step::{StepStats, step};
-pub use window::Window;
+mod decision;
+pub mod ego_path;
+mod grids;
+mod label;
+mod map_prior;
+mod params;
+mod pipeline;
+mod pose;
+pub mod reference;
+mod sensor_model;
+mod step;
+mod trace;
+mod window;
+
+// The per-frame pipeline: what an embedding uses first.
+pub use pipeline::{
+    FrameStats, FrontEnd, FrontEndStats, Fusion, FusionStats, NewCells, Pipeline, PipelineError,
+    Prior,
+};
+// Parameters (SPEC §7), one type per `[section]`.
+pub use params::{
+    AccumulatorParams, ClassRates, DecisionParams, DiscountMode, FusionParams, GridParams,
+    GroundModel, MEMORY_BUDGET_BYTES, MapParams, Params, ParamsError, ResidualPolicy, SensorParams,
+    SetRate, UnobservedCells, WINDOW_BYTES_PER_CELL, WindowParams, check_window_size,
+};
+// The labels, the decision and the pignistic probability (SPEC §6).
+pub use decision::{betp, decide, decide_grid};
+pub use label::Label;
+// The grids and the world-fixed window they share.
+pub use grids::{GisGrid, N_SETS, OMEGA, PerceptionGrid, SensorGrid, class};
+pub use window::{Entered, GlobalCell, Window, WindowError};
+// The stages, for callers that drive them one by one.
+pub use map_prior::{MAP_CONTEXTS, MapPrior, prior_beta, prior_focal_set};
+pub use pose::Isometry3;
+pub use sensor_model::{GroundPlane, SensorModel, SensorStats};
+pub use step::{StepStats, rate_for_step, set_rate_per_second, step, step_and_decide};
+pub use trace::MovingTrace;

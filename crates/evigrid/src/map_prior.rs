@@ -10,8 +10,8 @@
 //!
 //! ```
 //! use evigrid::Params;
-//! use evigrid::grids::class::{F, M, S};
-//! use evigrid::map_prior::{prior_beta, prior_focal_set};
+//! use evigrid::class::{F, M, S};
+//! use evigrid::{prior_beta, prior_focal_set};
 //! use geodata::MapContext;
 //!
 //! let params = Params::default();

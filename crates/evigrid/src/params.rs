@@ -15,7 +15,7 @@
 //! assert_eq!(params.sensor.mu_free, 0.7); // default
 //! // Printed with the results it produced, and read back unchanged.
 //! assert_eq!(Params::from_toml_str(&params.to_toml_string()?)?, params);
-//! # Ok::<(), evigrid::params::ParamsError>(())
+//! # Ok::<(), evigrid::ParamsError>(())
 //! ```
 
 use serde::{Deserialize, Deserializer, Serialize};
@@ -335,9 +335,12 @@ pub struct SensorParams {
     /// Returns farther than this are ignored, metres. By default 60 m (provisional, to be tuned on
     /// the benchmark).
     pub max_range_m: f64,
-    /// How returns are split into obstacle and ground points: `"plane"` (3-D lidar: fit a
-    /// ground plane per scan) or `"none"` (planar or multi-layer scanner: every return is an
-    /// obstacle). By default `"plane"`, for the Velodyne data the project is tested on.
+    /// How returns are split into obstacle and ground points: `"local"` (3-D lidar: a local
+    /// ground height per polar cell, `[sensor.ground]`), `"plane"` (3-D lidar: one ground plane
+    /// per scan) or `"none"` (planar or multi-layer scanner: every return is an obstacle). By
+    /// default `"local"`: on KITTI raw drive 0013 (frames 80–119) the plane called 37 % of a
+    /// scan's points and 52 % of the observed cells obstacles (median over frames), the local
+    /// model 27 % and 18 %, with the same ego-path figure (README, "Ground model").
     pub ground_model: GroundModel,
     /// Half-thickness of the ground band, metres: returns within it of the fitted plane are
     /// ground returns. By default 0.2 m (provisional: above the HDL-64E's range noise, below a
@@ -375,7 +378,7 @@ impl Default for SensorParams {
             min_obstacle_height_m: 0.3,
             max_obstacle_height_m: 2.5,
             max_range_m: 60.0,
-            ground_model: GroundModel::Plane,
+            ground_model: GroundModel::Local,
             ground_band_m: 0.2,
             min_range_m: 2.0,
             ground: ground::GroundParams::default(),
@@ -391,12 +394,12 @@ pub enum GroundModel {
     None,
     /// 3-D lidar: fit a ground plane to each scan; obstacles lie between the obstacle heights
     /// above it, ground returns within the ground band of it.
-    #[default]
     Plane,
     /// 3-D lidar on real streets: a local ground height per polar cell, grown outward from the
     /// sensor with slope limits (crate `ground`, parameters in `[sensor.ground]`). Holds on
     /// slopes, crowned roads and kerbs where one plane per scan turns ground rings into
-    /// obstacles.
+    /// obstacles. The default.
+    #[default]
     Local,
 }
 

@@ -15,9 +15,9 @@
 //! structure is sized by the window, so memory does not depend on the drive's length.
 //!
 //! ```
-//! use evigrid::pipeline::Pipeline;
-//! use evigrid::sensor_model::{GroundModel, Isometry3};
-//! use evigrid::{Decision, Params};
+//! use evigrid::Pipeline;
+//! use evigrid::{GroundModel, Isometry3};
+//! use evigrid::{Label, Params};
 //!
 //! let mut params = Params::default();
 //! params.window.width_cells = 40;
@@ -31,16 +31,16 @@
 //! }
 //! let window = pipeline.window();
 //! let ahead = window.storage_index_of_point(3.0, 0.1).expect("in the window");
-//! assert_eq!(pipeline.decisions()[ahead], Decision::F);
-//! # Ok::<(), evigrid::pipeline::PipelineError>(())
+//! assert_eq!(pipeline.decisions()[ahead], Label::F);
+//! # Ok::<(), evigrid::PipelineError>(())
 //! ```
 //!
 //! Two methods on one front end, with and without the map prior:
 //!
 //! ```
-//! use evigrid::pipeline::{FrontEnd, Fusion, Prior};
-//! use evigrid::sensor_model::{GroundModel, Isometry3};
-//! use evigrid::{Decision, Params};
+//! use evigrid::{FrontEnd, Fusion, Prior};
+//! use evigrid::{GroundModel, Isometry3};
+//! use evigrid::{Label, Params};
 //!
 //! let mut params = Params::default();
 //! params.window.width_cells = 40;
@@ -58,8 +58,8 @@
 //! // No map was given, so both priors are vacuous and the two agree.
 //! assert_eq!(with_map.decisions(), without_map.decisions());
 //! let ahead = front_end.window().storage_index_of_point(3.0, 0.1).expect("in the window");
-//! assert_eq!(with_map.decisions()[ahead], Decision::F);
-//! # Ok::<(), evigrid::pipeline::PipelineError>(())
+//! assert_eq!(with_map.decisions()[ahead], Label::F);
+//! # Ok::<(), evigrid::PipelineError>(())
 //! ```
 
 use std::ops::Range;
@@ -68,11 +68,12 @@ use std::time::Instant;
 use geodata::ContextRaster;
 use serde::Serialize;
 
-use crate::decision::Decision;
 use crate::grids::{GisGrid, PerceptionGrid, SensorGrid};
+use crate::label::Label;
 use crate::map_prior::MapPrior;
 use crate::params::{Params, ParamsError};
-use crate::sensor_model::{Isometry3, SensorModel, SensorStats};
+use crate::pose::Isometry3;
+use crate::sensor_model::{SensorModel, SensorStats};
 use crate::step::{StepStats, step_and_decide};
 use crate::trace::MovingTrace;
 use crate::window::{Entered, Window, WindowError};
@@ -353,7 +354,7 @@ pub struct Fusion {
     params: Params,
     prior: Prior,
     perception: PerceptionGrid,
-    decisions: Vec<Decision>,
+    decisions: Vec<Label>,
     trace: MovingTrace,
     /// The prior of [`Prior::Vacuous`]: a GISGrid nothing ever writes.
     vacuous_gis: Option<GisGrid>,
@@ -372,7 +373,7 @@ impl Fusion {
             params,
             prior,
             perception: PerceptionGrid::new(w, h),
-            decisions: vec![Decision::Unknown; w * h],
+            decisions: vec![Label::Unknown; w * h],
             trace: MovingTrace::new(w * h),
             vacuous_gis: (prior == Prior::Vacuous).then(|| GisGrid::new(w, h)),
         })
@@ -456,7 +457,7 @@ impl Fusion {
     }
 
     /// The decision per cell after the last frame, in storage order.
-    pub fn decisions(&self) -> &[Decision] {
+    pub fn decisions(&self) -> &[Label] {
         &self.decisions
     }
 
@@ -583,7 +584,7 @@ impl Pipeline {
     }
 
     /// The decision per cell after the last frame, in storage order.
-    pub fn decisions(&self) -> &[Decision] {
+    pub fn decisions(&self) -> &[Label] {
         self.fusion.decisions()
     }
 
@@ -602,7 +603,7 @@ impl Pipeline {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
-    use crate::sensor_model::GroundModel;
+    use crate::params::GroundModel;
 
     fn params() -> Params {
         let mut p = Params::default();
@@ -621,7 +622,7 @@ mod tests {
         let per_cell = (pipeline.perception().heap_bytes()
             + pipeline.sensor_grid().heap_bytes()
             + pipeline.gis().heap_bytes()
-            + pipeline.decisions().len() * std::mem::size_of::<Decision>()
+            + pipeline.decisions().len() * std::mem::size_of::<crate::Label>()
             + pipeline.trace().as_slice().len()) as f64
             / cells as f64;
         assert!(

@@ -3,7 +3,7 @@
 //! specialisation.
 //!
 //! It is slow (dense 32 × 32 combinations and heap-allocated mass functions) and serves as the
-//! yardstick the grid kernel of [`step`](mod@crate::step) is tested against; read it to see the
+//! yardstick the grid kernel of [`step`](crate::step()) is tested against; read it to see the
 //! method written as the paper writes it.
 //!
 //! ```

@@ -1,7 +1,7 @@
 //! The moving trace: which cells were ever decided moving during the drive (paper Fig. 2,
 //! picture 4), kept world-fixed in the window.
 
-use crate::decision::Decision;
+use crate::label::Label;
 use crate::window::{Entered, Window};
 
 /// Which cells were ever decided moving during the drive: a world-fixed flag per storage cell
@@ -36,9 +36,9 @@ impl MovingTrace {
     }
 
     /// Adds the cells decided moving now (`decisions` in storage order).
-    pub fn record(&mut self, decisions: &[Decision]) {
+    pub fn record(&mut self, decisions: &[Label]) {
         for (flag, decision) in self.ever_moving.iter_mut().zip(decisions) {
-            *flag |= *decision == Decision::M;
+            *flag |= *decision == Label::M;
         }
     }
 

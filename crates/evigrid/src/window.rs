@@ -85,7 +85,7 @@ impl Entered {
 /// # Example
 ///
 /// ```
-/// use evigrid::window::Window;
+/// use evigrid::Window;
 ///
 /// let mut window = Window::new(4, 3, 0.5)?;
 /// // The point (1.2 m, 0.7 m) is in global cell (2, 1), stored at row 1, column 2.
@@ -95,7 +95,7 @@ impl Entered {
 /// assert_eq!(entered.cell_count(), 3);
 /// assert_eq!(window.storage_index(4, 1), Some(1 * 4 + 0));
 /// assert_eq!(window.storage_index(0, 1), None);
-/// # Ok::<(), evigrid::window::WindowError>(())
+/// # Ok::<(), evigrid::WindowError>(())
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct Window {

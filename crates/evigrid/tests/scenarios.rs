@@ -12,11 +12,10 @@
 
 #![allow(clippy::unwrap_used)]
 
-use evigrid::grids::{N_SETS, OMEGA, class};
-use evigrid::params::UnobservedCells;
-use evigrid::pipeline::{FrameStats, Pipeline};
-use evigrid::sensor_model::{GroundModel, Isometry3};
-use evigrid::{Decision, Params};
+use evigrid::{
+    FrameStats, GroundModel, Isometry3, Label, N_SETS, OMEGA, Params, Pipeline, UnobservedCells,
+    class,
+};
 use geo::{Rect, coord, polygon};
 use geodata::{ContextRaster, LocalMap};
 
@@ -129,7 +128,7 @@ impl Drive {
         self.pipeline.window().storage_index_of_point(x, y).unwrap()
     }
 
-    fn decision(&self, x: f64, y: f64) -> Decision {
+    fn decision(&self, x: f64, y: f64) -> Label {
         self.pipeline.decisions()[self.idx(x, y)]
     }
 
@@ -174,7 +173,7 @@ fn a_free_road_stays_free() {
         for (x, y) in FREE_ROAD_PROBES {
             assert_eq!(
                 drive.decision(x, y),
-                Decision::F,
+                Label::F,
                 "frame {frame} at ({x}, {y})"
             );
         }
@@ -192,7 +191,7 @@ fn an_object_appearing_on_free_road_is_moving_within_one_step() {
     let cells = drive.occupied_cells_in(widen(CAR, 0.5));
     assert!(cells.len() >= 4, "the car's near side spans several cells");
     for idx in cells {
-        assert_eq!(drive.pipeline.decisions()[idx], Decision::M, "cell {idx}");
+        assert_eq!(drive.pipeline.decisions()[idx], Label::M, "cell {idx}");
         // The past said free, the present occupied: ∅_FO carried the evidence to M (eq 22).
         assert!(drive.pipeline.perception().conflict_fo()[idx] > 0.3);
     }
@@ -210,7 +209,7 @@ fn frames_until_stopped(params: Params) -> usize {
         let cells = drive.occupied_cells_in(widen(CAR, 0.5));
         if cells
             .iter()
-            .all(|&idx| drive.pipeline.decisions()[idx] == Decision::S)
+            .all(|&idx| drive.pipeline.decisions()[idx] == Label::S)
         {
             return frame;
         }
@@ -269,7 +268,7 @@ fn a_vacated_cell_shows_conflict_of_then_returns_to_free() {
     let cells = drive.occupied_cells_in(widen(CAR, 0.5));
     assert!(!cells.is_empty());
     for &idx in &cells {
-        assert_eq!(drive.pipeline.decisions()[idx], Decision::S);
+        assert_eq!(drive.pipeline.decisions()[idx], Label::S);
     }
     // The car leaves: its cells are seen free; past O against present F is ∅_OF (eq 23).
     drive.frame(&FENCE);
@@ -283,7 +282,7 @@ fn a_vacated_cell_shows_conflict_of_then_returns_to_free() {
         drive.frame(&FENCE);
         if cells
             .iter()
-            .all(|&idx| drive.pipeline.decisions()[idx] == Decision::F)
+            .all(|&idx| drive.pipeline.decisions()[idx] == Label::F)
         {
             frames_to_free = Some(frame);
             break;
@@ -309,7 +308,7 @@ fn an_obstacle_inside_a_building_is_mapped_infrastructure() {
         if (5.0..12.0).contains(&x) && (6.0..12.0).contains(&y) {
             assert_eq!(
                 drive.pipeline.decisions()[idx],
-                Decision::I,
+                Label::I,
                 "cell centre ({x}, {y})"
             );
         }
@@ -317,7 +316,7 @@ fn an_obstacle_inside_a_building_is_mapped_infrastructure() {
 }
 
 /// Runs the pole scene for three seconds; returns betP of every cell the pole occupies.
-fn pole_cells() -> Vec<(Decision, [f32; 5])> {
+fn pole_cells() -> Vec<(Label, [f32; 5])> {
     let mut drive = Drive::new(params(), true);
     let scene = [FENCE.as_slice(), &[POLE]].concat();
     for _ in 0..30 {
@@ -329,7 +328,7 @@ fn pole_cells() -> Vec<(Decision, [f32; 5])> {
         .into_iter()
         .map(|idx| {
             let m = drive.pipeline.perception().cell_masses(idx);
-            (drive.pipeline.decisions()[idx], evigrid::decision::betp(&m))
+            (drive.pipeline.decisions()[idx], evigrid::betp(&m))
         })
         .collect()
 }
@@ -337,7 +336,7 @@ fn pole_cells() -> Vec<(Decision, [f32; 5])> {
 #[test]
 fn an_obstacle_staying_on_the_pavement_is_unmapped_infrastructure() {
     for (decision, p) in pole_cells() {
-        assert_eq!(decision, Decision::U, "betP F I U S M = {p:?}");
+        assert_eq!(decision, Label::U, "betP F I U S M = {p:?}");
     }
 }
 
@@ -364,7 +363,7 @@ fn without_a_map_the_same_obstacles_are_never_mapped_infrastructure() {
             .pipeline
             .decisions()
             .iter()
-            .filter(|d| **d == Decision::I)
+            .filter(|d| **d == Label::I)
             .count();
         assert_eq!(
             i_cells, 0,
@@ -437,7 +436,7 @@ fn scrolling_the_window_keeps_world_fixed_content_exact() {
             // An entered cell starts vacuous and unseen; the step then fuses the map prior alone
             // into it (SPEC §5 step 2 with a vacuous sensor), so it holds exactly GG.
             None => {
-                assert_eq!(moved.pipeline.decisions()[idx], Decision::Unknown);
+                assert_eq!(moved.pipeline.decisions()[idx], Label::Unknown);
                 let map = &moved.pipeline.params().map;
                 let beta = match moved.pipeline.gis().context[idx] {
                     geodata::MapContext::Building => map.beta_building,

@@ -30,6 +30,7 @@
 //! assert_eq!(raster.context_at(0.5, 30.5), MapContext::Unknown);
 //! # Ok::<(), geodata::MapError>(())
 //! ```
+#![deny(missing_docs)]
 
 pub mod buffer;
 mod context;

@@ -116,4 +116,5 @@ pub use label::{GroundStats, PointLabel, Segmentation};
 pub use params::{
     GroundMethod, GroundParams, GroundParamsError, MAX_CELLS, MAX_RINGS, MAX_SECTORS, RingZone,
 };
+pub use plane::{GroundPlane, PlaneFitter};
 pub use segmenter::GroundSegmenter;

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use crate::label::{GroundStats, PointLabel, Segmentation};
 use crate::local::{CellProfile, LocalHeight};
 use crate::params::{GroundMethod, GroundParams, GroundParamsError};
-use crate::plane::{self, Plane};
+use crate::plane::{GroundPlane, PlaneFitter};
 use crate::polar::{NO_CELL, PolarLayout};
 
 /// Points per parallel task: large enough that scheduling costs little, small enough that two
@@ -27,9 +27,8 @@ pub struct GroundSegmenter {
     /// Cell of each point ([`NO_CELL`] if invalid) and its horizontal range.
     cell: Vec<u32>,
     range_m: Vec<f32>,
-    usable: Vec<bool>,
     local: LocalHeight,
-    plane_sample: Vec<[f64; 3]>,
+    plane: PlaneFitter,
     out: Segmentation,
 }
 
@@ -37,7 +36,7 @@ pub struct GroundSegmenter {
 #[derive(Clone, Copy)]
 enum Ground<'a> {
     Profiles(&'a [CellProfile]),
-    Plane(Plane),
+    Plane(GroundPlane),
     Level(f32),
     Unknown,
 }
@@ -55,9 +54,8 @@ impl GroundSegmenter {
             layout,
             cell: Vec::new(),
             range_m: Vec::new(),
-            usable: Vec::new(),
             local: LocalHeight::default(),
-            plane_sample: Vec::new(),
+            plane: PlaneFitter::default(),
             out: Segmentation::default(),
         })
     }
@@ -105,14 +103,14 @@ impl GroundSegmenter {
                 Ground::Profiles(&self.local.profile)
             }
             GroundMethod::GlobalPlane => {
-                self.usable.clear();
-                self.usable.extend(self.cell.iter().map(|&c| c != NO_CELL));
-                match plane::fit(
-                    points_levelled,
-                    &self.usable,
-                    self.params.plane_band_m,
-                    &mut self.plane_sample,
-                ) {
+                let valid = || {
+                    points_levelled
+                        .iter()
+                        .zip(&self.cell)
+                        .filter(|(_, c)| **c != NO_CELL)
+                        .map(|(p, _)| p.map(f64::from))
+                };
+                match self.plane.fit_with(valid, self.params.plane_band_m) {
                     Some(plane) => Ground::Plane(plane),
                     None => Ground::Unknown,
                 }

@@ -224,8 +224,8 @@ impl SensorConfig {
     /// The ground model evigrid's sensor model needs for these scans (SPEC §3): `none` for
     /// every kind, because the simulated world is planar: every return is an obstacle, none
     /// is ground, and a fitted ground plane would have nothing to fit.
-    pub fn ground_model(&self) -> evigrid::sensor_model::GroundModel {
-        evigrid::sensor_model::GroundModel::None
+    pub fn ground_model(&self) -> evigrid::GroundModel {
+        evigrid::GroundModel::None
     }
 }
 

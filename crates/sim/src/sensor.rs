@@ -51,9 +51,9 @@ impl Scan {
 
     /// The estimated `world_from_sensor` as evigrid's 3-D transform (z = 0, level), as the
     /// pipeline takes it.
-    pub fn estimated_isometry(&self) -> evigrid::sensor_model::Isometry3 {
+    pub fn estimated_isometry(&self) -> evigrid::Isometry3 {
         let p = &self.world_from_sensor_estimated;
-        evigrid::sensor_model::Isometry3::from_xyz_rpy(
+        evigrid::Isometry3::from_xyz_rpy(
             p.position_m.x,
             p.position_m.y,
             0.0,

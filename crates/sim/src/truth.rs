@@ -1,15 +1,27 @@
 //! Ground truth per cell of a window at one instant, in the perception grid's classes.
 //!
 //! # Labelling rule
-//! Each cell is sampled at `n × n` points (the centres of an `n × n` subdivision; by default
-//! n = [`DEFAULT_SAMPLES_PER_AXIS`] = 3, which includes the cell centre). A cell takes the class of
-//! an object that covers at least one of its sample points; an actor also always claims the cell
-//! holding its centre, so an object thinner than a sample spacing (a 0.2 m bollard in 0.5 m cells)
-//! is never lost. When several objects claim a cell the highest class wins in the order
-//! F < I < U < S < M: a pedestrian standing against a wall is S, not I. Why this rule: with n odd
-//! the centre is a sample, so a cell the map prior calls "building" by its centre (SPEC §4) is a
-//! building in truth too; and a scanner return lands in any cell the object overlaps, so a
-//! cell half-covered by a car should count as the car.
+//! Each cell is sampled at `n × n` points (the centres of an `n × n` subdivision; n odd, by
+//! default [`DEFAULT_SAMPLES_PER_AXIS`] = 3, so the cell centre is one of them).
+//!
+//! - **Buildings: the map prior's rule, plus a boundary band.** A cell whose *centre* is inside a
+//!   building is I (U if the building is missing from the map): the cell-centre rule by which the
+//!   map prior gives a cell the building context (SPEC §4), so a mapped building's cells are the
+//!   same cells in truth and in the prior (up to rounding on an edge through a centre). A cell a
+//!   building covers at some sample but not at its centre is [`Label::Edge`], the boundary band:
+//!   part wall, part open space, it is crossed by rays from one side and hit from another, and
+//!   free or infrastructure are both defensible there. The evaluation scores the band as static
+//!   (predicting M there is wrong, see `eval::metrics`) and no other class.
+//! - **Road users and street furniture: any overlap.** A cell takes the class of an actor that
+//!   covers at least one of its samples, and an actor always claims the cell holding its centre,
+//!   so an object thinner than a sample spacing (a 0.2 m bollard in 0.5 m cells) is never lost.
+//!   Why not the centre rule here: a scanner return lands in whichever cell the object's outline
+//!   crosses, and the outline cells of a car are the only ones a scanner sees, so a cell a moving
+//!   car covers in part is M.
+//!
+//! When several objects claim a cell the highest class wins in the order
+//! F < edge < I < U < S < M: a pedestrian standing against a wall is S, not I, and a car beside
+//! a building is the car.
 //!
 //! Classes: F where nothing is; I for buildings present in the map handed to the pipeline; U for
 //! street furniture and for buildings missing from that map; S for a road user slower than
@@ -40,10 +52,12 @@ pub fn actor_class(actor: &Actor) -> Label {
     }
 }
 
-/// Rank of a truth label when several objects claim a cell: F < I < U < S < M < [`IGNORED`].
-/// [`IGNORED`] is code 0, so one wrapping subtraction ranks it last, without a branch.
+/// Rank of a truth label when several objects claim a cell:
+/// F < edge < I < U < S < M < [`IGNORED`] (O is never truth), indexed by code.
+const RANK: [u8; 8] = [7, 0, 2, 3, 4, 5, 6, 1];
+
 fn priority(label: Label) -> u8 {
-    (label as u8).wrapping_sub(1)
+    RANK[label as usize]
 }
 
 /// Gives `cell` to `claim` if it ranks higher than what the cell holds.
@@ -56,7 +70,8 @@ fn claim(cell: &mut Label, claim: Label) {
 /// Labels every cell of `window` into `out` (row-major, `out[row * width + col]`, rows from the
 /// south): one of F, I, U, S, M, or [`IGNORED`] under the actor `ego_id`.
 ///
-/// `out` is resized to the window. `samples_per_axis` is clamped to 1..=8.
+/// `out` is resized to the window. `samples_per_axis` is clamped to 1..=7 and rounded up to an
+/// odd number, so that the cell centre is a sample.
 pub fn label_window(
     world: &World,
     actors: &[Actor],
@@ -71,7 +86,8 @@ pub fn label_window(
     if w == 0 || h == 0 || window.cell_size_m.is_nan() || window.cell_size_m <= 0.0 {
         return;
     }
-    let n = samples_per_axis.clamp(1, 8);
+    let n = samples_per_axis.clamp(1, 7) | 1;
+    let mid = n / 2;
     let s = window.cell_size_m;
     let sub = s / n as f64;
     let x0 = window.first_col as f64 * s;
@@ -100,15 +116,22 @@ pub fn label_window(
             b.crossings_at(y, &mut xs);
             xs.sort_by(f64::total_cmp);
             let row = k / n;
+            let centre_row = k % n == mid;
             for pair in xs.chunks_exact(2) {
                 let j0 = first_sample(pair[0], x0).max(0.0);
                 let j1 = last_sample(pair[1], x0).min((w * n) as f64 - 1.0);
                 if j1 < j0 {
                     continue;
                 }
-                let (c0, c1) = (j0 as usize / n, j1 as usize / n);
-                for cell in &mut out[row * w + c0..=row * w + c1] {
-                    claim(cell, class);
+                let (j0, j1) = (j0 as usize, j1 as usize);
+                for c in j0 / n..=j1 / n {
+                    // The centre sample of cell c is sample c·n + mid of this row.
+                    let centre = c * n + mid;
+                    let inside = centre_row && (j0..=j1).contains(&centre);
+                    claim(
+                        &mut out[row * w + c],
+                        if inside { class } else { Label::Edge },
+                    );
                 }
             }
         }
@@ -187,6 +210,7 @@ mod tests {
                         Label::U => 'U',
                         Label::S => 'S',
                         Label::M => 'M',
+                        Label::Edge => 'e',
                         _ => 'x',
                     })
                     .collect()
@@ -202,9 +226,10 @@ mod tests {
     }
 
     #[test]
-    fn building_covering_a_third_of_a_cell_claims_it() {
+    fn building_cells_by_centre_and_partly_covered_cells_in_the_band() {
         // Building x ∈ [0.9, 2.3], y ∈ [0, 2]. Sample x positions are k + 1/6, k + 1/2, k + 5/6.
-        // Cell 0: sample 0.833 < 0.9 → free. Cell 1: all in. Cell 2: sample 2.167 ≤ 2.3 → I.
+        // Cell 0: sample 0.833 < 0.9 → free. Cell 1: all in → I. Cell 2: sample 2.167 ≤ 2.3 but
+        // centre 2.5 outside → edge.
         let b = Building::new(vec![vec![
             Vec2::new(0.9, 0.0),
             Vec2::new(2.3, 0.0),
@@ -217,9 +242,9 @@ mod tests {
         label_window(&world, &[], None, &window(), 3, &mut out);
         assert_eq!(
             rows(&out, 8),
-            vec!["........", "........", ".II.....", ".II....."]
+            vec!["........", "........", ".Ie.....", ".Ie....."]
         );
-        // With one sample (the centre) cell 2's centre 2.5 is outside → only cell 1.
+        // With one sample (the centre) cell 2's centre 2.5 is outside → only cell 1, no band.
         label_window(&world, &[], None, &window(), 1, &mut out);
         assert_eq!(
             rows(&out, 8),
@@ -296,5 +321,58 @@ mod tests {
         assert_eq!(out[8 + 2], Label::U);
         assert_eq!(out[8 + 3], Label::U);
         assert_eq!(out.iter().filter(|&&c| c != Label::F).count(), 2);
+    }
+
+    #[test]
+    fn mapped_building_cells_are_the_prior_s_building_cells() {
+        // Irregular, slanted polygons: truth I ⇔ the map prior's building context, cell for
+        // cell, and every edge cell is a cell the prior does not call building.
+        let poly = |pts: &[(f64, f64)]| {
+            geo::Polygon::new(
+                geo::LineString::from(
+                    pts.iter()
+                        .map(|&(x, y)| geo::coord! { x: x, y: y })
+                        .collect::<Vec<_>>(),
+                ),
+                vec![],
+            )
+        };
+        let buildings = vec![
+            poly(&[(1.13, 0.71), (9.37, 2.29), (7.91, 8.83), (2.07, 6.41)]),
+            poly(&[(11.3, 1.1), (17.9, 4.7), (12.2, 9.6)]),
+        ];
+        let extent = geo::Rect::new(
+            geo::coord! { x: -5.0, y: -5.0 },
+            geo::coord! { x: 25.0, y: 15.0 },
+        );
+        let map = geodata::LocalMap::new(buildings.clone(), vec![], extent);
+        let world = World::from_polygons(&buildings, &[], &extent);
+        let window = CellWindow {
+            first_col: -4,
+            first_row: -3,
+            width: 50,
+            height: 30,
+            cell_size_m: 0.5,
+        };
+        let mut contexts = vec![geodata::MapContext::Unknown; window.len()];
+        geodata::ContextRaster::new(&map).fill(&window, &mut contexts);
+        let mut out = Vec::new();
+        label_window(&world, &[], None, &window, 3, &mut out);
+        let (mut i_cells, mut edge_cells) = (0, 0);
+        for (k, (&t, &c)) in out.iter().zip(&contexts).enumerate() {
+            let building = c == geodata::MapContext::Building;
+            assert_eq!(
+                t == Label::I,
+                building,
+                "cell {k}: truth {t:?}, prior {c:?}"
+            );
+            i_cells += usize::from(t == Label::I);
+            edge_cells += usize::from(t == Label::Edge);
+        }
+        // Both classes are present, and the band is a thin ring, not most of the area.
+        assert!(
+            i_cells > 200 && edge_cells > 20 && edge_cells < i_cells,
+            "{i_cells} {edge_cells}"
+        );
     }
 }

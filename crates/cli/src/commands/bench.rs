@@ -27,7 +27,13 @@ pub struct BenchArgs {
     /// `$EVIGRID_SHARED/data/osm/helsinki-centre.osm.pbf`.
     #[arg(long)]
     map: Option<PathBuf>,
-    /// Skip the real-data cases (`sensor`, `prior`, `frame`).
+    /// Folder of consecutive scans of one drive (0.1 s apart) for the `odometry` case; its first
+    /// 20 are registered in turn. By default the shared KITTI raw drive 0013
+    /// (`$EVIGRID_SHARED/data/lidar/kitti-raw-0013/…/velodyne_points/data`), the case skipped
+    /// when it is absent.
+    #[arg(long)]
+    odometry_scans: Option<PathBuf>,
+    /// Skip the real-data cases (`sensor`, `prior`, `frame`, `ground`, `odometry`).
     #[arg(long)]
     synthetic_only: bool,
     /// Cell size of the real-data cases, metres.
@@ -38,6 +44,9 @@ pub struct BenchArgs {
     json: bool,
 }
 
+/// Scans the `odometry` case registers in turn before starting again.
+const ODOMETRY_SCANS: usize = 20;
+
 /// Runs `evigrid bench`.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     if args.sizes.is_empty() || args.sizes.contains(&0) {
@@ -46,7 +55,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         ));
     }
     for &size in &args.sizes {
-        evigrid::params::check_window_size(size, size)
+        evigrid::check_window_size(size, size)
             .map_err(|e| BadInput::new(format!("--sizes {size}: {e}")))?;
     }
     if args.rounds == 0 || args.rounds > 10_000 {
@@ -80,7 +89,26 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
                 )));
             }
         }
-        Some(RealInputs { scan, map })
+        let default_odometry = shared.join(
+            "data/lidar/kitti-raw-0013/2011_09_26/2011_09_26_drive_0013_sync/velodyne_points/data",
+        );
+        let odometry_scans = match &args.odometry_scans {
+            Some(dir) => drive::list_scans(dir).map_err(|e| BadInput::new(e.to_string()))?,
+            None if default_odometry.is_dir() => {
+                drive::list_scans(&default_odometry).map_err(|e| BadInput::new(e.to_string()))?
+            }
+            None => Vec::new(),
+        };
+        if args.odometry_scans.is_some() && odometry_scans.len() < 2 {
+            return Err(BadInput::new(
+                "--odometry-scans: the odometry case needs at least two scans",
+            ));
+        }
+        Some(RealInputs {
+            scan,
+            map,
+            odometry_scans: odometry_scans.into_iter().take(ODOMETRY_SCANS).collect(),
+        })
     };
     let options = BenchOptions {
         sizes: args.sizes,
@@ -145,6 +173,17 @@ fn table(report: &BenchReport) -> String {
                 None => String::new(),
             };
             out += &format!("  {name:<24} {value:>8.3}  {target}\n");
+        }
+        if let Some(odometry) = w.timing("odometry@1") {
+            out += &format!(
+                "  odometry: {:.1} ms per scan on one core (target ≤ 50 ms: {})\n",
+                odometry.median_ms,
+                if odometry.median_ms <= 50.0 {
+                    "met"
+                } else {
+                    "not met"
+                }
+            );
         }
         if let (Some(allowed), Some(reached)) =
             (w.ratio("step@1/ideal@N"), w.ratio("ideal@N/step@N"))

@@ -1,14 +1,12 @@
 //! `evigrid cell`: one cell through a sequence of observations, step by step.
 //!
 //! To see what the method does with a given context, parameters and observation history: the
-//! cell is a 1 × 1 grid run through the same kernel as every grid (`evigrid::step::step`).
+//! cell is a 1 × 1 grid run through the same kernel as every grid (`evigrid::step`).
 
 use crate::exit::BadInput;
 use anyhow::Context as _;
 use clap::{Args, ValueEnum};
-use evigrid::decision::{betp, decide};
-use evigrid::grids::{N_SETS, class};
-use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid};
+use evigrid::{GisGrid, N_SETS, Params, PerceptionGrid, SensorGrid, betp, class, decide};
 use geodata::MapContext;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -202,7 +200,7 @@ fn simulate(
     for (k, observation) in observations.iter().enumerate() {
         sg.m_free_mut()[0] = observation.free as f32;
         sg.m_occupied_mut()[0] = observation.occupied as f32;
-        evigrid::step::step(&mut pg, &sg, &gg, params, dt_s);
+        evigrid::step(&mut pg, &sg, &gg, params, dt_s);
         let masses = pg.cell_masses(0);
         let p = betp(&masses);
         let seen = pg.seen()[0] != 0;

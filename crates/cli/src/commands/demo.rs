@@ -6,9 +6,9 @@
 //!
 //! A simulated drive with traffic over a real map of central Helsinki that ships inside the binary
 //! (`assets/helsinki-demo.geojson`, cropped from the OpenStreetMap extract with `evigrid map crop`;
-//! map data © OpenStreetMap contributors, ODbL). `full` and `no-map` are scored against the
-//! simulator's truth exactly as `evigrid eval` does, in one pass over the drive; the `full`
-//! method's views of the paper's Fig. 2 are rendered after every frame of that pass and encoded
+//! map data © OpenStreetMap contributors, ODbL). [`VARIANTS`] are scored against the
+//! simulator's truth exactly as `evigrid eval` does (cells in view first), in one pass over the
+//! drive; the [`VIEWS_OF`] method's views of the paper's Fig. 2 are rendered after every frame of that pass and encoded
 //! (PNG per frame, animated GIF) on a second thread, so the minute-long drive stays well under a
 //! minute of wall time.
 //!
@@ -25,11 +25,9 @@ use anyhow::{Context, Result};
 use clap::Args;
 use eval::{EvalConfig, FusionFrame, Progress, Variant};
 use evigrid::Params;
-use evigrid::render::{
-    ClassColours, decision_image, pignistic_image, trace_image, write_atomic, write_png,
-};
 use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, DynamicImage, RgbImage};
+use output::{ClassColours, decision_image, pignistic_image, trace_image, write_atomic, write_png};
 use rayon::prelude::*;
 use sim::Scenario;
 
@@ -42,6 +40,10 @@ const SCENARIO_TOML: &str = include_str!("../../assets/demo-scenario.toml");
 /// Origin (lat, lon) of the full Helsinki extract's local frame, in which the scenario's
 /// waypoints are given; the crop is loaded with it so that both share one frame.
 const FULL_MAP_ORIGIN: (f64, f64) = (60.171_634_0, 24.944_295_4);
+/// The variants scored, in table order.
+const VARIANTS: [Variant; 2] = [Variant::Kurdej2013, Variant::NoMap];
+/// The variant whose views are rendered.
+const VIEWS_OF: Variant = Variant::Kurdej2013;
 /// Attribution the map's licence requires wherever the map is shown.
 pub(crate) const OSM_ATTRIBUTION: &str = "Map data © OpenStreetMap contributors, ODbL";
 
@@ -65,16 +67,16 @@ pub struct DemoArgs {
 
 const OUTPUTS_HELP: &str = "\
 Outputs (in --out):
-  frames/pignistic-NNNNNN.png  per frame, `full`: betP colour mix (F green, I dark blue,
+  frames/pignistic-NNNNNN.png  per frame, `kurdej2013`: betP colour mix (F green, I dark blue,
                                U mid blue, S light blue, M red; black = never observed)
-  frames/decision-NNNNNN.png   per frame, `full`: decided class, same colours
-  frames/trace-NNNNNN.png      per frame, `full`: decision map with every cell ever decided
-                               moving painted red (trace of moving objects)
+  frames/decision-NNNNNN.png   per frame, `kurdej2013`: decided class, same colours
+  frames/trace-NNNNNN.png      per frame, `kurdej2013`: decision map with every cell ever
+                               decided moving painted red (trace of moving objects)
   decision.gif                 the decision view over the whole drive, 10 frames per second
-  metrics.json                 evaluation of full and no-map against the simulator's truth
-  report.md                    its tables, parameters and the command line
-  confusion-<variant>.png      row-normalised confusion matrix per variant
-  per-class-iou.png            IoU of F, I, U, S, M per variant
+  metrics.json                 evaluation of kurdej2013 and no-map against the simulator's truth
+  report.md                    its tables (cells in view first), parameters and the command line
+  confusion-<variant>.png      row-normalised confusion matrix per variant, cells in view
+  per-class-iou.png            IoU of F, I, U, S, M per variant, cells in view
 Map data © OpenStreetMap contributors, ODbL.";
 
 /// Runs `evigrid demo`.
@@ -108,8 +110,8 @@ pub fn run(args: DemoArgs) -> Result<()> {
         .with_context(|| format!("cannot create {}", frames_dir.display()))?;
     let delay_ms = (1000.0 / scenario.sensor.rate_hz).round() as u32;
 
-    // One pass over the drive: the evaluation runs `full` and `no-map` frame by frame, and the
-    // views are rendered from its `full` method, not from a second run of it. Encoding the
+    // One pass over the drive: the evaluation runs the variants frame by frame, and the
+    // views are rendered from its `VIEWS_OF` method, not from a second run of it. Encoding the
     // PNGs and the GIF is the other half of the work; it runs on its own thread, fed through a
     // short queue (memory stays bounded), while the pipelines go on with the next frames.
     let bar = crate::progress::bar(frames as u64, "demo");
@@ -121,12 +123,12 @@ pub fn run(args: DemoArgs) -> Result<()> {
         let report = eval::evaluate_observed(
             &loaded.map,
             &scenario,
-            &[Variant::Full, Variant::NoMap],
+            &VARIANTS,
             &[scenario.seed],
             &config,
             &mut |p: Progress| bar.set_position(p.frame as u64),
             &mut |f: FusionFrame<'_>| {
-                if f.variant != Variant::Full || rendered.is_err() {
+                if f.variant != VIEWS_OF || rendered.is_err() {
                     return;
                 }
                 rendered = render_views(&f, f.frame).map(|views| {
@@ -179,7 +181,7 @@ struct FrameViews {
     decision: RgbImage,
 }
 
-/// Renders the `full` method's three views of the paper's Fig. 2 after frame `index`.
+/// Renders the [`VIEWS_OF`] method's three views of the paper's Fig. 2 after frame `index`.
 fn render_views(frame: &FusionFrame<'_>, index: usize) -> Result<FrameViews> {
     let five = ClassColours::FIVE_CLASSES;
     let (window, fusion) = (frame.front_end.window(), frame.fusion);

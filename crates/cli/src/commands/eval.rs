@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! evigrid eval --map city.osm.pbf --scenario drive.toml --out eval/ \
-//!     [--variants full,no-map,moras2011,log-odds] [--seeds 3] [--config params.toml] [--json]
+//!     [--variants kurdej2013,no-map,moras2011,log-odds] [--seeds 3] [--config params.toml] [--json]
 //! ```
 //!
 //! Wiring only: reading and checking the inputs, the progress bar, writing the outputs. The work
@@ -19,7 +19,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use eval::{EvalConfig, EvalError, EvalReport, Progress, Variant, plots};
 use evigrid::Params;
-use evigrid::render::{write_atomic, write_png};
+use output::{write_atomic, write_png};
 use sim::{Scenario, SimError};
 
 use crate::exit::BadInput;
@@ -36,13 +36,11 @@ pub struct EvalArgs {
     /// Scenario (TOML): traffic, ego route, sensor, map errors (see scenarios/README.md).
     #[arg(long)]
     scenario: PathBuf,
-    /// Methods to compare, comma-separated: full, no-map, moras2011, log-odds.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "full,no-map,moras2011,log-odds"
-    )]
-    variants: Vec<String>,
+    /// Methods to compare, comma-separated: kurdej2013 (the paper's method, SPEC §5), no-map,
+    /// moras2011, log-odds; every variant by default. `full` is the deprecated name of
+    /// kurdej2013.
+    #[arg(long, value_delimiter = ',')]
+    variants: Option<Vec<String>>,
     /// Number of seeds: the scenario's seed, seed + 1, … (one drive each).
     #[arg(long, default_value_t = 1)]
     seeds: u64,
@@ -63,11 +61,18 @@ pub struct EvalArgs {
 
 const OUTPUTS_HELP: &str = "\
 Outputs (in --out, each written atomically):
-  metrics.json              the evaluation report: confusion matrices, scores, timings per variant
-  report.md                 the report's tables, the parameters used (TOML), the command line
-  confusion-<variant>.png   row-normalised confusion matrix per variant (rows truth F I U S M,
-                            columns prediction F I U S M O ?, darker = larger share of the row)
-  per-class-iou.png         IoU of F, I, U, S, M, one bar per variant";
+  metrics.json              the evaluation report: confusion matrices (cells in view, observed
+                            at least once, all), scores, timings per variant
+  report.md                 the report's tables (cells in view first), the parameters used
+                            (TOML), the command line
+  confusion-<variant>.png   row-normalised confusion matrix per variant, cells in view (rows
+                            truth F I U S M, columns prediction F I U S M O ?, darker = larger
+                            share of the row)
+  per-class-iou.png         IoU of F, I, U, S, M in view, one bar per variant
+
+Table: scores over the cells in view (the sensor has evidence there in this frame), then the
+moving IoU and macro-F1 over the cells observed at least once. Building edge cells (covered in
+part, not at the centre) are scored as static only: see docs/evaluation.md.";
 
 /// Most seeds one evaluation runs: each is a whole simulated drive, so a thousand already takes
 /// hours; more is a typo.
@@ -87,7 +92,10 @@ pub fn run(args: EvalArgs) -> Result<()> {
             args.seeds
         )));
     }
-    let variants = parse_variants(&args.variants)?;
+    let variants = match &args.variants {
+        Some(names) => parse_variants(names)?,
+        None => Variant::ALL.to_vec(),
+    };
     let params = read_params(args.config.as_deref())?;
     let scenario_text = crate::input::read_text(&args.scenario)?;
     let scenario = Scenario::from_toml(&scenario_text)
@@ -175,22 +183,33 @@ pub(crate) fn write_outputs(
     Ok(json)
 }
 
-/// Variant names → variants, in the order given; an unknown or repeated name is bad input.
+/// Variant names → variants, in the order given; an unknown or repeated name is bad input. A
+/// deprecated name is accepted with a warning on standard error, once the whole list is good.
 fn parse_variants(names: &[String]) -> Result<Vec<Variant>> {
     let mut variants = Vec::with_capacity(names.len());
+    let mut deprecated = Vec::new();
     for name in names {
-        let v =
-            Variant::parse(name.trim()).map_err(|e| BadInput::new(format!("--variants: {e}")))?;
+        let name = name.trim();
+        let v = Variant::parse(name).map_err(|e| BadInput::new(format!("--variants: {e}")))?;
         if variants.contains(&v) {
             return Err(BadInput::new(format!(
                 "--variants: {} is given twice",
                 v.name()
             )));
         }
+        if name != v.name() {
+            deprecated.push((name, v));
+        }
         variants.push(v);
     }
     if variants.is_empty() {
         return Err(BadInput::new("--variants: no variant given"));
+    }
+    for (name, v) in deprecated {
+        eprintln!(
+            "warning: --variants: `{name}` is deprecated, use `{}`",
+            v.name()
+        );
     }
     Ok(variants)
 }
@@ -219,26 +238,44 @@ fn fmt_score(v: Option<f64>) -> String {
     v.map_or_else(|| "-".to_string(), |x| format!("{x:.3}"))
 }
 
-/// The stdout table: one line per variant.
+/// The stdout table: one line per variant, the in-view scores first, then the moving IoU and
+/// macro-F1 over the cells observed at least once, then a line saying so.
 pub(crate) fn table(report: &EvalReport) -> String {
     let mut s = format!(
-        "{:<10} {:>9} {:>9} {:>9} {:>9} {:>9}\n",
-        "variant", "macro-F1", "IoU M", "static", "dynamic", "ms/frame"
+        "{:<12} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8} {:>8} | {:>7} {:>8}\n",
+        "variant",
+        "IoU M",
+        "dynamic",
+        "M prec",
+        "occ-st",
+        "static",
+        "macro-F1",
+        "ms/frame",
+        "IoU M",
+        "macro-F1"
     );
     for v in &report.variants {
-        let sc = &v.scores;
+        let (now, once) = (&v.scores_visible, &v.scores);
         // Writing to a String cannot fail.
         let _ = writeln!(
             s,
-            "{:<10} {:>9} {:>9} {:>9} {:>9} {:>9.2}",
+            "{:<12} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8} {:>8.2} | {:>7} {:>8}",
             v.variant.name(),
-            fmt_score(sc.macro_f1),
-            fmt_score(sc.moving_iou),
-            fmt_score(sc.static_accuracy),
-            fmt_score(sc.dynamic_accuracy),
-            v.ms_per_frame
+            fmt_score(now.moving_iou),
+            fmt_score(now.dynamic_accuracy),
+            fmt_score(now.moving_precision),
+            fmt_score(now.occupied_static_accuracy),
+            fmt_score(now.static_accuracy),
+            fmt_score(now.macro_f1),
+            v.ms_per_frame,
+            fmt_score(once.moving_iou),
+            fmt_score(once.macro_f1),
         );
     }
+    s.push_str(
+        "Left of |: cells in view (occ-st: static accuracy over truth I, U, S). \
+         Right: cells observed at least once.\n",
+    );
     s
 }
 
@@ -257,21 +294,25 @@ fn report_markdown(
     s.push_str("## Scores\n\n");
     s.push_str(&report.to_markdown());
     s.push_str(
-        "\nSA: share of truly static cells (F, I, U, S) not predicted M; DA: share of truly \
-         moving cells predicted M; HA: their harmonic mean. Two-class baselines predict O \
-         (occupied, static) and never I, U or S, so their five-class scores for I, U, S are 0 \
-         by construction; compare them on the coarse columns.\n",
+        "\nSA: share of truly static cells (F, I, U, S and the building edge band) not predicted \
+         M; occupied-static accuracy: the same over truth I, U and S only; DA: share of truly \
+         moving cells predicted M; M precision: share of the cells predicted M that are moving; \
+         HA: harmonic mean of SA and DA. Edge-band cells (a building covers them in part, not \
+         at the centre) count only against M. Two-class baselines predict O (occupied, static) \
+         and never I, U or S, so their five-class scores for I, U, S are 0 by construction; \
+         compare them on the coarse columns.\n",
     );
     s.push_str("\n## Pictures\n\n");
     s.push_str(
-        "- `confusion-<variant>.png`: confusion matrix over the cells observed at least once. \
+        "- `confusion-<variant>.png`: confusion matrix over the cells in view. \
          Rows: truth F, I, U, S, M (top to bottom). Columns: prediction F, I, U, S, M, O \
          (occupied, static, class not resolved), ? (no decision), left to right. Each cell shows \
          its share of the row in per cent and is shaded from white (0 %) to dark blue (100 %); a \
          grey row has no truth cell.\n",
     );
     s.push_str(
-        "- `per-class-iou.png`: IoU per class, groups F, I, U, S, M from left to right, one bar \
+        "- `per-class-iou.png`: IoU per class over the cells in view, groups F, I, U, S, M from \
+         left to right, one bar \
          per variant in this order and colour:",
     );
     let colours = [
@@ -299,7 +340,7 @@ fn report_markdown(
     );
     let _ = writeln!(
         s,
-        "\n## Parameters used\n\nevigrid (the front end all variants share, `full` and `no-map`; \
+        "\n## Parameters used\n\nevigrid (the front end all variants share, `kurdej2013` and `no-map`; \
          `sensor.ground_model` is the simulated scanner's, `none`, whatever the configuration \
          says):\n\n```toml\n{params_toml}```\n"
     );

@@ -10,7 +10,7 @@
 //! that cannot be read as a map exits with status 2 and one line naming the file and the problem.
 //! All the work is the `geodata` crate's.
 
-use std::fs;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
@@ -243,7 +243,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         .context("internal error: image buffer size")?;
     let mut png = std::io::Cursor::new(Vec::new());
     image.write_to(&mut png, image::ImageFormat::Png)?;
-    write_atomically(&args.out, png.get_ref())?;
+    write_out(&args.out, png.get_ref())?;
     eprintln!(
         "wrote {} ({width} x {height} px, {} m per pixel); scale bar bottom left: {} m in alternating {} m blocks; colours: building red-brown, road grey, other beige, unknown black",
         args.out.display(),
@@ -381,7 +381,7 @@ fn crop(args: &CropArgs) -> Result<()> {
     };
     let cropped = loaded.features.crop(&bbox);
     let text = serde_json::to_string(&cropped.to_geojson())?;
-    write_atomically(&args.out, text.as_bytes())?;
+    write_out(&args.out, text.as_bytes())?;
     let summary = CropSummary {
         out: args.out.clone(),
         buildings: cropped.buildings.len(),
@@ -422,22 +422,11 @@ fn parse_numbers<const N: usize>(text: &str) -> std::result::Result<[f64; N], St
     Ok(numbers)
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so that
-/// readers never see a half-written file.
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let file_name = path
-        .file_name()
-        .ok_or_else(|| BadInput::new(format!("--out {}: not a file name", path.display())))?;
-    let mut temporary_name = std::ffi::OsString::from(".");
-    temporary_name.push(file_name);
-    temporary_name.push(format!(".{}.tmp", std::process::id()));
-    let temporary = path.with_file_name(temporary_name);
-    fs::write(&temporary, bytes)
-        .map_err(|e| BadInput::new(format!("--out {}: cannot write: {e}", path.display())))?;
-    fs::rename(&temporary, path).map_err(|e| {
-        let _ = fs::remove_file(&temporary);
-        BadInput::new(format!("--out {}: cannot write: {e}", path.display()))
-    })
+/// Writes `bytes` to `--out` atomically; a failure is the user's (a missing directory, no
+/// permission), so it exits with status 2.
+fn write_out(path: &Path, bytes: &[u8]) -> Result<()> {
+    output::write_atomic(path, |file| file.write_all(bytes))
+        .map_err(|e| BadInput::new(format!("--out {e}")))
 }
 
 #[cfg(test)]

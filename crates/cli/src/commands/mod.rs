@@ -6,5 +6,6 @@ pub mod demo;
 pub mod eval;
 pub mod map;
 pub mod mass;
+pub mod odometry;
 pub mod run;
 pub mod tune;

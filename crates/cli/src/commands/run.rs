@@ -1,28 +1,38 @@
-//! `evigrid run`: the perception pipeline over a directory of scans, with a map.
+//! `evigrid run`: the perception pipeline over a drive, with or without a map.
 //!
 //! ```text
-//! evigrid run --map city.osm.pbf --scans scans/ --poses poses.txt --out out/ [--config p.toml]
+//! evigrid run --drive 2011_09_26/ --out out/                       KITTI raw: scans, OXTS, calib
+//! evigrid run --scans scans/ --poses poses.txt --map city.osm.pbf --out out/
+//! evigrid run --scans scans/ --out out/                            poses from the lidar odometry
 //! ```
 //!
 //! Wiring only: reading files, the progress bar, writing pictures and the summary. The work is
-//! `evigrid::pipeline::Pipeline`'s.
+//! `evigrid::Pipeline`'s; poses are matched to scans in `crate::drive_input`.
 
 use std::fs;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use drive::{list_scans, read_scan};
+use drive::poses::{Mounting, PoseFormat};
+use drive::read_scan;
 use evigrid::Params;
-use evigrid::pipeline::{FrameStats, Pipeline};
-use evigrid::render::{
-    self, ClassColours, OccupancyGridExport, count_decisions, decision_image, pignistic_image,
+use evigrid::ego_path::{
+    EGO_PATH_LENGTH_M, EGO_PATH_RADIUS_M, EgoPathCheck, ShareSpread, cells_near_path, path_ahead,
+};
+use evigrid::{FrameStats, Pipeline};
+use odometry::OdometryParams;
+use output::{
+    ClassColours, OccupancyGridExport, count_decisions, decision_image, pignistic_image,
     trace_image, write_masses, write_png,
 };
-use evigrid::sensor_model::Isometry3;
 use serde::Serialize;
 
+use crate::drive_input::{
+    PoseFileOptions, ScanPoses, open_kitti_raw, open_scans, poses_from_file, poses_from_odometry,
+    poses_from_oxts, to_pipeline,
+};
 use crate::exit::BadInput;
 use crate::input::read_params;
 
@@ -35,37 +45,75 @@ pub struct RunArgs {
     #[arg(long)]
     map: Option<PathBuf>,
     /// Directory of scans: PCD v0.7 (ascii or binary) or KITTI `.bin`, processed in file-name
-    /// order.
+    /// order (a folder holding a KITTI raw drive is read as --drive).
+    #[arg(long, required_unless_present = "drive", conflicts_with = "drive")]
+    scans: Option<PathBuf>,
+    /// A KITTI raw drive: its `<date>_drive_<NNNN>_sync` folder, or the date folder holding one.
+    /// Scans, their timestamps, the OXTS poses and `calib_imu_to_velo.txt` are read from it.
     #[arg(long)]
-    scans: PathBuf,
-    /// Pose file: one line per scan, `timestamp x y z roll pitch yaw` in the map's local frame
-    /// (seconds, metres, radians), or WGS84 after a `# frame: wgs84` line (see below).
+    drive: Option<PathBuf>,
+    /// Pose file: evigrid (7 columns), TUM (8) or KITTI odometry (12), matched to scans by time
+    /// (see below). Without it, a KITTI raw drive's OXTS poses, or else the lidar odometry.
     #[arg(long)]
-    poses: PathBuf,
+    poses: Option<PathBuf>,
+    /// Pose file format: `evigrid`, `tum` or `kitti`; by default from its column count.
+    #[arg(long, value_name = "FORMAT")]
+    pose_format: Option<String>,
+    /// KITTI odometry `calib.txt` (its `Tr`, camera 0 from Velodyne) for KITTI odometry pose
+    /// files; without it they are read as the sensor's own poses.
+    #[arg(long)]
+    calib: Option<PathBuf>,
+    /// Scan times: a KITTI raw `timestamps.txt` or a KITTI odometry `times.txt`, one per scan.
+    /// By default a `timestamps.txt` beside or in the scan folder, if any.
+    #[arg(long)]
+    times: Option<PathBuf>,
+    /// Where the sensor sits on the vehicle whose poses --poses gives, `x,y,z,roll,pitch,yaw`
+    /// (metres, radians; vehicle x forward, y left, z up).
+    #[arg(long, value_name = "X,Y,Z,ROLL,PITCH,YAW", allow_hyphen_values = true)]
+    mounting: Option<String>,
+    /// Process only the first N scans.
+    #[arg(long, value_name = "N")]
+    max_frames: Option<usize>,
     /// Output directory (created if missing).
     #[arg(long)]
     out: PathBuf,
     /// Parameters (TOML, any subset of SPEC §7's layout); defaults otherwise.
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Origin of the map's local frame as `LAT,LON` in degrees; by default the map's centre.
-    /// Without a map, WGS84 poses need it.
+    /// Origin of the map's local frame as `LAT,LON` in degrees; by default the map's centre, or
+    /// a KITTI raw drive's first OXTS fix. Without a map, WGS84 poses need it.
     #[arg(long, value_name = "LAT,LON", allow_hyphen_values = true)]
     origin: Option<String>,
-    /// Print the summary as JSON on standard output.
+    /// Print the summary as JSON on standard output (and no per-frame lines).
     #[arg(long)]
     json: bool,
 }
 
 const POSES_HELP: &str = "\
-Pose file (--poses):
-  One line per scan, in the order of the scan files, blank lines and other `#` lines ignored:
-    timestamp x y z roll pitch yaw
-  with the sensor's position x (east), y (north), z (up) in metres in the map's local frame and
-  roll, pitch, yaw in radians (ROS convention: R = Rz(yaw)·Ry(pitch)·Rx(roll), sensor x forward).
-  A first line `# frame: wgs84` switches to
-    timestamp lat lon alt roll pitch yaw
-  with latitude and longitude in degrees, projected with the map's projection.
+Where poses come from:
+  --poses FILE          a pose file (formats below)
+  --drive DIR           without --poses: the OXTS GNSS/INS poses of the KITTI raw drive, with the
+                        Velodyne's lever arm from calib_imu_to_velo.txt
+  neither               the lidar odometry, run over the scans first (poses in the first scan's
+                        frame, so no --map)
+
+Pose file formats (--poses, detected from the column count, or --pose-format):
+  evigrid  t x y z roll pitch yaw      metres in the map's local frame (x east, y north, z up),
+                                       radians, R = Rz(yaw)·Ry(pitch)·Rx(roll); after a line
+                                       `# frame: wgs84`: t lat lon alt roll pitch yaw (degrees)
+  tum      t x y z qx qy qz qw         unit quaternion of world_from_sensor
+  kitti    12 numbers, the 3x4 world_from_cam0 matrix per line, no times; with --calib the
+           sequence's calib.txt turns it into the Velodyne's poses, without it the matrix is the
+           sensor's pose itself (as `evigrid odometry --format kitti` writes it)
+  With --mounting the file gives the vehicle's poses and the sensor sits there on it.
+
+Matching poses to scans:
+  Scans have times from a KITTI raw drive, from --times, or from a timestamps.txt beside the scan
+  folder (KITTI raw's velodyne_points/{data/, timestamps.txt}) or in it (also times.txt). Then
+  each scan takes the pose at its time, interpolated between the two poses around it (linear
+  position, slerp rotation); a scan outside the poses' time span (beyond 1 ms) is an error naming
+  it. Scans without times take pose line k for scan k (the counts must agree) and its time; KITTI
+  odometry files have no times and then take the scans 0.1 s apart.
 
 Outputs (in --out):
   frames/decision-NNNNNN.png   decision map per frame (north up, one pixel per cell)
@@ -73,26 +121,50 @@ Outputs (in --out):
   pignistic.png                final betP colour mix;  trace.png  moving objects over the drive
   occupancy.json               final decided grid, ROS nav_msgs/OccupancyGrid layout
   masses.json, masses.bin      final masses, one float32 field per focal set (foxglove.Grid layout)
-  summary.json                 parameters, per-frame timing and counts, final class counts";
-
-/// One line of the pose file, in the map's local frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct PoseLine {
-    time_s: f64,
-    world_from_sensor: Isometry3,
-}
+  summary.json                 parameters, per-frame timing, counts, ground and obstacle shares and
+                               the ego-path check, totals over the drive";
 
 /// Per-frame record of the summary.
 #[derive(Debug, Serialize)]
 struct FrameRecord {
     scan: String,
     time_s: f64,
+    /// The sensor's position in the world frame, metres.
+    position: [f64; 3],
     read_ms: f64,
     process_ms: f64,
     render_ms: f64,
     stats: FrameStats,
     /// Cells per decision: unknown, F, I, U, S, M.
     classes: [usize; 6],
+    /// Ground points over the scan's points.
+    ground_share: f64,
+    /// Obstacle points over the scan's points.
+    obstacle_share: f64,
+    /// Obstacle points over the finite points within the sensor's range.
+    obstacle_share_in_range: f64,
+    /// Cells the scan marked occupied over the cells it observed (occupied or free): an area
+    /// measure, which a wall beside the car does not inflate as it does the point shares.
+    obstacle_cell_share: f64,
+    /// Cells within `EGO_PATH_RADIUS_M` of the ego's path over the next `EGO_PATH_LENGTH_M`.
+    ego_path: EgoPathCheck,
+    /// Of the observed ego-path cells, the share decided I, U, S or M (`null`: none observed).
+    ego_path_share: Option<f64>,
+}
+
+/// Totals of the ego-path check over the drive.
+#[derive(Debug, Serialize)]
+struct EgoPathTotals {
+    length_m: f64,
+    radius_m: f64,
+    /// Observed ego-path cells summed over the frames.
+    cell_frames: usize,
+    occupied: usize,
+    moving: usize,
+    /// `occupied + moving`.
+    decided_occupied_or_moving: usize,
+    /// `decided_occupied_or_moving / cell_frames`.
+    share: Option<f64>,
 }
 
 /// The summary written to `summary.json` (and to stdout with `--json`).
@@ -104,7 +176,10 @@ struct Summary {
     prior: &'static str,
     map_stats: Option<geodata::MapStats>,
     scans: String,
+    /// The pose file, or where the poses came from (`OXTS of …`, `lidar odometry`).
     poses: String,
+    /// How scans met poses: `time` (interpolated at the scan times) or `line order`.
+    pose_matching: &'static str,
     params: Params,
     frames: usize,
     points: usize,
@@ -112,10 +187,19 @@ struct Summary {
     dropped_out_of_range: usize,
     dropped_outside_window: usize,
     total_seconds: f64,
+    /// Seconds of the odometry's first pass (0 when poses were given).
+    odometry_seconds: f64,
     mean_process_ms: f64,
     /// Final cells per decision: unknown, F, I, U, S, M.
     final_classes: [usize; 6],
     moving_trace_cells: usize,
+    ego_path: EgoPathTotals,
+    /// Median over frames of `obstacle_share` and the worst frame's ratio to it.
+    obstacle_share: Option<ShareSpread>,
+    /// The same for `obstacle_share_in_range`.
+    obstacle_share_in_range: Option<ShareSpread>,
+    /// The same for `obstacle_cell_share`.
+    obstacle_cell_share: Option<ShareSpread>,
     per_frame: Vec<FrameRecord>,
 }
 
@@ -125,6 +209,57 @@ pub fn run(args: RunArgs) -> Result<()> {
     // Validated as it is read: the defaults are valid by construction.
     let params = read_params(args.config.as_deref())?;
     let origin = args.origin.as_deref().map(parse_origin).transpose()?;
+    let pose_format = args
+        .pose_format
+        .as_deref()
+        .map(|f| {
+            f.parse::<PoseFormat>()
+                .map_err(|e| BadInput::new(format!("--pose-format: {e}")))
+        })
+        .transpose()?;
+    let mounting = args
+        .mounting
+        .as_deref()
+        .map(|m| {
+            m.parse::<Mounting>()
+                .map_err(|e| BadInput::new(format!("--mounting: {e}")))
+        })
+        .transpose()?;
+    if args.poses.is_none() {
+        for (given, flag) in [
+            (mounting.is_some(), "--mounting"),
+            (pose_format.is_some(), "--pose-format"),
+            (args.calib.is_some(), "--calib"),
+        ] {
+            if given {
+                return Err(BadInput::new(format!(
+                    "{flag} describes --poses, not given"
+                )));
+            }
+        }
+    }
+    if args.max_frames == Some(0) {
+        return Err(BadInput::new("--max-frames must be at least 1"));
+    }
+    let mut scans = match (&args.drive, &args.scans) {
+        (Some(dir), _) => {
+            if args.times.is_some() {
+                return Err(BadInput::new(
+                    "--times: a KITTI raw --drive has its own scan timestamps",
+                ));
+            }
+            open_kitti_raw(dir)?
+        }
+        (None, Some(dir)) => open_scans(dir, args.times.as_deref())?,
+        (None, None) => return Err(BadInput::new("give --scans or --drive")),
+    };
+    let scans_name = args
+        .drive
+        .as_ref()
+        .or(args.scans.as_ref())
+        .map(|p| p.display().to_string())
+        .unwrap_or_default();
+
     let loaded = match &args.map {
         Some(map) => Some(
             geodata::load_map(map, &geodata::LoadOptions { origin })
@@ -135,49 +270,94 @@ pub fn run(args: RunArgs) -> Result<()> {
     let raster = loaded
         .as_ref()
         .map(|loaded| geodata::ContextRaster::new(&loaded.map));
-    let projection = match (&loaded, origin) {
+    // The local frame: the map's; else --origin; else a KITTI raw drive's first fix.
+    let first_fix = scans
+        .kitti
+        .as_ref()
+        .and_then(|d| d.oxts().first().map(|p| (p.lat_deg, p.lon_deg)));
+    let projection = match (&loaded, origin.or(first_fix)) {
         (Some(loaded), _) => Some(loaded.projection),
         (None, Some((lat, lon))) => Some(
             geodata::TransverseMercator::new(lat, lon)
-                .map_err(|e| BadInput::new(format!("--origin: {e}")))?,
+                .map_err(|e| BadInput::new(format!("origin of the local frame: {e}")))?,
         ),
         (None, None) => None,
     };
-    let project = |lat: f64, lon: f64| {
-        let (x, y) = projection.as_ref()?.forward(lat, lon);
-        (x.is_finite() && y.is_finite()).then_some((x, y))
+    let project = |lat: f64, lon: f64| match &projection {
+        Some(p) => p.forward(lat, lon),
+        None => (f64::NAN, f64::NAN),
     };
+    let project_dyn: &dyn Fn(f64, f64) -> (f64, f64) = &project;
 
-    let scan_paths = list_scans(&args.scans).map_err(|e| BadInput::new(e.to_string()))?;
-    if scan_paths.is_empty() {
-        return Err(BadInput::new(format!(
-            "{}: no .pcd or .bin scans in this directory",
-            args.scans.display()
-        )));
+    let mut odometry_seconds = 0.0;
+    let (poses, poses_name, pose_matching): (ScanPoses, String, &str) = match &args.poses {
+        Some(path) => {
+            let options = PoseFileOptions {
+                path,
+                format: pose_format,
+                calib: args.calib.as_deref(),
+                mounting,
+            };
+            let matching = if scans.times.is_some() {
+                "time"
+            } else {
+                "line order"
+            };
+            let poses = poses_from_file(
+                &scans,
+                &options,
+                projection.is_some().then_some(project_dyn),
+                args.max_frames.unwrap_or(usize::MAX),
+            )?;
+            (poses, path.display().to_string(), matching)
+        }
+        None => match &scans.kitti {
+            Some(drive) => (
+                poses_from_oxts(drive, project_dyn)?,
+                format!("OXTS of {}", drive.drive_dir().display()),
+                "time",
+            ),
+            None => {
+                if let Some(map) = &args.map {
+                    return Err(BadInput::new(format!(
+                        "--map {}: poses from the lidar odometry are in the first scan's frame, \
+                         not the map's; give --poses",
+                        map.display()
+                    )));
+                }
+                if let Some(n) = args.max_frames {
+                    scans.truncate(n);
+                }
+                let bar = crate::progress::bar(scans.paths.len() as u64, "odometry");
+                let t0 = Instant::now();
+                let poses = poses_from_odometry(&scans, OdometryParams::default(), |_| bar.inc(1))?;
+                bar.finish_and_clear();
+                odometry_seconds = t0.elapsed().as_secs_f64();
+                (poses, "lidar odometry".to_string(), "odometry")
+            }
+        },
+    };
+    let ScanPoses {
+        mut times,
+        world_from_sensor: mut nalgebra_poses,
+    } = poses;
+    // The ego's path: every pose is known before the run, those after --max-frames too.
+    let positions: Vec<[f64; 2]> = nalgebra_poses
+        .iter()
+        .map(|p| [p.translation.x, p.translation.y])
+        .collect();
+    if let Some(n) = args.max_frames {
+        scans.truncate(n);
+        times.truncate(n);
+        nalgebra_poses.truncate(n);
     }
-    let pose_text = fs::read_to_string(&args.poses)
-        .map_err(|e| BadInput::new(format!("{}: {e}", args.poses.display())))?;
-    let poses = parse_poses(&pose_text, &project)
-        .map_err(|e| BadInput::new(format!("{}: {e}", args.poses.display())))?;
-    if poses.len() != scan_paths.len() {
-        return Err(BadInput::new(format!(
-            "{}: {} poses for {} scans in {}",
-            args.poses.display(),
-            poses.len(),
-            scan_paths.len(),
-            args.scans.display()
-        )));
-    }
+    let poses: Vec<evigrid::Isometry3> = nalgebra_poses.iter().map(to_pipeline).collect();
 
     if let Some(loaded) = &loaded {
         check_poses_on_map(&poses, &loaded.map.extent).map_err(|e| {
             BadInput::new(format!(
-                "{}: {e} of the map {}",
-                args.poses.display(),
-                args.map
-                    .as_deref()
-                    .unwrap_or(std::path::Path::new(""))
-                    .display()
+                "{poses_name}: {e} of the map {}",
+                args.map.as_deref().unwrap_or(Path::new("")).display()
             ))
         })?;
     }
@@ -188,22 +368,28 @@ pub fn run(args: RunArgs) -> Result<()> {
     let mut pipeline = Pipeline::new(params.clone(), raster)
         .map_err(|e| BadInput::new(format!("{}: {e}", config_name(&args))))?;
 
-    let progress = crate::progress::bar(scan_paths.len() as u64, "run");
-    let mut per_frame = Vec::with_capacity(scan_paths.len());
-    for (k, (path, pose)) in scan_paths.iter().zip(&poses).enumerate() {
+    let progress = crate::progress::bar(scans.paths.len() as u64, "run");
+    let mut per_frame = Vec::with_capacity(scans.paths.len());
+    for (k, ((path, pose), &time_s)) in scans.paths.iter().zip(&poses).zip(&times).enumerate() {
         let t0 = Instant::now();
         let scan = read_scan(path).map_err(|e| BadInput::new(e.to_string()))?;
         let t1 = Instant::now();
         let stats = pipeline
-            .process(&scan.points_in_sensor, &pose.world_from_sensor, pose.time_s)
+            .process(&scan.points_in_sensor, pose, time_s)
             .map_err(|e| {
                 BadInput::new(format!(
-                    "{}: line for scan {}: {e}",
-                    args.poses.display(),
-                    k + 1
+                    "{poses_name}: pose of scan {}: {e}",
+                    path.display()
                 ))
             })?;
         let t2 = Instant::now();
+        let path_cells = cells_near_path(
+            pipeline.window(),
+            &path_ahead(&positions, k, EGO_PATH_LENGTH_M),
+            EGO_PATH_RADIUS_M,
+        );
+        let ego_path =
+            EgoPathCheck::count(&path_cells, pipeline.sensor_grid(), pipeline.decisions());
         let image = decision_image(
             pipeline.window(),
             pipeline.decisions(),
@@ -211,22 +397,38 @@ pub fn run(args: RunArgs) -> Result<()> {
         )?;
         write_png(&image, &frames_dir.join(format!("decision-{k:06}.png")))?;
         let t3 = Instant::now();
-        per_frame.push(FrameRecord {
+        let s = &stats.sensor;
+        let share = |n: usize, of: usize| if of > 0 { n as f64 / of as f64 } else { 0.0 };
+        let in_range = s
+            .points
+            .saturating_sub(s.dropped_non_finite + s.dropped_out_of_range);
+        let record = FrameRecord {
             scan: path
                 .file_name()
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default(),
-            time_s: pose.time_s,
+            time_s,
+            position: pose.translation,
             read_ms: ms(t1 - t0),
             process_ms: ms(t2 - t1),
             render_ms: ms(t3 - t2),
+            ground_share: share(s.ground_points, s.points),
+            obstacle_share: share(s.obstacle_points, s.points),
+            obstacle_share_in_range: share(s.obstacle_points, in_range),
+            obstacle_cell_share: share(s.occupied_cells, s.occupied_cells + s.free_cells),
+            ego_path_share: ego_path.share(),
+            ego_path,
             stats,
             classes: count_decisions(pipeline.decisions()),
-        });
+        };
+        if !args.json {
+            let line = frame_line(k, &record);
+            progress.suspend(|| println!("{line}"));
+        }
+        per_frame.push(record);
         progress.inc(1);
     }
     progress.finish_and_clear();
-
     let window = pipeline.window();
     let five = ClassColours::FIVE_CLASSES;
     write_png(
@@ -256,6 +458,16 @@ pub fn run(args: RunArgs) -> Result<()> {
     )?;
 
     let sum = |f: fn(&FrameRecord) -> usize| per_frame.iter().map(f).sum::<usize>();
+    let mut ego_total = EgoPathCheck::default();
+    for f in &per_frame {
+        ego_total.add(&f.ego_path);
+    }
+    let obstacle_shares: Vec<f64> = per_frame.iter().map(|f| f.obstacle_share).collect();
+    let in_range_shares: Vec<f64> = per_frame
+        .iter()
+        .map(|f| f.obstacle_share_in_range)
+        .collect();
+    let cell_shares: Vec<f64> = per_frame.iter().map(|f| f.obstacle_cell_share).collect();
     let summary = Summary {
         map: args.map.as_ref().map(|m| m.display().to_string()),
         prior: if loaded.is_some() {
@@ -264,8 +476,9 @@ pub fn run(args: RunArgs) -> Result<()> {
             "vacuous (no map)"
         },
         map_stats: loaded.map(|loaded| loaded.stats),
-        scans: args.scans.display().to_string(),
-        poses: args.poses.display().to_string(),
+        scans: scans_name,
+        poses: poses_name,
+        pose_matching,
         params,
         frames: per_frame.len(),
         points: sum(|f| f.stats.sensor.points),
@@ -273,15 +486,28 @@ pub fn run(args: RunArgs) -> Result<()> {
         dropped_out_of_range: sum(|f| f.stats.sensor.dropped_out_of_range),
         dropped_outside_window: sum(|f| f.stats.sensor.dropped_outside_window),
         total_seconds: started.elapsed().as_secs_f64(),
+        odometry_seconds,
         mean_process_ms: per_frame.iter().map(|f| f.process_ms).sum::<f64>()
             / per_frame.len() as f64,
         final_classes: count_decisions(pipeline.decisions()),
         moving_trace_cells: pipeline.trace().count(),
+        ego_path: EgoPathTotals {
+            length_m: EGO_PATH_LENGTH_M,
+            radius_m: EGO_PATH_RADIUS_M,
+            cell_frames: ego_total.observed_cells,
+            occupied: ego_total.occupied_cells,
+            moving: ego_total.moving_cells,
+            decided_occupied_or_moving: ego_total.decided_occupied_or_moving(),
+            share: ego_total.share(),
+        },
+        obstacle_share: ShareSpread::of(&obstacle_shares),
+        obstacle_share_in_range: ShareSpread::of(&in_range_shares),
+        obstacle_cell_share: ShareSpread::of(&cell_shares),
         per_frame,
     };
     let text = serde_json::to_string_pretty(&summary)?;
     let summary_path = args.out.join("summary.json");
-    render::write_atomic(&summary_path, |file| {
+    output::write_atomic(&summary_path, |file| {
         std::io::Write::write_all(file, text.as_bytes())
     })?;
     if args.json {
@@ -291,14 +517,66 @@ pub fn run(args: RunArgs) -> Result<()> {
         println!(
             "{} frames, {:.1} ms per frame; final cells: {f} free, {i} mapped infrastructure, \
              {u} unmapped infrastructure, {s} stopped, {m} moving, {unknown} unknown; prior: {}; \
-             outputs in {}",
+             poses: {} (matched by {}); outputs in {}",
             summary.frames,
             summary.mean_process_ms,
             summary.prior,
+            summary.poses,
+            summary.pose_matching,
             args.out.display()
         );
+        let e = &summary.ego_path;
+        println!(
+            "ego path ({} m ahead, {} m either side): {} of {} observed cell-frames decided \
+             occupied or moving ({}; {} occupied, {} moving)",
+            e.length_m,
+            e.radius_m,
+            e.decided_occupied_or_moving,
+            e.cell_frames,
+            percent(e.share),
+            e.occupied,
+            e.moving
+        );
+        for (spread, what) in [
+            (&summary.obstacle_share, "of a scan's points are obstacles"),
+            (
+                &summary.obstacle_cell_share,
+                "of the observed cells are occupied",
+            ),
+        ] {
+            if let Some(spread) = spread {
+                println!(
+                    "median {:.1} % {what}; worst frame {} at {:.1} %, {} the median",
+                    100.0 * spread.median,
+                    spread.worst_frame,
+                    100.0 * spread.worst,
+                    spread
+                        .worst_to_median
+                        .map_or_else(|| "n/a ×".to_string(), |r| format!("{r:.2}×"))
+                );
+            }
+        }
     }
     Ok(())
+}
+
+/// One frame's numbers on one line.
+fn frame_line(k: usize, f: &FrameRecord) -> String {
+    format!(
+        "frame {k:>4} {}: points {:.1} % ground, {:.1} % obstacle; cells {:.1} % occupied; ego \
+         path {}/{} observed cells occupied or moving ({})",
+        f.scan,
+        100.0 * f.ground_share,
+        100.0 * f.obstacle_share,
+        100.0 * f.obstacle_cell_share,
+        f.ego_path.decided_occupied_or_moving(),
+        f.ego_path.observed_cells,
+        percent(f.ego_path_share)
+    )
+}
+
+fn percent(share: Option<f64>) -> String {
+    share.map_or_else(|| "n/a".to_string(), |s| format!("{:.2} %", 100.0 * s))
 }
 
 /// How far a pose may lie outside the map's extent: the sensor sees about this far, so a pose
@@ -307,12 +585,12 @@ const MAP_MARGIN_M: f64 = 100.0;
 
 /// The first pose farther than [`MAP_MARGIN_M`] outside the map's extent, as an error.
 fn check_poses_on_map(
-    poses: &[PoseLine],
+    poses: &[evigrid::Isometry3],
     extent: &geo::Rect<f64>,
 ) -> std::result::Result<(), String> {
     let (min, max) = (extent.min(), extent.max());
     for (k, pose) in poses.iter().enumerate() {
-        let [x, y, _] = pose.world_from_sensor.translation;
+        let [x, y, _] = pose.translation;
         let dx = (min.x - x).max(x - max.x).max(0.0);
         let dy = (min.y - y).max(y - max.y).max(0.0);
         let distance_m = dx.hypot(dy);
@@ -350,93 +628,10 @@ fn parse_origin(text: &str) -> Result<(f64, f64)> {
     Ok((lat, lon))
 }
 
-/// Parses the pose file; `project` maps WGS84 (lat, lon) in degrees to local (x, y) metres.
-fn parse_poses(
-    text: &str,
-    project: &dyn Fn(f64, f64) -> Option<(f64, f64)>,
-) -> std::result::Result<Vec<PoseLine>, String> {
-    let mut wgs84 = false;
-    let mut poses = Vec::new();
-    for (number, line) in text.lines().enumerate().map(|(i, l)| (i + 1, l.trim())) {
-        if line.is_empty() {
-            continue;
-        }
-        if let Some(comment) = line.strip_prefix('#') {
-            if let Some(frame) = comment.trim().strip_prefix("frame:") {
-                wgs84 = match frame.trim() {
-                    "wgs84" => true,
-                    "local" => false,
-                    other => {
-                        return Err(format!(
-                            "line {number}: unknown frame `{other}` (wgs84 or local)"
-                        ));
-                    }
-                };
-            }
-            continue;
-        }
-        let values: Vec<f64> = line
-            .split_whitespace()
-            .map(|w| {
-                w.parse::<f64>()
-                    .map_err(|_| format!("line {number}: `{w}` is not a number"))
-            })
-            .collect::<std::result::Result<_, _>>()?;
-        let [time_s, a, b, z, roll, pitch, yaw] = values[..] else {
-            return Err(format!(
-                "line {number}: expected 7 numbers, found {}",
-                values.len()
-            ));
-        };
-        if !values.iter().all(|v| v.is_finite()) {
-            return Err(format!("line {number}: values must be finite"));
-        }
-        let (x, y) = if wgs84 {
-            project(a, b).ok_or_else(|| {
-                format!(
-                    "line {number}: cannot project lat {a}, lon {b} (WGS84 poses need --map or \
-                         --origin)"
-                )
-            })?
-        } else {
-            (a, b)
-        };
-        poses.push(PoseLine {
-            time_s,
-            world_from_sensor: Isometry3::from_xyz_rpy(x, y, z, roll, pitch, yaw),
-        });
-    }
-    Ok(poses)
-}
-
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn poses_in_local_and_wgs84_frames() {
-        let local = "# a comment\n0.0 1 2 3 0 0 0\n\n0.1 1.5 2 3 0 0 1.5707963267948966\n";
-        let poses = parse_poses(local, &|_, _| None).unwrap();
-        assert_eq!(poses.len(), 2);
-        assert_eq!(poses[1].time_s, 0.1);
-        assert_eq!(poses[1].world_from_sensor.translation, [1.5, 2.0, 3.0]);
-        let wgs = "# frame: wgs84\n5.0 60.17 24.94 10 0 0 0\n";
-        let poses = parse_poses(wgs, &|lat, lon| Some((lon * 10.0, lat * 10.0))).unwrap();
-        assert_eq!(poses[0].world_from_sensor.translation, [249.4, 601.7, 10.0]);
-        assert!(
-            parse_poses("0 1 2 3\n", &|_, _| None)
-                .unwrap_err()
-                .contains("line 1")
-        );
-        assert!(
-            parse_poses("0 1 2 x 0 0 0\n", &|_, _| None)
-                .unwrap_err()
-                .contains("`x`")
-        );
-        assert!(parse_poses("# frame: utm\n", &|_, _| None).is_err());
-        assert!(parse_poses("# frame: wgs84\n0 1 2 3 0 0 0\n", &|_, _| None).is_err());
-    }
 
     #[test]
     fn origin_is_lat_comma_lon() {

@@ -471,3 +471,31 @@ fn mounting_places_the_sensor_on_the_vehicle() {
         );
     }
 }
+
+#[test]
+fn scan_times_in_either_kitti_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let raw = write(
+        &dir,
+        "timestamps.txt",
+        "2011-09-26 13:02:25.964389445\n2011-09-26 13:02:26.066575752\n",
+    );
+    let times = read_scan_times(&raw).unwrap();
+    // 13:02:25 on 2011-09-26 is 1 317 042 145 s after the epoch.
+    assert!((times[0] - 1_317_042_145.964_389).abs() < 1e-6, "{times:?}");
+    assert!((times[1] - times[0] - 0.102_186_307).abs() < 1e-6);
+    let plain = write(&dir, "times.txt", "0.0\n1.036594e-01\n");
+    assert_eq!(read_scan_times(&plain).unwrap(), vec![0.0, 0.1036594]);
+    let back = write(
+        &dir,
+        "back.txt",
+        "2011-09-26 13:02:25.9\n2011-09-26 13:02:25.8\n",
+    );
+    let err = read_scan_times(&back).unwrap_err().to_string();
+    assert!(err.contains("back.txt:2"), "{err}");
+    let bad = write(&dir, "bad.txt", "0.0\nsoon\n");
+    let err = read_scan_times(&bad).unwrap_err().to_string();
+    assert!(err.contains("bad.txt:2"), "{err}");
+    let empty = write(&dir, "empty.txt", "\n");
+    assert!(read_scan_times(&empty).is_err());
+}

@@ -14,8 +14,8 @@
 //! car would be M.
 
 use crate::{EvalError, GridMethod, Label};
+use evigrid::FrontEnd;
 use evigrid::SensorGrid;
-use evigrid::pipeline::FrontEnd;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 

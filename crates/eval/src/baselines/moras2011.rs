@@ -12,8 +12,8 @@
 //! pignistic probability), else O.
 
 use crate::{EvalError, GridMethod, Label};
+use evigrid::FrontEnd;
 use evigrid::SensorGrid;
-use evigrid::pipeline::FrontEnd;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 

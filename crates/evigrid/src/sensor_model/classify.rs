@@ -3,8 +3,8 @@
 
 use ground::PointLabel;
 
-use super::ground_plane::GroundPlane;
 use crate::window::Window;
+use ground::GroundPlane;
 
 /// Points classified per parallel task: enough that a task's per-sector arrays cost little.
 pub(super) const CLASSIFY_CHUNK: usize = 8192;

@@ -4,8 +4,8 @@
 //! The scan's points are moved into a *levelled* frame — world axes, origin at the sensor — with
 //! the sensor's pose. They are split into obstacle and ground points: for a planar or multi-layer
 //! scanner every return is an obstacle ([`GroundModel::None`]); for a 3-D lidar a ground plane is
-//! fitted to the scan ([`GroundModel::Plane`]: RANSAC with a fixed seed, then least squares on the
-//! inliers) and obstacle points are those between `min_obstacle_height_m` and
+//! fitted to the scan ([`GroundModel::Plane`]: the ground crate's [`ground::PlaneFitter`], RANSAC
+//! with a fixed seed, then least squares on the inliers) and obstacle points are those between `min_obstacle_height_m` and
 //! `max_obstacle_height_m` above it, ground points those within `ground_band_m` of it.
 //!
 //! Around the sensor the plane is cut into angular sectors of `angular_resolution_deg`. Each
@@ -21,7 +21,6 @@
 //! return (that return's own cell included: the ground was seen there).
 
 mod classify;
-mod ground_plane;
 mod ray;
 
 use rayon::prelude::*;
@@ -33,10 +32,9 @@ use crate::window::Window;
 use classify::{CLASSIFY_CHUNK, Classified, PointClassifier, horizontal_range};
 use ray::walk_ray;
 
-pub use crate::params::GroundModel;
-pub use crate::pose::Isometry3;
-use ground_plane::fit_ground_plane_into;
-pub use ground_plane::{GroundPlane, fit_ground_plane};
+use crate::params::GroundModel;
+use crate::pose::Isometry3;
+pub use ground::GroundPlane;
 
 /// What became of one scan's points and cells.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
@@ -79,8 +77,8 @@ pub struct SensorModel {
     /// What each chunk of the current scan's points gave, in point order; kept between scans
     /// so that the chunks' buffers are not allocated again.
     classified: Vec<Classified>,
-    /// Indices of the ground plane's inliers (scratch of the fit).
-    inliers: Vec<usize>,
+    /// The plane fit of [`GroundModel::Plane`], with its buffers.
+    plane_fitter: ground::PlaneFitter,
     /// The local ground model ([`GroundModel::Local`] only), with its buffers.
     segmenter: Option<ground::GroundSegmenter>,
     /// The levelled points in `f32` for the local ground model, and its label per point.
@@ -103,7 +101,7 @@ impl SensorModel {
             obstacle_range: Vec::new(),
             ground_range: Vec::new(),
             classified: Vec::new(),
-            inliers: Vec::new(),
+            plane_fitter: ground::PlaneFitter::default(),
         }
     }
 
@@ -186,11 +184,9 @@ impl SensorModel {
                 None
             }
             GroundModel::Plane => {
-                let plane = fit_ground_plane_into(
-                    &self.levelled,
-                    self.params.ground_band_m,
-                    &mut self.inliers,
-                );
+                let plane = self
+                    .plane_fitter
+                    .fit(&self.levelled, self.params.ground_band_m);
                 stats.ground_plane = plane;
                 if plane.is_none() {
                     stats.unclassified_points = self.levelled.len();

@@ -229,7 +229,7 @@ fn finds_the_road_under_the_kitti_lidar() {
         .iter()
         .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
         .collect();
-    let plane = fit_ground_plane(&levelled, 0.2).unwrap();
+    let plane = ground::PlaneFitter::default().fit(&levelled, 0.2).unwrap();
     // KITTI's HDL-64E is mounted 1.73 m above the road (Geiger et al. 2013).
     assert!(plane.normal[2] > 0.995, "{plane:?}");
     assert!((plane.offset_m + 1.73).abs() < 0.15, "{plane:?}");

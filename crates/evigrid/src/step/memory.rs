@@ -6,11 +6,11 @@
 use super::evidence::SensorEvidence;
 use super::lanes::{any_bits, for_each_bit};
 use super::passes::{ALL_SETS, BLOCK, BlockMasses, Lanes, Live};
-use crate::decision::Decision;
 use crate::grids::{
     CONFLICT_FO_BIT, CONFLICT_OF_BIT, MASS_BITS, N_SETS, OMEGA, OMEGA_BIT, PerceptionPlanesMut,
     PlaneBits, ZETA_BIT,
 };
+use crate::label::Label;
 use geodata::MapContext;
 
 /// A run of consecutive storage cells: the unit of parallel work.
@@ -23,7 +23,7 @@ pub(super) struct CellRun<'a> {
     pub(super) sensor_blocks: &'a [bool],
     pub(super) context: &'a [MapContext],
     /// Where to write the decision of each cell, if wanted.
-    pub(super) decisions: Option<&'a mut [Decision]>,
+    pub(super) decisions: Option<&'a mut [Label]>,
     /// Every mass outside the [`REACHABLE`](super::passes::REACHABLE) sets is +0 (see
     /// `step_cells`).
     pub(super) reachable_only: bool,

@@ -22,8 +22,8 @@
 //! - `passes`: the mass transfers the stages are made of; `lanes`: lane reductions.
 //!
 //! ```
-//! use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid, step::step};
-//! use evigrid::grids::class;
+//! use evigrid::{GisGrid, Params, PerceptionGrid, SensorGrid, step};
+//! use evigrid::class;
 //! use geodata::MapContext;
 //!
 //! let mut pg = PerceptionGrid::new(2, 1);
@@ -56,8 +56,8 @@ mod stages;
 
 pub use constants::{rate_for_step, set_rate_per_second};
 
-use crate::decision::Decision;
 use crate::grids::{GisGrid, PerceptionGrid, SensorGrid};
+use crate::label::Label;
 use crate::params::Params;
 use constants::{Discount, StepConstants};
 use memory::CellRun;
@@ -129,7 +129,7 @@ pub fn step_and_decide(
     gg: &GisGrid,
     params: &Params,
     dt_s: f64,
-    decisions: &mut [Decision],
+    decisions: &mut [Label],
 ) -> StepStats {
     assert_eq!(decisions.len(), pg.len(), "decision buffer size");
     step_cells(pg, sg, gg, params, dt_s, Some(decisions), |run, k| {
@@ -143,7 +143,7 @@ fn step_cells(
     gg: &GisGrid,
     params: &Params,
     dt_s: f64,
-    decisions: Option<&mut [Decision]>,
+    decisions: Option<&mut [Label]>,
     kernel: impl Fn(CellRun<'_>, &StepConstants) -> StepStats + Sync,
 ) -> StepStats {
     let (width, len) = (pg.width(), pg.len());

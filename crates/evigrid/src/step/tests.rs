@@ -511,7 +511,7 @@ fn seen_flag_stays_once_set() {
 fn moving_object_crossing_a_road_cell() {
     // A scenario over many steps: free road, a car arrives (M), stays (ζ grows, mass moves
     // from M to S), leaves (conflict ∅_OF, ζ falls), road free again.
-    use crate::decision::{Decision, decide};
+    use crate::{decision::decide, label::Label};
     let p = hand_params();
     let (mut pg, mut sg, mut gg) = (
         PerceptionGrid::new(1, 1),
@@ -527,11 +527,11 @@ fn moving_object_crossing_a_road_cell() {
         }
         decide(&pg.cell_masses(0), pg.seen()[0] != 0, 0.5)
     };
-    assert_eq!(run(&mut pg, 0.7, 0.0, 5), Decision::F);
-    assert_eq!(run(&mut pg, 0.0, 0.8, 1), Decision::M);
-    assert_eq!(run(&mut pg, 0.0, 0.8, 30), Decision::S);
+    assert_eq!(run(&mut pg, 0.7, 0.0, 5), Label::F);
+    assert_eq!(run(&mut pg, 0.0, 0.8, 1), Label::M);
+    assert_eq!(run(&mut pg, 0.0, 0.8, 30), Label::S);
     assert!(pg.zeta()[0] > 0.9);
-    assert_eq!(run(&mut pg, 0.7, 0.0, 10), Decision::F);
+    assert_eq!(run(&mut pg, 0.7, 0.0, 10), Label::F);
 }
 
 // ---- the kernel against the f64 reference ----
@@ -1001,7 +1001,7 @@ fn step_and_decide_decides_as_decide_grid_after_step() {
     let params = Params::default();
     let (mut fused, sg, gg) = scene(41, 37, 9);
     let mut separate = fused.clone();
-    let mut fused_decisions = vec![crate::Decision::Unknown; fused.len()];
+    let mut fused_decisions = vec![crate::Label::Unknown; fused.len()];
     let mut separate_decisions = fused_decisions.clone();
     for _ in 0..3 {
         step_and_decide(&mut fused, &sg, &gg, &params, 0.1, &mut fused_decisions);
@@ -1010,11 +1010,7 @@ fn step_and_decide_decides_as_decide_grid_after_step() {
     let threshold = params.decision.unknown_threshold;
     crate::decision::decide_grid(&separate, threshold, &mut separate_decisions);
     assert_eq!(fused_decisions, separate_decisions);
-    assert!(
-        fused_decisions
-            .iter()
-            .any(|d| *d != crate::Decision::Unknown)
-    );
+    assert!(fused_decisions.iter().any(|d| *d != crate::Label::Unknown));
 }
 
 #[test]

@@ -1,0 +1,237 @@
+//! `evigrid odometry`: poses from the scans alone, written as a pose file.
+//!
+//! ```text
+//! evigrid odometry SCANS --out poses.txt [--format tum|kitti] [--json]
+//! ```
+//!
+//! Wiring only: the odometry is crate `odometry`'s, the writers crate `drive`'s. The written
+//! poses read back through `evigrid run --poses` (TUM or KITTI odometry).
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use drive::poses::{PoseTrack, write_kitti_odometry, write_kitti_times, write_tum};
+use nalgebra::Isometry3;
+use odometry::metrics::relative_errors;
+use odometry::{FrameOutcome, OdometryParams};
+use serde::Serialize;
+
+use crate::drive_input::{open_scans, poses_from_odometry, poses_from_oxts};
+use crate::exit::BadInput;
+
+/// Output formats of `evigrid odometry`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum OdometryFormat {
+    /// `t x y z qx qy qz qw` per line.
+    Tum,
+    /// KITTI odometry: 12 numbers per line (3x4 matrix), times in a separate file.
+    Kitti,
+}
+
+/// Arguments of `evigrid odometry`.
+#[derive(Debug, Args)]
+pub struct OdometryArgs {
+    /// Folder of scans (PCD or KITTI `.bin`, in file-name order) or a KITTI raw drive folder.
+    scans: PathBuf,
+    /// Pose file to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// Pose file format. `kitti` also writes the times, one per line, to `<out without
+    /// extension>.times.txt`.
+    #[arg(long, value_enum, default_value = "tum")]
+    format: OdometryFormat,
+    /// Scan times (KITTI raw `timestamps.txt` or KITTI odometry `times.txt`); by default a
+    /// `timestamps.txt` beside or in the scan folder, else scans 0.1 s apart.
+    #[arg(long)]
+    times: Option<PathBuf>,
+    /// KITTI odometry `calib.txt` whose `Tr` turns the Velodyne's poses into camera 0's for
+    /// `--format kitti`; without it the file holds the Velodyne's own poses.
+    #[arg(long)]
+    calib: Option<PathBuf>,
+    /// Register only the first N scans.
+    #[arg(long, value_name = "N")]
+    max_frames: Option<usize>,
+    /// Print the summary as JSON on standard output.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Relative errors against a KITTI raw drive's OXTS poses.
+#[derive(Debug, Serialize)]
+struct AgainstOxts {
+    /// Segment lengths, metres.
+    lengths_m: Vec<f64>,
+    segments: usize,
+    translation_pct: Option<f64>,
+    rotation_deg_per_m: Option<f64>,
+    heading_deg_per_m: Option<f64>,
+}
+
+#[derive(Debug, Serialize)]
+struct OdometrySummary {
+    scans: String,
+    out: String,
+    format: &'static str,
+    times_file: Option<String>,
+    /// Where the scan times came from (`null`: none, scans 0.1 s apart).
+    scan_times: Option<String>,
+    frames: usize,
+    registered: usize,
+    not_converged: usize,
+    predicted: usize,
+    seconds: f64,
+    ms_per_scan: f64,
+    path_length_m: f64,
+    against_oxts: Option<AgainstOxts>,
+}
+
+/// Runs `evigrid odometry`.
+pub fn run(args: OdometryArgs) -> Result<()> {
+    if args.max_frames == Some(0) {
+        return Err(BadInput::new("--max-frames must be at least 1"));
+    }
+    let mut scans = open_scans(&args.scans, args.times.as_deref())?;
+    if let Some(n) = args.max_frames {
+        scans.truncate(n);
+    }
+    let cam0_from_velo = match &args.calib {
+        Some(path) => drive::calib::read_odometry_cam0_from_velo(path)
+            .map_err(|e| BadInput::new(e.to_string()))?,
+        None => Isometry3::identity(),
+    };
+    let bar = crate::progress::bar(scans.paths.len() as u64, "odometry");
+    let (mut registered, mut not_converged, mut predicted) = (0, 0, 0);
+    let started = Instant::now();
+    let poses = poses_from_odometry(&scans, OdometryParams::default(), |odometry| {
+        match odometry.last_report().map(|r| r.outcome) {
+            Some(FrameOutcome::Registered { converged: true }) => registered += 1,
+            Some(FrameOutcome::Registered { converged: false }) => not_converged += 1,
+            Some(FrameOutcome::Predicted) => predicted += 1,
+            _ => {}
+        }
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    let seconds = started.elapsed().as_secs_f64();
+    let track = PoseTrack::new(poses.times.clone(), poses.world_from_sensor.clone())
+        .map_err(|e| BadInput::new(format!("{}: scan times: {e}", args.scans.display())))?;
+
+    let mut times_file = None;
+    write_file(&args.out, |out| match args.format {
+        OdometryFormat::Tum => write_tum(out, &track),
+        OdometryFormat::Kitti => write_kitti_odometry(out, &track, &cam0_from_velo),
+    })?;
+    if args.format == OdometryFormat::Kitti {
+        let path = args.out.with_extension("times.txt");
+        write_file(&path, |out| write_kitti_times(out, track.times()))?;
+        times_file = Some(path.display().to_string());
+    }
+
+    let against_oxts = match &scans.kitti {
+        Some(drive) => {
+            let first = drive.oxts().first().map(|p| (p.lat_deg, p.lon_deg));
+            let projection = first
+                .map(|(lat, lon)| geodata::TransverseMercator::new(lat, lon))
+                .transpose()
+                .map_err(|e| BadInput::new(e.to_string()))?;
+            match projection {
+                Some(projection) => {
+                    let reference =
+                        poses_from_oxts(drive, &|lat, lon| projection.forward(lat, lon))?;
+                    let n = poses.world_from_sensor.len();
+                    let lengths_m = vec![10.0, 20.0, 30.0];
+                    let errors = relative_errors(
+                        &poses.world_from_sensor,
+                        &reference.world_from_sensor[..n.min(reference.world_from_sensor.len())],
+                        &lengths_m,
+                        1,
+                    )
+                    .context("relative errors against OXTS")?;
+                    Some(AgainstOxts {
+                        lengths_m,
+                        segments: errors.segments.len(),
+                        translation_pct: errors.mean_translation_pct(),
+                        rotation_deg_per_m: errors.mean_rotation_deg_per_m(),
+                        heading_deg_per_m: errors.mean_heading_deg_per_m(),
+                    })
+                }
+                None => None,
+            }
+        }
+        None => None,
+    };
+
+    let frames = poses.times.len();
+    let summary = OdometrySummary {
+        scans: args.scans.display().to_string(),
+        out: args.out.display().to_string(),
+        format: match args.format {
+            OdometryFormat::Tum => "tum",
+            OdometryFormat::Kitti => "kitti",
+        },
+        times_file,
+        scan_times: scans.times_source.as_ref().map(|p| p.display().to_string()),
+        frames,
+        registered,
+        not_converged,
+        predicted,
+        seconds,
+        ms_per_scan: 1e3 * seconds / frames.max(1) as f64,
+        path_length_m: poses
+            .world_from_sensor
+            .windows(2)
+            .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
+            .sum(),
+        against_oxts,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        println!(
+            "{} scans registered in {:.1} s ({:.0} ms per scan, scans read included): {} \
+             converged, {} not converged, {} predicted; path {:.1} m; poses in {}{}",
+            summary.frames,
+            summary.seconds,
+            summary.ms_per_scan,
+            summary.registered,
+            summary.not_converged,
+            summary.predicted,
+            summary.path_length_m,
+            summary.out,
+            summary
+                .times_file
+                .as_ref()
+                .map_or_else(String::new, |t| format!(", times in {t}"))
+        );
+        if let Some(e) = &summary.against_oxts {
+            println!(
+                "against the drive's OXTS poses, {} segments of 10, 20 and 30 m: translation \
+                 {:.2} %, rotation {:.4} °/m, heading {:.4} °/m",
+                e.segments,
+                e.translation_pct.unwrap_or(f64::NAN),
+                e.rotation_deg_per_m.unwrap_or(f64::NAN),
+                e.heading_deg_per_m.unwrap_or(f64::NAN)
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Writes a file through `write`, creating its folder; an error names the file.
+fn write_file(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<fs::File>) -> std::io::Result<()>,
+) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    let file =
+        fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let mut out = std::io::BufWriter::new(file);
+    write(&mut out)
+        .and_then(|()| std::io::Write::flush(&mut out))
+        .with_context(|| format!("cannot write {}", path.display()))
+}

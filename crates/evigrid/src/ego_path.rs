@@ -1,0 +1,325 @@
+//! The ego-path check: a figure of merit for real drives that needs no labels.
+//!
+//! The vehicle will drive where its own poses say it drives next, so apart from traffic ahead
+//! the cells along that path must be free. For frame k, the *ego path* is the polyline of the
+//! sensor's positions from frame k on, cut at [`EGO_PATH_LENGTH_M`] of arc length (shorter at
+//! the end of a drive); its cells are those whose centres lie within [`EGO_PATH_RADIUS_M`] of
+//! it. Of those the frame's scan observed (non-vacuous SensorGrid cell), [`EgoPathCheck`] counts
+//! how many the frame decided occupied (I, U, S) or moving (M). Every pose is known before a
+//! run (from a pose file, a drive's GNSS/INS, or a first odometry pass), so the path ahead is
+//! too.
+//!
+//! Positions are the sensor's, not the vehicle body's: on a roof lidar they differ by well under
+//! the radius laterally, and the path is only used to pick cells.
+
+use serde::Serialize;
+
+use crate::grids::SensorGrid;
+use crate::label::Label;
+use crate::window::Window;
+
+/// How far ahead the ego path reaches, metres of arc length.
+pub const EGO_PATH_LENGTH_M: f64 = 20.0;
+/// Cells whose centres lie within this distance of the path are on it, metres: about half a
+/// car's width.
+pub const EGO_PATH_RADIUS_M: f64 = 1.0;
+
+/// The polyline from `positions[from]` along the following positions, cut at `length_m` of arc
+/// length (the last vertex interpolated on its segment). Empty when `from` is out of range;
+/// one vertex when the ego does not move after `from`.
+pub fn path_ahead(positions: &[[f64; 2]], from: usize, length_m: f64) -> Vec<[f64; 2]> {
+    let Some(&start) = positions.get(from) else {
+        return Vec::new();
+    };
+    let mut path = vec![start];
+    let mut left = length_m.max(0.0);
+    for &next in positions.iter().skip(from + 1) {
+        if left <= 0.0 {
+            break;
+        }
+        let Some(&last) = path.last() else { break };
+        let step = distance(last, next);
+        if !step.is_finite() {
+            break;
+        }
+        if step == 0.0 {
+            continue;
+        }
+        if step <= left {
+            path.push(next);
+            left -= step;
+        } else {
+            let s = left / step;
+            path.push([
+                last[0] + (next[0] - last[0]) * s,
+                last[1] + (next[1] - last[1]) * s,
+            ]);
+            left = 0.0;
+        }
+    }
+    path
+}
+
+fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (b[0] - a[0]).hypot(b[1] - a[1])
+}
+
+/// Distance from `p` to the segment `a`–`b` (a point when `a == b`).
+fn distance_to_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let length2 = dx * dx + dy * dy;
+    let s = if length2 > 0.0 {
+        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / length2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    distance(p, [a[0] + dx * s, a[1] + dy * s])
+}
+
+/// Storage indices (sorted, each once) of the window's cells whose centres lie within
+/// `radius_m` of the polyline `path` (of a single point, when it has one vertex). Cells outside
+/// the window are left out.
+pub fn cells_near_path(window: &Window, path: &[[f64; 2]], radius_m: f64) -> Vec<usize> {
+    let mut cells = Vec::new();
+    if !(radius_m.is_finite() && radius_m >= 0.0) {
+        return cells;
+    }
+    let segments: Vec<([f64; 2], [f64; 2])> = match path {
+        [] => Vec::new(),
+        [only] => vec![(*only, *only)],
+        _ => path.windows(2).map(|w| (w[0], w[1])).collect(),
+    };
+    for (a, b) in segments {
+        let (Some(low), Some(high)) = (
+            window.cell_of_point(a[0].min(b[0]) - radius_m, a[1].min(b[1]) - radius_m),
+            window.cell_of_point(a[0].max(b[0]) + radius_m, a[1].max(b[1]) + radius_m),
+        ) else {
+            continue;
+        };
+        // Only the part of the segment's box inside the window.
+        let cols = low.col.max(window.first_col())
+            ..=high.col.min(window.first_col() + window.width() as i64 - 1);
+        let rows = low.row.max(window.first_row())
+            ..=high
+                .row
+                .min(window.first_row() + window.height() as i64 - 1);
+        for row in rows {
+            for col in cols.clone() {
+                let (x, y) = window.cell_centre(col, row);
+                if distance_to_segment([x, y], a, b) <= radius_m
+                    && let Some(index) = window.storage_index(col, row)
+                {
+                    cells.push(index);
+                }
+            }
+        }
+    }
+    cells.sort_unstable();
+    cells.dedup();
+    cells
+}
+
+/// The ego-path check of one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct EgoPathCheck {
+    /// Cells on the ego path inside the window.
+    pub path_cells: usize,
+    /// Of those, cells the frame's scan observed (m(F) + m(O) > 0 in the SensorGrid).
+    pub observed_cells: usize,
+    /// Observed path cells decided I, U or S (occupied by something static).
+    pub occupied_cells: usize,
+    /// Observed path cells decided M (moving).
+    pub moving_cells: usize,
+}
+
+impl EgoPathCheck {
+    /// Counts, over `cells` (storage indices, as [`cells_near_path`] gives), those the sensor
+    /// grid observed and, of those, the ones decided occupied or moving. Indices beyond the
+    /// grids are ignored.
+    pub fn count(cells: &[usize], sensor: &SensorGrid, decisions: &[Label]) -> Self {
+        let (free, occupied) = (sensor.m_free(), sensor.m_occupied());
+        let mut check = EgoPathCheck::default();
+        for &i in cells {
+            let (Some(f), Some(o), Some(d)) = (free.get(i), occupied.get(i), decisions.get(i))
+            else {
+                continue;
+            };
+            check.path_cells += 1;
+            if f + o <= 0.0 {
+                continue;
+            }
+            check.observed_cells += 1;
+            match d {
+                Label::I | Label::U | Label::S | Label::O | Label::Edge => {
+                    check.occupied_cells += 1
+                }
+                Label::M => check.moving_cells += 1,
+                Label::Unknown | Label::F => {}
+            }
+        }
+        check
+    }
+
+    /// Observed path cells decided occupied or moving.
+    pub fn decided_occupied_or_moving(&self) -> usize {
+        self.occupied_cells + self.moving_cells
+    }
+
+    /// [`Self::decided_occupied_or_moving`] over the observed path cells; `None` when none was
+    /// observed.
+    pub fn share(&self) -> Option<f64> {
+        (self.observed_cells > 0)
+            .then(|| self.decided_occupied_or_moving() as f64 / self.observed_cells as f64)
+    }
+
+    /// Adds another frame's counts (totals over a drive are sums of cell-frames).
+    pub fn add(&mut self, other: &EgoPathCheck) {
+        self.path_cells += other.path_cells;
+        self.observed_cells += other.observed_cells;
+        self.occupied_cells += other.occupied_cells;
+        self.moving_cells += other.moving_cells;
+    }
+}
+
+/// How a per-frame share spreads over a drive: its median and the frame furthest above it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ShareSpread {
+    /// Median over the frames (mean of the two middle ones for an even count).
+    pub median: f64,
+    /// 0-based index of the frame with the largest share (the first, on ties).
+    pub worst_frame: usize,
+    /// Its share.
+    pub worst: f64,
+    /// `worst / median`; `None` when the median is 0.
+    pub worst_to_median: Option<f64>,
+}
+
+impl ShareSpread {
+    /// The spread of `shares` (non-finite values ignored); `None` without any finite value.
+    pub fn of(shares: &[f64]) -> Option<Self> {
+        let mut sorted: Vec<f64> = shares.iter().copied().filter(|v| v.is_finite()).collect();
+        if sorted.is_empty() {
+            return None;
+        }
+        sorted.sort_by(f64::total_cmp);
+        let n = sorted.len();
+        let median = if n % 2 == 1 {
+            sorted[n / 2]
+        } else {
+            0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+        };
+        let (worst_frame, worst) = shares
+            .iter()
+            .copied()
+            .enumerate()
+            .filter(|(_, v)| v.is_finite())
+            .fold((0, f64::NEG_INFINITY), |best, (i, v)| {
+                if v > best.1 { (i, v) } else { best }
+            });
+        Some(Self {
+            median,
+            worst_frame,
+            worst,
+            worst_to_median: (median > 0.0).then(|| worst / median),
+        })
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_path_is_cut_at_its_length() {
+        let positions = [[0.0, 0.0], [3.0, 4.0], [3.0, 14.0], [3.0, 30.0]];
+        // 5 m, then 10 m, then 5 of the last 16 m.
+        assert_eq!(
+            path_ahead(&positions, 0, 20.0),
+            vec![[0.0, 0.0], [3.0, 4.0], [3.0, 14.0], [3.0, 19.0]]
+        );
+        assert_eq!(
+            path_ahead(&positions, 2, 20.0),
+            vec![[3.0, 14.0], [3.0, 30.0]]
+        );
+        assert_eq!(path_ahead(&positions, 3, 20.0), vec![[3.0, 30.0]]);
+        assert!(path_ahead(&positions, 4, 20.0).is_empty());
+        // Standing still: repeated positions add nothing.
+        assert_eq!(
+            path_ahead(&[[1.0, 1.0], [1.0, 1.0], [1.0, 3.0]], 0, 1.0),
+            vec![[1.0, 1.0], [1.0, 2.0]]
+        );
+    }
+
+    #[test]
+    fn cells_within_the_radius_of_a_straight_path() {
+        // 1 m cells; a path along y = 0.5 from x = 0.5 to x = 3.5, radius 1: rows 0 (on the
+        // line), -1 and 1 (centres 1 m off, included), cols 0..=3 (endpoints' own columns; the
+        // centres at x = -0.5 and 4.5 are 1 m from the ends, included too).
+        let mut window = Window::new(20, 20, 1.0).unwrap();
+        let _ = window.move_to(-10, -10);
+        let cells = cells_near_path(&window, &[[0.5, 0.5], [3.5, 0.5]], 1.0);
+        let mut expected: Vec<usize> = (-1..=1)
+            .flat_map(|row| (0..=3).map(move |col| (col, row)))
+            .chain([(-1, 0), (4, 0)])
+            .map(|(col, row)| window.storage_index(col, row).unwrap())
+            .collect();
+        expected.sort_unstable();
+        assert_eq!(cells, expected);
+        assert_eq!(cells.len(), 14);
+        // One vertex: the cells around a point.
+        assert_eq!(cells_near_path(&window, &[[0.5, 0.5]], 1.0).len(), 5);
+        // Outside the window: nothing.
+        assert!(cells_near_path(&window, &[[100.5, 0.5], [103.5, 0.5]], 1.0).is_empty());
+    }
+
+    #[test]
+    fn counts_observed_cells_decided_occupied_or_moving() {
+        let mut sensor = SensorGrid::new(6, 1);
+        // Cells 0..5 observed (free or occupied), cell 5 not.
+        sensor.m_free_mut()[..3].copy_from_slice(&[0.7, 0.7, 0.7]);
+        sensor.m_occupied_mut()[3..5].copy_from_slice(&[0.8, 0.8]);
+        let decisions = [
+            Label::F,
+            Label::M,
+            Label::Unknown,
+            Label::U,
+            Label::S,
+            Label::I, // not observed this frame: not counted
+        ];
+        let check = EgoPathCheck::count(&[0, 1, 2, 3, 4, 5, 99], &sensor, &decisions);
+        assert_eq!(
+            check,
+            EgoPathCheck {
+                path_cells: 6,
+                observed_cells: 5,
+                occupied_cells: 2,
+                moving_cells: 1,
+            }
+        );
+        assert_eq!(check.share(), Some(0.6));
+        let mut total = check;
+        total.add(&EgoPathCheck {
+            path_cells: 10,
+            observed_cells: 5,
+            occupied_cells: 0,
+            moving_cells: 0,
+        });
+        assert_eq!(total.share(), Some(0.3));
+        assert_eq!(EgoPathCheck::default().share(), None);
+    }
+
+    #[test]
+    fn the_spread_of_shares() {
+        let spread = ShareSpread::of(&[0.2, 0.5, 0.1, f64::NAN, 0.3]).unwrap();
+        // Finite values 0.1 0.2 0.3 0.5: median 0.25, worst 0.5 at index 1, ratio 2.
+        assert_eq!(spread.median, 0.25);
+        assert_eq!((spread.worst_frame, spread.worst), (1, 0.5));
+        assert_eq!(spread.worst_to_median, Some(2.0));
+        assert_eq!(
+            ShareSpread::of(&[0.0, 0.0, 0.4]).unwrap().worst_to_median,
+            None
+        );
+        assert!(ShareSpread::of(&[]).is_none());
+    }
+}

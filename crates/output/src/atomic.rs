@@ -1,0 +1,143 @@
+//! Whole files or none: every file of the workspace's outputs is written here.
+
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use image::RgbImage;
+
+use crate::error::OutputError;
+
+/// Writes a file at `path` through a temporary file in the same directory and a rename, so that
+/// a reader never sees half a file. `write` fills the temporary file; on any error (creating,
+/// writing, flushing or renaming) the temporary file is removed and `path` is left as it was.
+///
+/// The temporary name is hidden and names the process (`.NAME.tmp-PID`), so that concurrent
+/// runs writing the same file do not share one.
+///
+/// # Errors
+///
+/// [`OutputError::Io`] naming `path`; `path` without a file name (`/`, `..`) is refused with
+/// [`std::io::ErrorKind::InvalidInput`].
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut fs::File) -> std::io::Result<()>,
+) -> Result<(), OutputError> {
+    let io = |source| OutputError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let temporary = temporary_path(path).ok_or_else(|| {
+        io(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a file name",
+        ))
+    })?;
+    let result = (|| {
+        let mut file = fs::File::create(&temporary)?;
+        write(&mut file)?;
+        file.flush()?;
+        drop(file);
+        fs::rename(&temporary, path)
+    })();
+    if result.is_err() {
+        // Best effort: the temporary may never have been created; the first error is the one
+        // to report.
+        let _ = fs::remove_file(&temporary);
+    }
+    result.map_err(io)
+}
+
+/// The hidden temporary beside `path`, or `None` if `path` does not end in a file name.
+fn temporary_path(path: &Path) -> Option<PathBuf> {
+    let mut name = std::ffi::OsString::from(".");
+    name.push(path.file_name()?);
+    name.push(format!(".tmp-{}", std::process::id()));
+    Some(path.with_file_name(name))
+}
+
+/// Encodes `image` as PNG and writes it atomically ([`write_atomic`]).
+///
+/// # Errors
+///
+/// [`OutputError::Image`] or [`OutputError::Io`], naming `path`.
+pub fn write_png(image: &RgbImage, path: &Path) -> Result<(), OutputError> {
+    let mut encoded = Vec::new();
+    image
+        .write_to(
+            &mut std::io::Cursor::new(&mut encoded),
+            image::ImageFormat::Png,
+        )
+        .map_err(|source| OutputError::Image {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    write_atomic(path, |file| file.write_all(&encoded))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    /// Names in `dir`, sorted.
+    fn names(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn a_written_file_leaves_no_temporary() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.txt");
+        write_atomic(&path, |f| f.write_all(b"old")).unwrap();
+        write_atomic(&path, |f| f.write_all(b"new")).unwrap();
+        assert_eq!(fs::read(&path).unwrap(), b"new");
+        assert_eq!(names(dir.path()), ["a.txt"]);
+    }
+
+    #[test]
+    fn a_failed_write_removes_the_temporary_and_keeps_the_old_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.txt");
+        fs::write(&path, b"old").unwrap();
+        let error = write_atomic(&path, |f| {
+            f.write_all(b"half")?;
+            Err(std::io::Error::other("disk full"))
+        })
+        .unwrap_err();
+        assert!(error.to_string().contains("disk full"), "{error}");
+        assert!(error.to_string().contains("a.txt"), "{error}");
+        assert_eq!(fs::read(&path).unwrap(), b"old");
+        assert_eq!(names(dir.path()), ["a.txt"]);
+    }
+
+    #[test]
+    fn a_failed_rename_removes_the_temporary() {
+        // The target is a non-empty directory: the temporary is written, the rename fails.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("taken");
+        fs::create_dir(&path).unwrap();
+        fs::write(path.join("inside"), b"x").unwrap();
+        let error = write_atomic(&path, |f| f.write_all(b"data")).unwrap_err();
+        assert!(matches!(error, OutputError::Io { .. }), "{error}");
+        assert_eq!(names(dir.path()), ["taken"]);
+    }
+
+    #[test]
+    fn a_missing_directory_or_a_path_without_file_name_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let error = write_atomic(&dir.path().join("no/such/a.txt"), |_| Ok(())).unwrap_err();
+        assert!(matches!(error, OutputError::Io { .. }), "{error}");
+        let error = write_atomic(Path::new("/"), |_| Ok(())).unwrap_err();
+        assert!(matches!(
+            error,
+            OutputError::Io { ref source, .. } if source.kind() == std::io::ErrorKind::InvalidInput
+        ));
+        assert!(names(dir.path()).is_empty());
+    }
+}

@@ -1,0 +1,63 @@
+//! The one error type of the crate, and the size check every view and export makes first.
+
+use std::path::PathBuf;
+
+use evigrid::Window;
+
+/// Why a picture or an export could not be made or written. Every variant but `Size` names the
+/// file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum OutputError {
+    /// Writing or renaming the file failed.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// Encoding the PNG failed.
+    #[error("{path}: {source}")]
+    Image {
+        /// The file.
+        path: PathBuf,
+        /// The encoder's error.
+        source: image::ImageError,
+    },
+    /// Serialising JSON failed.
+    #[error("{path}: {source}")]
+    Json {
+        /// The file.
+        path: PathBuf,
+        /// The serialiser's error.
+        source: serde_json::Error,
+    },
+    /// A buffer does not have one entry per window cell.
+    #[error("{what} holds {len} cells, the window {expected}")]
+    Size {
+        /// Which buffer.
+        what: &'static str,
+        /// Its length.
+        len: usize,
+        /// The window's cell count.
+        expected: usize,
+    },
+}
+
+/// `Ok` if a buffer of `len` entries has one per cell of `window`.
+pub(crate) fn check_len(
+    what: &'static str,
+    len: usize,
+    window: &Window,
+) -> Result<(), OutputError> {
+    if len == window.len() {
+        Ok(())
+    } else {
+        Err(OutputError::Size {
+            what,
+            len,
+            expected: window.len(),
+        })
+    }
+}

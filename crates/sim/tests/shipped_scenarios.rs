@@ -1,0 +1,47 @@
+//! Every scenario shipped in `scenarios/` parses and validates, and the error scenarios carry
+//! the errors their names promise.
+
+#![allow(clippy::unwrap_used)]
+
+use std::path::PathBuf;
+
+fn scenarios_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenarios")
+}
+
+fn read(name: &str) -> sim::Scenario {
+    let path = scenarios_dir().join(name);
+    let text = std::fs::read_to_string(&path).unwrap();
+    sim::Scenario::from_toml(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+#[test]
+fn every_shipped_scenario_is_valid() {
+    let mut names: Vec<String> = std::fs::read_dir(scenarios_dir())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.ends_with(".toml"))
+        .collect();
+    names.sort();
+    assert!(names.len() >= 7, "{names:?}");
+    for name in &names {
+        let s = read(name);
+        assert!(s.frame_count() > 0, "{name}");
+    }
+}
+
+#[test]
+fn error_scenarios_differ_from_their_base_only_by_their_error() {
+    let base = read("helsinki-short.toml");
+    let noisy = read("helsinki-short-pose-noise.toml");
+    assert_eq!(noisy.errors.pose_sigma_m, 0.1);
+    assert_eq!(noisy.errors.pose_sigma_heading_deg, 0.2);
+    let shifted = read("helsinki-short-map-offset.toml");
+    let offset = shifted.errors.map_offset_m;
+    let norm = offset[0].hypot(offset[1]);
+    assert!((0.5..=1.0).contains(&norm), "{offset:?}");
+    for mut s in [noisy, shifted] {
+        s.errors = base.errors.clone();
+        assert_eq!(s, base);
+    }
+}
