@@ -50,6 +50,14 @@ impl ScanSet {
         }
     }
 
+    /// Keeps the scans at `indices` (increasing), with their times.
+    pub fn keep(&mut self, indices: &[usize]) {
+        self.paths = indices.iter().map(|&k| self.paths[k].clone()).collect();
+        if let Some(times) = &mut self.times {
+            *times = indices.iter().map(|&k| times[k]).collect();
+        }
+    }
+
     /// Keeps the first `n` scans.
     pub fn truncate(&mut self, n: usize) {
         self.paths.truncate(n);
@@ -292,24 +300,45 @@ pub fn poses_from_oxts(
 
 /// Poses from the scans alone: the lidar odometry over every scan, in the first scan's frame.
 /// `tick` is called after each scan, with the odometry (its last report says how the scan went).
+/// Unreadable scans are skipped into `skipped` and left out of `scans` (an error if `strict`);
+/// `stop_requested` is polled before each scan (a signal ends the pass with
+/// [`Interrupted`](crate::interrupt::Interrupted)).
 pub fn poses_from_odometry(
-    scans: &ScanSet,
+    scans: &mut ScanSet,
     params: OdometryParams,
+    strict: bool,
+    skipped: &mut Vec<(PathBuf, String)>,
+    stop_requested: &dyn Fn() -> bool,
     mut tick: impl FnMut(&Odometry),
 ) -> Result<ScanPoses> {
     let times = scans.times_or_period();
     let mut odometry = Odometry::new(params).map_err(|e| BadInput::new(e.to_string()))?;
     let mut poses = Vec::with_capacity(times.len());
-    for (path, &t) in scans.paths.iter().zip(&times) {
-        let scan = read_scan(path).map_err(|e| BadInput::new(e.to_string()))?;
-        let pose = odometry
-            .register(&scan.points_in_sensor, t)
-            .map_err(|e| BadInput::new(format!("{}: {e}", path.display())))?;
-        poses.push(pose);
+    let mut kept = Vec::with_capacity(times.len());
+    for (k, (path, &t)) in scans.paths.iter().zip(&times).enumerate() {
+        if stop_requested() {
+            return Err(crate::interrupt::Interrupted.into());
+        }
+        // An unreadable scan is left out (the next registration spans the gap, as the
+        // constant-velocity prediction allows) unless `strict`.
+        let pose = read_scan(path).map_err(|e| e.to_string()).and_then(|scan| {
+            odometry
+                .register(&scan.points_in_sensor, t)
+                .map_err(|e| format!("{}: {e}", path.display()))
+        });
+        match pose {
+            Ok(pose) => {
+                poses.push(pose);
+                kept.push(k);
+            }
+            Err(error) if strict => return Err(BadInput::new(error)),
+            Err(error) => skipped.push((path.clone(), error)),
+        }
         tick(&odometry);
     }
+    scans.keep(&kept);
     Ok(ScanPoses {
-        times,
+        times: kept.iter().map(|&k| times[k]).collect(),
         world_from_sensor: poses,
     })
 }

@@ -52,7 +52,12 @@ pub fn report(result: anyhow::Result<()>) -> ExitCode {
         Err(error) => {
             let message = one_line_chain(&error);
             eprintln!("evigrid: {message}");
-            if error.chain().any(|cause| cause.is::<BadInput>()) {
+            if error
+                .chain()
+                .any(|cause| cause.is::<crate::interrupt::Interrupted>())
+            {
+                ExitCode::from(crate::interrupt::INTERRUPTED_EXIT)
+            } else if error.chain().any(|cause| cause.is::<BadInput>()) {
                 ExitCode::from(2)
             } else {
                 ExitCode::from(1)

@@ -18,14 +18,14 @@ pub const MAX_TEXT_BYTES: u64 = 16 << 20;
 /// [`MAX_TEXT_BYTES`] (bounded while reading: devices report no size) or not UTF-8.
 pub fn read_text(path: &Path) -> Result<String> {
     let bad = |why: String| BadInput::new(format!("{}: {why}", path.display()));
-    let meta = fs::metadata(path).map_err(|e| bad(e.to_string()))?;
+    let meta = fs::metadata(path).map_err(|e| bad(format!("cannot read: {e}")))?;
     if !meta.is_file() {
         return Err(bad("not a regular file".into()));
     }
     let mut bytes = Vec::new();
     fs::File::open(path)
         .and_then(|file| file.take(MAX_TEXT_BYTES + 1).read_to_end(&mut bytes))
-        .map_err(|e| bad(e.to_string()))?;
+        .map_err(|e| bad(format!("cannot read: {e}")))?;
     if bytes.len() as u64 > MAX_TEXT_BYTES {
         return Err(bad(format!(
             "larger than {} MiB; expected a small text file",

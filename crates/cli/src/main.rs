@@ -7,6 +7,7 @@ mod commands;
 mod drive_input;
 mod exit;
 mod input;
+mod interrupt;
 mod out_dir;
 mod progress;
 

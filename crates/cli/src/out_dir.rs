@@ -19,6 +19,16 @@ use crate::exit::BadInput;
 /// Name of the marker file evigrid leaves in every output folder it writes.
 pub const MARKER: &str = ".evigrid-output";
 
+const NOT_OURS: &str = "exists and is not an evigrid output folder (no .evigrid-output file); \
+                        choose another --out or add --force";
+
+/// Creates and removes a probe file in `dir`: the only sure test that a folder is writable.
+fn probe_writable(dir: &Path) -> std::io::Result<()> {
+    let probe = dir.join(format!(".evigrid-probe-{}", std::process::id()));
+    fs::write(&probe, b"")?;
+    fs::remove_file(&probe)
+}
+
 /// An output folder checked and ready for writing; [`OutDir::finish`] records what was written.
 #[derive(Debug)]
 pub struct OutDir {
@@ -29,6 +39,42 @@ pub struct OutDir {
 }
 
 impl OutDir {
+    /// Checks, without creating or changing anything, that [`OutDir::prepare`] will succeed:
+    /// for commands that read and check all their inputs first, so that a bad input leaves no
+    /// output folder behind.
+    ///
+    /// # Errors
+    /// Bad input naming `path`, as [`OutDir::prepare`] would give.
+    pub fn check(path: &Path, force: bool) -> Result<()> {
+        let bad = |why: &str| BadInput::new(format!("--out {}: {why}", path.display()));
+        if path.is_dir() {
+            if !force && !path.join(MARKER).is_file() && !is_empty_dir(path) {
+                return Err(bad(NOT_OURS));
+            }
+            return probe_writable(path).map_err(|e| bad(&format!("cannot write here: {e}")));
+        }
+        if fs::symlink_metadata(path).is_ok() {
+            return Err(bad("exists and is not a folder"));
+        }
+        // Created later: the nearest existing ancestor must be a folder we can write in.
+        let ancestor = path
+            .ancestors()
+            .skip(1)
+            .find(|a| a.as_os_str().is_empty() || fs::symlink_metadata(a).is_ok())
+            .map(|a| {
+                if a.as_os_str().is_empty() {
+                    Path::new(".")
+                } else {
+                    a
+                }
+            })
+            .unwrap_or(Path::new("."));
+        if !ancestor.is_dir() {
+            return Err(bad(&format!("{} is not a folder", ancestor.display())));
+        }
+        probe_writable(ancestor).map_err(|e| bad(&format!("cannot create: {e}")))
+    }
+
     /// Checks `path` as the output folder of `command` and prepares it: creates it, or reuses an
     /// empty or evigrid folder (removing the files the previous run listed), or with `force` any
     /// folder. The folder must not contain any of `inputs` when it is cleared.
@@ -38,17 +84,14 @@ impl OutDir {
     /// cannot be created or written.
     pub fn prepare(path: &Path, force: bool, command: &str) -> Result<Self> {
         let started = std::time::SystemTime::now();
-        let bad = |why: &str| BadInput::new(format!("{}: {why}", path.display()));
+        let bad = |why: &str| BadInput::new(format!("--out {}: {why}", path.display()));
         match fs::symlink_metadata(path) {
             Ok(meta) if meta.is_dir() => {
                 let marker = path.join(MARKER);
                 if marker.is_file() {
                     remove_listed(path, &marker);
                 } else if !force && !is_empty_dir(path) {
-                    return Err(bad(
-                        "exists and is not an evigrid output folder (no .evigrid-output file); \
-                         choose another --out or add --force",
-                    ));
+                    return Err(bad(NOT_OURS));
                 }
             }
             Ok(meta) if meta.file_type().is_symlink() && path.is_dir() => {
@@ -159,7 +202,7 @@ fn is_empty_dir(path: &Path) -> bool {
 /// # Errors
 /// Bad input naming `path`.
 pub fn check_out_file(path: &Path, inputs: &[&Path]) -> Result<()> {
-    let bad = |why: &str| BadInput::new(format!("{}: {why}", path.display()));
+    let bad = |why: &str| BadInput::new(format!("--out {}: {why}", path.display()));
     if let Ok(meta) = fs::metadata(path) {
         if !meta.is_file() {
             return Err(bad(
@@ -195,6 +238,27 @@ mod tests {
 
     fn message(result: Result<impl std::fmt::Debug>) -> String {
         result.err().map(|e| e.to_string()).unwrap_or_default()
+    }
+
+    #[test]
+    fn check_changes_nothing_and_agrees_with_prepare() -> Result<()> {
+        let tmp = tempfile::tempdir()?;
+        let out = tmp.path().join("a/b");
+        OutDir::check(&out, false)?;
+        assert!(!tmp.path().join("a").exists());
+        fs::write(tmp.path().join("mine.txt"), "x")?;
+        assert!(message(OutDir::check(tmp.path(), false)).contains("not an evigrid output"));
+        OutDir::check(tmp.path(), true)?;
+        assert!(
+            message(OutDir::check(&tmp.path().join("mine.txt/x"), false))
+                .contains("is not a folder")
+        );
+        assert!(
+            message(OutDir::check(Path::new("/proc/evigrid-out"), false)).contains("cannot create")
+        );
+        let entries = fs::read_dir(tmp.path())?.count();
+        assert_eq!(entries, 1, "a probe file was left behind");
+        Ok(())
     }
 
     #[test]

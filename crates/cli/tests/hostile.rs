@@ -477,3 +477,107 @@ fn a_campaign_of_mutated_inputs_keeps_the_promise() {
     assert!(per_family.iter().all(|&[n, ..]| n > 0));
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// Five KITTI scans (links to the shared data) and a bad one in the middle, in `dir/scans`.
+fn scans_with_a_bad_one(dir: &Path) -> Option<()> {
+    let source = geodata::testdata::shared_file("data/lidar/kitti-city-22")?;
+    let mut names: Vec<_> = fs::read_dir(&source)
+        .ok()?
+        .flatten()
+        .map(|e| e.path())
+        .collect();
+    names.sort();
+    fs::create_dir_all(dir.join("scans")).unwrap();
+    for path in names.iter().take(5) {
+        std::os::unix::fs::symlink(path, dir.join("scans").join(path.file_name()?)).unwrap();
+    }
+    let bad = pcd("WIDTH 1\nHEIGHT 1\nPOINTS 4000000000", "ascii\n1 2 3\n");
+    fs::write(dir.join("scans/0000000002b.pcd"), bad).unwrap();
+    Some(())
+}
+
+fn summary(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn a_bad_scan_is_skipped_and_named_or_with_strict_ends_the_run_with_a_summary() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    if scans_with_a_bad_one(d).is_none() {
+        eprintln!("skipped: shared KITTI scans not found (set EVIGRID_SHARED)");
+        return;
+    }
+    let run = |out: &str, strict: bool| {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_evigrid"));
+        command
+            .args(["run", "--scans", "scans", "--out", out])
+            .current_dir(d);
+        if strict {
+            command.arg("--strict");
+        }
+        command.output().unwrap()
+    };
+    let lenient = run("lenient", false);
+    assert!(lenient.status.success(), "{lenient:?}");
+    let s = summary(&d.join("lenient"));
+    assert_eq!(s["complete"], true);
+    assert_eq!(s["frames"], 5);
+    assert_eq!(s["skipped_scans"][0]["scan"], "0000000002b.pcd");
+    assert!(String::from_utf8_lossy(&lenient.stderr).contains("1 scan(s) skipped"));
+
+    let strict = run("strict", true);
+    assert_eq!(strict.status.code(), Some(2), "{strict:?}");
+    let s = summary(&d.join("strict"));
+    assert_eq!(s["complete"], false);
+    assert!(
+        s["stopped"].as_str().unwrap().contains("0000000002b.pcd"),
+        "{s}"
+    );
+    let stderr = String::from_utf8_lossy(&strict.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("marked incomplete"), "{stderr}");
+}
+
+#[test]
+fn an_interrupted_run_leaves_a_summary_marked_incomplete_and_no_temporary_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    if scans_with_a_bad_one(d).is_none() {
+        eprintln!("skipped: shared KITTI scans not found (set EVIGRID_SHARED)");
+        return;
+    }
+    let child = Command::new(env!("CARGO_BIN_EXE_evigrid"))
+        .args(["run", "--scans", "scans", "--out", "out"])
+        .current_dir(d)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Early, in the odometry's first pass or the first frames: either way the summary follows.
+    std::thread::sleep(Duration::from_millis(150));
+    let sent = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let output = child.wait_with_output().unwrap();
+    let s = summary(&d.join("out"));
+    if output.status.code() == Some(0) {
+        // The run finished before the signal arrived: nothing to check.
+        assert_eq!(s["complete"], true);
+        return;
+    }
+    assert_eq!(output.status.code(), Some(130), "{output:?}");
+    assert_eq!(s["complete"], false);
+    assert!(
+        s["stopped"].as_str().unwrap().contains("interrupted"),
+        "{s}"
+    );
+    let leftovers: Vec<_> = fs::read_dir(d.join("out"))
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}

@@ -622,7 +622,7 @@ mod tests {
         let per_cell = (pipeline.perception().heap_bytes()
             + pipeline.sensor_grid().heap_bytes()
             + pipeline.gis().heap_bytes()
-            + pipeline.decisions().len() * std::mem::size_of::<crate::Label>()
+            + std::mem::size_of_val(pipeline.decisions())
             + pipeline.trace().as_slice().len()) as f64
             / cells as f64;
         assert!(

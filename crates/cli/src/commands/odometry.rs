@@ -93,6 +93,8 @@ pub fn run(args: OdometryArgs) -> Result<()> {
     if args.max_frames == Some(0) {
         return Err(BadInput::new("--max-frames must be at least 1"));
     }
+    crate::out_dir::check_out_file(&args.out, &[&args.scans])?;
+    let interrupt = crate::interrupt::Interrupt::install();
     let mut scans = open_scans(&args.scans, args.times.as_deref())?;
     if let Some(n) = args.max_frames {
         scans.truncate(n);
@@ -105,15 +107,23 @@ pub fn run(args: OdometryArgs) -> Result<()> {
     let bar = crate::progress::bar(scans.paths.len() as u64, "odometry");
     let (mut registered, mut not_converged, mut predicted) = (0, 0, 0);
     let started = Instant::now();
-    let poses = poses_from_odometry(&scans, OdometryParams::default(), |odometry| {
-        match odometry.last_report().map(|r| r.outcome) {
-            Some(FrameOutcome::Registered { converged: true }) => registered += 1,
-            Some(FrameOutcome::Registered { converged: false }) => not_converged += 1,
-            Some(FrameOutcome::Predicted) => predicted += 1,
-            _ => {}
-        }
-        bar.inc(1);
-    })?;
+    // Strict: the pose file has one line per scan, so a scan cannot be left out.
+    let poses = poses_from_odometry(
+        &mut scans,
+        OdometryParams::default(),
+        true,
+        &mut Vec::new(),
+        &|| interrupt.requested(),
+        |odometry: &odometry::Odometry| {
+            match odometry.last_report().map(|r| r.outcome) {
+                Some(FrameOutcome::Registered { converged: true }) => registered += 1,
+                Some(FrameOutcome::Registered { converged: false }) => not_converged += 1,
+                Some(FrameOutcome::Predicted) => predicted += 1,
+                _ => {}
+            }
+            bar.inc(1);
+        },
+    )?;
     bar.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();
     let track = PoseTrack::new(poses.times.clone(), poses.world_from_sensor.clone())

@@ -87,6 +87,12 @@ pub struct RunArgs {
     /// Print the summary as JSON on standard output (and no per-frame lines).
     #[arg(long)]
     json: bool,
+    /// Stop at the first unreadable scan or refused pose instead of skipping it.
+    #[arg(long)]
+    strict: bool,
+    /// Write into an existing --out folder that is not an evigrid output folder.
+    #[arg(long)]
+    force: bool,
 }
 
 const POSES_HELP: &str = "\
@@ -167,9 +173,24 @@ struct EgoPathTotals {
     share: Option<f64>,
 }
 
+/// A scan the run skipped, and why.
+#[derive(Debug, Serialize)]
+struct SkippedScan {
+    scan: String,
+    error: String,
+}
+
 /// The summary written to `summary.json` (and to stdout with `--json`).
 #[derive(Debug, Serialize)]
 struct Summary {
+    /// False when the run stopped early (`stopped` says why): the grids and pictures are those
+    /// of the last frame processed.
+    complete: bool,
+    /// Why the run stopped before the last scan (a signal, an error); `null` when complete.
+    stopped: Option<String>,
+    /// Scans left out (unreadable, or their pose refused), with the reason; the run goes on
+    /// without them unless `--strict`.
+    skipped_scans: Vec<SkippedScan>,
     /// The map, or `null` for a run without one.
     map: Option<String>,
     /// `map`, or `vacuous (no map)`: what the GISGrid held.
@@ -260,6 +281,11 @@ pub fn run(args: RunArgs) -> Result<()> {
         .map(|p| p.display().to_string())
         .unwrap_or_default();
 
+    // Checked before any work (a wrong --out must not cost the run), created once every input
+    // has been checked (a bad input leaves no folder behind).
+    crate::out_dir::OutDir::check(&args.out, args.force)?;
+    let interrupt = crate::interrupt::Interrupt::install();
+
     let loaded = match &args.map {
         Some(map) => Some(
             geodata::load_map(map, &geodata::LoadOptions { origin })
@@ -290,6 +316,8 @@ pub fn run(args: RunArgs) -> Result<()> {
     let project_dyn: &dyn Fn(f64, f64) -> (f64, f64) = &project;
 
     let mut odometry_seconds = 0.0;
+    let mut odometry_skipped: Vec<(PathBuf, String)> = Vec::new();
+    let mut early_stop: Option<(String, anyhow::Error)> = None;
     let (poses, poses_name, pose_matching): (ScanPoses, String, &str) = match &args.poses {
         Some(path) => {
             let options = PoseFileOptions {
@@ -330,7 +358,25 @@ pub fn run(args: RunArgs) -> Result<()> {
                 }
                 let bar = crate::progress::bar(scans.paths.len() as u64, "odometry");
                 let t0 = Instant::now();
-                let poses = poses_from_odometry(&scans, OdometryParams::default(), |_| bar.inc(1))?;
+                let poses = match poses_from_odometry(
+                    &mut scans,
+                    OdometryParams::default(),
+                    args.strict,
+                    &mut odometry_skipped,
+                    &|| interrupt.requested(),
+                    |_| bar.inc(1),
+                ) {
+                    Ok(poses) => poses,
+                    // Stopped in the first pass (a signal, or a bad scan with --strict): no
+                    // frame is run, and the summary still says so.
+                    Err(error) => {
+                        early_stop = Some((format!("odometry pass: {error}"), error));
+                        ScanPoses {
+                            times: Vec::new(),
+                            world_from_sensor: Vec::new(),
+                        }
+                    }
+                };
                 bar.finish_and_clear();
                 odometry_seconds = t0.elapsed().as_secs_f64();
                 (poses, "lidar odometry".to_string(), "odometry")
@@ -362,6 +408,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         })?;
     }
 
+    let out_dir = crate::out_dir::OutDir::prepare(&args.out, args.force, "run")?;
     let frames_dir = args.out.join("frames");
     fs::create_dir_all(&frames_dir)
         .with_context(|| format!("cannot create {}", frames_dir.display()))?;
@@ -370,18 +417,48 @@ pub fn run(args: RunArgs) -> Result<()> {
 
     let progress = crate::progress::bar(scans.paths.len() as u64, "run");
     let mut per_frame = Vec::with_capacity(scans.paths.len());
+    let mut skipped: Vec<SkippedScan> = odometry_skipped
+        .into_iter()
+        .map(|(path, error)| SkippedScan {
+            scan: file_name(&path),
+            error,
+        })
+        .collect();
+    // Why the run stopped early, and the error to return once what was done is written.
+    let mut stopped: Option<(String, anyhow::Error)> = early_stop;
     for (k, ((path, pose), &time_s)) in scans.paths.iter().zip(&poses).zip(&times).enumerate() {
+        if interrupt.requested() {
+            stopped = Some((
+                "interrupted (SIGINT or SIGTERM)".into(),
+                crate::interrupt::Interrupted.into(),
+            ));
+            break;
+        }
         let t0 = Instant::now();
-        let scan = read_scan(path).map_err(|e| BadInput::new(e.to_string()))?;
-        let t1 = Instant::now();
-        let stats = pipeline
-            .process(&scan.points_in_sensor, pose, time_s)
-            .map_err(|e| {
-                BadInput::new(format!(
-                    "{poses_name}: pose of scan {}: {e}",
-                    path.display()
-                ))
-            })?;
+        // A bad scan or a refused pose is the input's fault: skipped (or, with --strict, the
+        // end of the run); anything else stops the run.
+        let frame = read_scan(path).map_err(|e| e.to_string()).and_then(|scan| {
+            let t1 = Instant::now();
+            pipeline
+                .process(&scan.points_in_sensor, pose, time_s)
+                .map(|stats| (stats, t1))
+                .map_err(|e| format!("{poses_name}: pose of scan {}: {e}", path.display()))
+        });
+        let (stats, t1) = match frame {
+            Ok(frame) => frame,
+            Err(error) => {
+                if args.strict {
+                    stopped = Some((error.clone(), BadInput::new(error)));
+                    break;
+                }
+                skipped.push(SkippedScan {
+                    scan: file_name(path),
+                    error,
+                });
+                progress.inc(1);
+                continue;
+            }
+        };
         let t2 = Instant::now();
         let path_cells = cells_near_path(
             pipeline.window(),
@@ -390,12 +467,16 @@ pub fn run(args: RunArgs) -> Result<()> {
         );
         let ego_path =
             EgoPathCheck::count(&path_cells, pipeline.sensor_grid(), pipeline.decisions());
-        let image = decision_image(
+        let written = decision_image(
             pipeline.window(),
             pipeline.decisions(),
             &ClassColours::THREE_CLASSES,
-        )?;
-        write_png(&image, &frames_dir.join(format!("decision-{k:06}.png")))?;
+        )
+        .and_then(|image| write_png(&image, &frames_dir.join(format!("decision-{k:06}.png"))));
+        if let Err(error) = written {
+            stopped = Some((format!("writing frame {k}: {error}"), error.into()));
+            break;
+        }
         let t3 = Instant::now();
         let s = &stats.sensor;
         let share = |n: usize, of: usize| if of > 0 { n as f64 / of as f64 } else { 0.0 };
@@ -403,10 +484,7 @@ pub fn run(args: RunArgs) -> Result<()> {
             .points
             .saturating_sub(s.dropped_non_finite + s.dropped_out_of_range);
         let record = FrameRecord {
-            scan: path
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_default(),
+            scan: file_name(path),
             time_s,
             position: pose.translation,
             read_ms: ms(t1 - t0),
@@ -429,33 +507,24 @@ pub fn run(args: RunArgs) -> Result<()> {
         progress.inc(1);
     }
     progress.finish_and_clear();
-    let window = pipeline.window();
-    let five = ClassColours::FIVE_CLASSES;
-    write_png(
-        &decision_image(window, pipeline.decisions(), &five)?,
-        &args.out.join("decision.png"),
-    )?;
-    write_png(
-        &pignistic_image(window, pipeline.perception(), &five)?,
-        &args.out.join("pignistic.png"),
-    )?;
-    write_png(
-        &trace_image(
-            window,
-            pipeline.decisions(),
-            pipeline.trace(),
-            &ClassColours::THREE_CLASSES,
-        )?,
-        &args.out.join("trace.png"),
-    )?;
-    OccupancyGridExport::new(window, pipeline.decisions(), "map")?
-        .write(&args.out.join("occupancy.json"))?;
-    write_masses(
-        window,
-        pipeline.perception(),
-        "map",
-        &args.out.join("masses.json"),
-    )?;
+    if per_frame.is_empty()
+        && stopped.is_none()
+        && let Some(first) = skipped.first()
+    {
+        let error = format!(
+            "no scan could be used ({} skipped; the first: {})",
+            skipped.len(),
+            first.error
+        );
+        stopped = Some((error.clone(), BadInput::new(error)));
+    }
+    // The final pictures and grids are written even after an early stop (they are the last
+    // processed frame's); a failure here is kept, and the summary is still attempted.
+    if let Err(error) = write_final_outputs(&pipeline, &args.out)
+        && stopped.is_none()
+    {
+        stopped = Some((format!("writing the final outputs: {error}"), error));
+    }
 
     let sum = |f: fn(&FrameRecord) -> usize| per_frame.iter().map(f).sum::<usize>();
     let mut ego_total = EgoPathCheck::default();
@@ -469,6 +538,9 @@ pub fn run(args: RunArgs) -> Result<()> {
         .collect();
     let cell_shares: Vec<f64> = per_frame.iter().map(|f| f.obstacle_cell_share).collect();
     let summary = Summary {
+        complete: stopped.is_none(),
+        stopped: stopped.as_ref().map(|(why, _)| why.clone()),
+        skipped_scans: skipped,
         map: args.map.as_ref().map(|m| m.display().to_string()),
         prior: if loaded.is_some() {
             "map"
@@ -487,8 +559,11 @@ pub fn run(args: RunArgs) -> Result<()> {
         dropped_outside_window: sum(|f| f.stats.sensor.dropped_outside_window),
         total_seconds: started.elapsed().as_secs_f64(),
         odometry_seconds,
-        mean_process_ms: per_frame.iter().map(|f| f.process_ms).sum::<f64>()
-            / per_frame.len() as f64,
+        mean_process_ms: if per_frame.is_empty() {
+            0.0
+        } else {
+            per_frame.iter().map(|f| f.process_ms).sum::<f64>() / per_frame.len() as f64
+        },
         final_classes: count_decisions(pipeline.decisions()),
         moving_trace_cells: pipeline.trace().count(),
         ego_path: EgoPathTotals {
@@ -507,9 +582,37 @@ pub fn run(args: RunArgs) -> Result<()> {
     };
     let text = serde_json::to_string_pretty(&summary)?;
     let summary_path = args.out.join("summary.json");
-    output::write_atomic(&summary_path, |file| {
+    let summary_written = output::write_atomic(&summary_path, |file| {
         std::io::Write::write_all(file, text.as_bytes())
-    })?;
+    });
+    if let Some((why, error)) = stopped {
+        // The summary says what was done; the error says why the run ended.
+        let _ = why;
+        let frames = format!(
+            "run stopped after {} of {} frames",
+            summary.frames,
+            scans.paths.len()
+        );
+        let note = match summary_written {
+            Ok(()) => format!(
+                "{frames}, summary in {} (marked incomplete)",
+                summary_path.display()
+            ),
+            Err(e) => format!("{frames}; the summary could not be written either ({e})"),
+        };
+        let _ = out_dir.finish();
+        return Err(error.context(note));
+    }
+    summary_written?;
+    out_dir.finish()?;
+    if !summary.skipped_scans.is_empty() {
+        eprintln!(
+            "evigrid: {} scan(s) skipped, the first: {} (all in skipped_scans of {})",
+            summary.skipped_scans.len(),
+            summary.skipped_scans[0].error,
+            summary_path.display()
+        );
+    }
     if args.json {
         println!("{text}");
     } else {
@@ -558,6 +661,45 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The final views and grids: decision, betP and trace pictures, the occupancy grid and masses.
+fn write_final_outputs(pipeline: &Pipeline, out: &Path) -> Result<()> {
+    let window = pipeline.window();
+    let five = ClassColours::FIVE_CLASSES;
+    write_png(
+        &decision_image(window, pipeline.decisions(), &five)?,
+        &out.join("decision.png"),
+    )?;
+    write_png(
+        &pignistic_image(window, pipeline.perception(), &five)?,
+        &out.join("pignistic.png"),
+    )?;
+    write_png(
+        &trace_image(
+            window,
+            pipeline.decisions(),
+            pipeline.trace(),
+            &ClassColours::THREE_CLASSES,
+        )?,
+        &out.join("trace.png"),
+    )?;
+    OccupancyGridExport::new(window, pipeline.decisions(), "map")?
+        .write(&out.join("occupancy.json"))?;
+    write_masses(
+        window,
+        pipeline.perception(),
+        "map",
+        &out.join("masses.json"),
+    )?;
+    Ok(())
+}
+
+/// The file name of a scan, for the summary.
+fn file_name(path: &Path) -> String {
+    path.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
 }
 
 /// One frame's numbers on one line.
