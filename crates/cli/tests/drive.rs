@@ -28,7 +28,23 @@ fn json(output: &Output) -> serde_json::Value {
         "{}",
         String::from_utf8_lossy(&output.stderr)
     );
-    serde_json::from_slice(&output.stdout).unwrap()
+    with_frames(serde_json::from_slice(&output.stdout).unwrap())
+}
+
+/// The summary with its per-frame records (`frames.jsonl` beside it) as `per_frame`.
+fn with_frames(mut summary: serde_json::Value) -> serde_json::Value {
+    if summary["frames_file"].is_null() {
+        return summary; // not a run's summary
+    }
+    let file =
+        Path::new(summary["out"].as_str().unwrap()).join(summary["frames_file"].as_str().unwrap());
+    let frames: Vec<serde_json::Value> = std::fs::read_to_string(file)
+        .unwrap()
+        .lines()
+        .map(|line| serde_json::from_str(line).unwrap())
+        .collect();
+    summary["per_frame"] = frames.into();
+    summary
 }
 
 fn stderr(output: &Output) -> String {

@@ -73,8 +73,16 @@ fn runs_end_to_end_on_real_scans() {
         "{}",
         String::from_utf8_lossy(&output.stderr)
     );
-    let summary: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    let mut summary: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
     assert_eq!(summary["frames"], 3);
+    // The per-frame records are streamed to frames.jsonl, one object per line.
+    let frames: Vec<serde_json::Value> = std::fs::read_to_string(out.join("frames.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|line| serde_json::from_str(line).unwrap())
+        .collect();
+    assert_eq!(frames.len(), 3);
+    summary["per_frame"] = frames.into();
     assert_eq!(summary["params"]["window"]["width_cells"], 200);
     let classes: Vec<u64> = serde_json::from_value(summary["final_classes"].clone()).unwrap();
     assert_eq!(classes.iter().sum::<u64>(), 200 * 160);

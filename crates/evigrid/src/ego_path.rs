@@ -225,6 +225,68 @@ impl ShareSpread {
     }
 }
 
+/// [`ShareSpread`] of a drive of any length in constant memory: shares (in `[0, 1]`) go into a
+/// histogram of [`ShareTracker::BINS`] bins, so the median is exact to half a bin (0.005
+/// percentage points) and the worst frame exact.
+#[derive(Clone, Debug)]
+pub struct ShareTracker {
+    bins: Vec<u64>,
+    count: u64,
+    frame: usize,
+    worst: Option<(usize, f64)>,
+}
+
+impl Default for ShareTracker {
+    fn default() -> Self {
+        Self {
+            bins: vec![0; Self::BINS],
+            count: 0,
+            frame: 0,
+            worst: None,
+        }
+    }
+}
+
+impl ShareTracker {
+    /// Bins of the histogram over `[0, 1]`.
+    pub const BINS: usize = 10_000;
+
+    /// Records the next frame's share (frames are numbered from 0 in push order; a non-finite
+    /// share is skipped but still numbers its frame).
+    pub fn push(&mut self, share: f64) {
+        let frame = self.frame;
+        self.frame += 1;
+        if !share.is_finite() {
+            return;
+        }
+        let bin = (share.clamp(0.0, 1.0) * Self::BINS as f64) as usize;
+        self.bins[bin.min(Self::BINS - 1)] += 1;
+        self.count += 1;
+        if self.worst.is_none_or(|(_, w)| share > w) {
+            self.worst = Some((frame, share));
+        }
+    }
+
+    /// The spread so far; `None` before any finite share.
+    pub fn spread(&self) -> Option<ShareSpread> {
+        let (worst_frame, worst) = self.worst?;
+        // The lower median's bin (the `(count + 1) / 2`-th value), at its centre.
+        let rank = self.count.div_ceil(2);
+        let mut seen = 0;
+        let bin = self.bins.iter().position(|&n| {
+            seen += n;
+            seen >= rank
+        })?;
+        let median = (bin as f64 + 0.5) / Self::BINS as f64;
+        Some(ShareSpread {
+            median,
+            worst_frame,
+            worst,
+            worst_to_median: (median > 0.0).then(|| worst / median),
+        })
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
@@ -321,5 +383,25 @@ mod tests {
             None
         );
         assert!(ShareSpread::of(&[]).is_none());
+    }
+
+    #[test]
+    fn the_tracker_agrees_with_the_exact_spread_to_half_a_bin() {
+        let shares = [0.30, 0.25, f64::NAN, 0.61, 0.28, 0.29];
+        let mut tracker = ShareTracker::default();
+        for &s in &shares {
+            tracker.push(s);
+        }
+        let approx = tracker.spread().unwrap();
+        // Lower median of {0.25, 0.28, 0.29, 0.30, 0.61}: 0.29, in bin 2900.
+        assert!(
+            (approx.median - 0.29).abs() <= 0.5 / ShareTracker::BINS as f64,
+            "{approx:?}"
+        );
+        assert_eq!((approx.worst_frame, approx.worst), (3, 0.61));
+        let exact = ShareSpread::of(&shares).unwrap();
+        assert_eq!(exact.worst_frame, approx.worst_frame);
+        assert!((exact.median - approx.median).abs() <= 0.5 / ShareTracker::BINS as f64);
+        assert!(ShareTracker::default().spread().is_none());
     }
 }

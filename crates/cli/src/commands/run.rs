@@ -19,7 +19,8 @@ use drive::poses::{Mounting, PoseFormat};
 use drive::read_scan;
 use evigrid::Params;
 use evigrid::ego_path::{
-    EGO_PATH_LENGTH_M, EGO_PATH_RADIUS_M, EgoPathCheck, ShareSpread, cells_near_path, path_ahead,
+    EGO_PATH_LENGTH_M, EGO_PATH_RADIUS_M, EgoPathCheck, ShareSpread, ShareTracker, cells_near_path,
+    path_ahead,
 };
 use evigrid::{FrameStats, Pipeline};
 use odometry::OdometryParams;
@@ -127,8 +128,10 @@ Outputs (in --out):
   pignistic.png                final betP colour mix;  trace.png  moving objects over the drive
   occupancy.json               final decided grid, ROS nav_msgs/OccupancyGrid layout
   masses.json, masses.bin      final masses, one float32 field per focal set (foxglove.Grid layout)
-  summary.json                 parameters, per-frame timing, counts, ground and obstacle shares and
-                               the ego-path check, totals over the drive";
+  frames.jsonl                 one JSON object per frame, written as the run goes: timing, counts,
+                               ground and obstacle shares, the ego-path check
+  summary.json                 parameters, totals over the drive (complete: false and stopped: why
+                               when it ended early), skipped scans";
 
 /// Per-frame record of the summary.
 #[derive(Debug, Serialize)]
@@ -221,8 +224,46 @@ struct Summary {
     obstacle_share_in_range: Option<ShareSpread>,
     /// The same for `obstacle_cell_share`.
     obstacle_cell_share: Option<ShareSpread>,
-    per_frame: Vec<FrameRecord>,
+    /// The per-frame records, one JSON object per line, written as the run goes (so that an
+    /// interrupted run keeps them, and memory does not grow with the drive).
+    frames_file: &'static str,
+    /// The output folder.
+    out: String,
 }
+
+/// What the summary adds up over the frames, kept as the run goes (constant memory).
+#[derive(Debug, Default)]
+struct RunningTotals {
+    frames: usize,
+    points: usize,
+    dropped_non_finite: usize,
+    dropped_out_of_range: usize,
+    dropped_outside_window: usize,
+    process_ms: f64,
+    ego_path: EgoPathCheck,
+    obstacle_share: ShareTracker,
+    obstacle_share_in_range: ShareTracker,
+    obstacle_cell_share: ShareTracker,
+}
+
+impl RunningTotals {
+    fn add(&mut self, f: &FrameRecord) {
+        let s = &f.stats.sensor;
+        self.frames += 1;
+        self.points += s.points;
+        self.dropped_non_finite += s.dropped_non_finite;
+        self.dropped_out_of_range += s.dropped_out_of_range;
+        self.dropped_outside_window += s.dropped_outside_window;
+        self.process_ms += f.process_ms;
+        self.ego_path.add(&f.ego_path);
+        self.obstacle_share.push(f.obstacle_share);
+        self.obstacle_share_in_range.push(f.obstacle_share_in_range);
+        self.obstacle_cell_share.push(f.obstacle_cell_share);
+    }
+}
+
+/// Name of the per-frame records in the output folder.
+const FRAMES_FILE: &str = "frames.jsonl";
 
 /// Runs `evigrid run`.
 pub fn run(args: RunArgs) -> Result<()> {
@@ -416,7 +457,12 @@ pub fn run(args: RunArgs) -> Result<()> {
         .map_err(|e| BadInput::new(format!("{}: {e}", config_name(&args))))?;
 
     let progress = crate::progress::bar(scans.paths.len() as u64, "run");
-    let mut per_frame = Vec::with_capacity(scans.paths.len());
+    let mut totals = RunningTotals::default();
+    let frames_path = args.out.join(FRAMES_FILE);
+    let mut frames_log = std::io::BufWriter::new(
+        fs::File::create(&frames_path)
+            .with_context(|| format!("cannot create {}", frames_path.display()))?,
+    );
     let mut skipped: Vec<SkippedScan> = odometry_skipped
         .into_iter()
         .map(|(path, error)| SkippedScan {
@@ -503,11 +549,26 @@ pub fn run(args: RunArgs) -> Result<()> {
             let line = frame_line(k, &record);
             progress.suspend(|| println!("{line}"));
         }
-        per_frame.push(record);
+        let logged = serde_json::to_writer(&mut frames_log, &record)
+            .map_err(std::io::Error::from)
+            .and_then(|()| std::io::Write::write_all(&mut frames_log, b"\n"));
+        if let Err(error) = logged {
+            let why = format!("{}: {error}", frames_path.display());
+            stopped = Some((why.clone(), anyhow::anyhow!(why)));
+            break;
+        }
+        totals.add(&record);
         progress.inc(1);
     }
     progress.finish_and_clear();
-    if per_frame.is_empty()
+    if let Err(error) = std::io::Write::flush(&mut frames_log)
+        && stopped.is_none()
+    {
+        let why = format!("{}: {error}", frames_path.display());
+        stopped = Some((why.clone(), anyhow::anyhow!(why)));
+    }
+    drop(frames_log);
+    if totals.frames == 0
         && stopped.is_none()
         && let Some(first) = skipped.first()
     {
@@ -526,17 +587,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         stopped = Some((format!("writing the final outputs: {error}"), error));
     }
 
-    let sum = |f: fn(&FrameRecord) -> usize| per_frame.iter().map(f).sum::<usize>();
-    let mut ego_total = EgoPathCheck::default();
-    for f in &per_frame {
-        ego_total.add(&f.ego_path);
-    }
-    let obstacle_shares: Vec<f64> = per_frame.iter().map(|f| f.obstacle_share).collect();
-    let in_range_shares: Vec<f64> = per_frame
-        .iter()
-        .map(|f| f.obstacle_share_in_range)
-        .collect();
-    let cell_shares: Vec<f64> = per_frame.iter().map(|f| f.obstacle_cell_share).collect();
+    let ego_total = &totals.ego_path;
     let summary = Summary {
         complete: stopped.is_none(),
         stopped: stopped.as_ref().map(|(why, _)| why.clone()),
@@ -552,17 +603,17 @@ pub fn run(args: RunArgs) -> Result<()> {
         poses: poses_name,
         pose_matching,
         params,
-        frames: per_frame.len(),
-        points: sum(|f| f.stats.sensor.points),
-        dropped_non_finite: sum(|f| f.stats.sensor.dropped_non_finite),
-        dropped_out_of_range: sum(|f| f.stats.sensor.dropped_out_of_range),
-        dropped_outside_window: sum(|f| f.stats.sensor.dropped_outside_window),
+        frames: totals.frames,
+        points: totals.points,
+        dropped_non_finite: totals.dropped_non_finite,
+        dropped_out_of_range: totals.dropped_out_of_range,
+        dropped_outside_window: totals.dropped_outside_window,
         total_seconds: started.elapsed().as_secs_f64(),
         odometry_seconds,
-        mean_process_ms: if per_frame.is_empty() {
+        mean_process_ms: if totals.frames == 0 {
             0.0
         } else {
-            per_frame.iter().map(|f| f.process_ms).sum::<f64>() / per_frame.len() as f64
+            totals.process_ms / totals.frames as f64
         },
         final_classes: count_decisions(pipeline.decisions()),
         moving_trace_cells: pipeline.trace().count(),
@@ -575,10 +626,11 @@ pub fn run(args: RunArgs) -> Result<()> {
             decided_occupied_or_moving: ego_total.decided_occupied_or_moving(),
             share: ego_total.share(),
         },
-        obstacle_share: ShareSpread::of(&obstacle_shares),
-        obstacle_share_in_range: ShareSpread::of(&in_range_shares),
-        obstacle_cell_share: ShareSpread::of(&cell_shares),
-        per_frame,
+        obstacle_share: totals.obstacle_share.spread(),
+        obstacle_share_in_range: totals.obstacle_share_in_range.spread(),
+        obstacle_cell_share: totals.obstacle_cell_share.spread(),
+        frames_file: FRAMES_FILE,
+        out: args.out.display().to_string(),
     };
     let text = serde_json::to_string_pretty(&summary)?;
     let summary_path = args.out.join("summary.json");
