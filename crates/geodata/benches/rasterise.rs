@@ -5,7 +5,7 @@
 //! Baseline: the naive method — every polygon tested against every cell centre with
 //! `geo::Contains` — is timed on a 20 m window for the ratio (it is too slow for the whole map).
 //!
-//! Run: `cargo bench -p geodata --bench rasterise`.
+//! Run: `cargo bench -p evigrid-geodata --bench rasterise`.
 
 use std::hint::black_box;
 
