@@ -19,6 +19,35 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// More diagnostics on standard error: -v what is read and decided, -vv per frame, -vvv
+    /// everything. `RUST_LOG` (e.g. `RUST_LOG=evigrid=debug`) overrides.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    /// Errors only: no warnings, no progress bars.
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
+}
+
+/// Sends `tracing` events to standard error at the level `-v`/`-q` chose, or as `RUST_LOG` says.
+fn init_logging(verbose: u8, quiet: bool) {
+    let level = match (quiet, verbose) {
+        (true, _) => "error",
+        (false, 0) => "warn",
+        (false, 1) => "info",
+        (false, 2) => "debug",
+        (false, _) => "trace",
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_env("RUST_LOG")
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(level));
+    // `try_init`: a second initialisation (tests) is not an error worth failing for.
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .with_target(false)
+        .without_time()
+        .try_init();
+    progress::set_quiet(quiet);
 }
 
 #[derive(Debug, Subcommand)]
@@ -43,10 +72,13 @@ enum Command {
     Demo(commands::demo::DemoArgs),
     /// Tunes the parameters on simulated drives and checks them on held-out drives.
     Tune(commands::tune::TuneArgs),
+    /// The parameters as TOML: print the defaults, or check a file.
+    Config(commands::config::ConfigArgs),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
+    init_logging(cli.verbose, cli.quiet);
     let result = match cli.command {
         Command::Mass(cmd) => commands::mass::run(cmd),
         Command::Map(cmd) => commands::map::run(cmd),
@@ -57,6 +89,7 @@ fn main() -> std::process::ExitCode {
         Command::Eval(args) => commands::eval::run(args),
         Command::Demo(args) => commands::demo::run(args),
         Command::Tune(args) => commands::tune::run(args),
+        Command::Config(args) => commands::config::run(args),
     };
     exit::report(result)
 }

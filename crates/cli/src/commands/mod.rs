@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod cell;
+pub mod config;
 pub mod demo;
 pub mod eval;
 pub mod map;

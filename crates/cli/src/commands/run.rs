@@ -334,6 +334,16 @@ pub fn run(args: RunArgs) -> Result<()> {
         ),
         None => None,
     };
+    if let Some(loaded) = &loaded {
+        let e = &loaded.stats.extent_m;
+        tracing::info!(
+            "map: {} buildings, {} road polygons, {:.0} m x {:.0} m",
+            loaded.stats.buildings,
+            loaded.map.roads.len(),
+            e.width_m,
+            e.height_m
+        );
+    }
     let raster = loaded
         .as_ref()
         .map(|loaded| geodata::ContextRaster::new(&loaded.map));
@@ -449,6 +459,15 @@ pub fn run(args: RunArgs) -> Result<()> {
         })?;
     }
 
+    tracing::info!(
+        "{} scans from {scans_name}; poses: {poses_name} (matched by {pose_matching}); prior: {}",
+        scans.paths.len(),
+        if loaded.is_some() {
+            "map"
+        } else {
+            "vacuous (no map)"
+        }
+    );
     let out_dir = crate::out_dir::OutDir::prepare(&args.out, args.force, "run")?;
     let frames_dir = args.out.join("frames");
     fs::create_dir_all(&frames_dir)
@@ -497,6 +516,7 @@ pub fn run(args: RunArgs) -> Result<()> {
                     stopped = Some((error.clone(), BadInput::new(error)));
                     break;
                 }
+                tracing::debug!("skipped: {error}");
                 skipped.push(SkippedScan {
                     scan: file_name(path),
                     error,
@@ -557,6 +577,12 @@ pub fn run(args: RunArgs) -> Result<()> {
             stopped = Some((why.clone(), anyhow::anyhow!(why)));
             break;
         }
+        tracing::debug!(
+            "frame {k}: read {:.1} ms, process {:.1} ms, render {:.1} ms",
+            record.read_ms,
+            record.process_ms,
+            record.render_ms
+        );
         totals.add(&record);
         progress.inc(1);
     }
