@@ -5,6 +5,8 @@
 //! sensor model, run once per scan), whose output every variant's [`GridMethod`] consumes:
 //! - `full`: evigrid's [`Fusion`] of the drive's pipeline map ([`Prior::Map`]);
 //! - `no-map`: the same fusion with a vacuous GISGrid ([`Prior::Vacuous`]);
+//! - `evigrid`: the fusion of the map prior followed by the motion stage
+//!   ([`evigrid::pipeline::Method::Evigrid`], `docs/motion.md`);
 //! - `moras2011`, `log-odds`: the [`baselines`](crate::baselines).
 //!
 //! Scans go in with the *estimated* sensor pose (localisation noise included); truth is labelled
@@ -28,7 +30,7 @@ use crate::method::GridMethod;
 use crate::metrics::{ConfusionMatrix, Latency, Remanence};
 use crate::report::{EvalReport, SeedScores, VariantReport};
 use evigrid::Params;
-use evigrid::pipeline::{FrontEnd, FrontEndStats, Fusion, Prior};
+use evigrid::pipeline::{FrontEnd, FrontEndStats, Fusion, Method as FusionMethod, Prior};
 use evigrid::window::Window;
 use geodata::{ContextRaster, LocalMap};
 use serde::{Deserialize, Serialize};
@@ -47,6 +49,9 @@ pub enum Variant {
     /// evigrid without a map.
     #[serde(rename = "no-map")]
     NoMap,
+    /// evigrid with the map prior and the motion stage ([`Method::Evigrid`]).
+    #[serde(rename = "evigrid")]
+    Evigrid,
     /// Moras et al. 2011 two-class evidential grid.
     #[serde(rename = "moras2011")]
     Moras2011,
@@ -57,9 +62,10 @@ pub enum Variant {
 
 impl Variant {
     /// All variants, in report order.
-    pub const ALL: [Variant; 4] = [
+    pub const ALL: [Variant; 5] = [
         Variant::Full,
         Variant::NoMap,
+        Variant::Evigrid,
         Variant::Moras2011,
         Variant::LogOdds,
     ];
@@ -68,6 +74,7 @@ impl Variant {
         match self {
             Variant::Full => "full",
             Variant::NoMap => "no-map",
+            Variant::Evigrid => "evigrid",
             Variant::Moras2011 => "moras2011",
             Variant::LogOdds => "log-odds",
         }
@@ -86,7 +93,7 @@ impl Variant {
     }
     /// True if the variant fuses the map prior (it alone needs the front end's GISGrid).
     pub fn uses_map(self) -> bool {
-        self == Variant::Full
+        matches!(self, Variant::Full | Variant::Evigrid)
     }
 }
 
@@ -183,6 +190,11 @@ impl Runner {
             Variant::NoMap => {
                 Method::Fusion(Box::new(Fusion::new(params.clone(), Prior::Vacuous)?))
             }
+            Variant::Evigrid => Method::Fusion(Box::new(Fusion::with_method(
+                params.clone(),
+                Prior::Map,
+                FusionMethod::Evigrid,
+            )?)),
             Variant::Moras2011 => Method::Other(Box::new(Moras2011::new(len, config.moras2011))),
             Variant::LogOdds => Method::Other(Box::new(LogOdds::new(len, config.log_odds))),
         };
@@ -555,7 +567,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(calls, 30);
-        assert_eq!(report.variants.len(), 4);
+        assert_eq!(report.variants.len(), 5);
         for v in &report.variants {
             assert!(v.scores.scored_cell_frames > 0);
         }

@@ -34,6 +34,7 @@
 pub mod decision;
 pub mod grids;
 pub mod map_prior;
+pub mod motion;
 pub mod params;
 pub mod pipeline;
 pub mod pose;

@@ -71,6 +71,7 @@ use serde::Serialize;
 use crate::decision::Decision;
 use crate::grids::{GisGrid, PerceptionGrid, SensorGrid};
 use crate::map_prior::MapPrior;
+use crate::motion::{MotionStage, MotionStats};
 use crate::params::{Params, ParamsError};
 use crate::sensor_model::{Isometry3, SensorModel, SensorStats};
 use crate::step::{StepStats, step_and_decide};
@@ -332,11 +333,25 @@ pub enum Prior {
     Vacuous,
 }
 
+/// Which method a [`Fusion`] runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub enum Method {
+    /// Kurdej et al. 2013 exactly as SPEC §5-§6 specify (evaluation variant `full`).
+    #[default]
+    Kurdej2013,
+    /// The SPEC §5 step followed by the motion stage ([`crate::motion`]): registration-based
+    /// motion evidence combined into the PerceptionGrid, with the boundary-aware map prior
+    /// (`docs/motion.md`; evaluation variant `evigrid`).
+    Evigrid,
+}
+
 /// What the fusion back end did in one frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FusionStats {
     /// The step's counts.
     pub step: StepStats,
+    /// The motion stage's counts ([`Method::Evigrid`] only).
+    pub motion: Option<MotionStats>,
     /// Wall time of the stages, milliseconds: resetting the cells new in the window, fusion
     /// step with the decision, trace of moving cells.
     pub reset_ms: f64,
@@ -357,6 +372,8 @@ pub struct Fusion {
     trace: MovingTrace,
     /// The prior of [`Prior::Vacuous`]: a GISGrid nothing ever writes.
     vacuous_gis: Option<GisGrid>,
+    /// The motion stage of [`Method::Evigrid`].
+    motion: Option<Box<MotionStage>>,
 }
 
 impl Fusion {
@@ -366,9 +383,19 @@ impl Fusion {
     ///
     /// [`PipelineError::Params`] if the parameters are out of range.
     pub fn new(params: Params, prior: Prior) -> Result<Self, PipelineError> {
+        Self::with_method(params, prior, Method::Kurdej2013)
+    }
+
+    /// A vacuous PerceptionGrid of the window size of `params`, fusing `prior` by `method`.
+    ///
+    /// # Errors
+    ///
+    /// [`PipelineError::Params`] if the parameters are out of range.
+    pub fn with_method(params: Params, prior: Prior, method: Method) -> Result<Self, PipelineError> {
         params.validate()?;
         let (w, h) = (params.window.width_cells, params.window.height_cells);
         Ok(Self {
+            motion: (method == Method::Evigrid).then(|| Box::new(MotionStage::new(&params, w, h))),
             params,
             prior,
             perception: PerceptionGrid::new(w, h),
@@ -403,20 +430,38 @@ impl Fusion {
             NewCells::All => {
                 self.perception.reset_all();
                 self.trace = MovingTrace::new(window.len());
+                if let Some(motion) = &mut self.motion {
+                    motion.reset_all();
+                }
             }
             NewCells::Entered(_) => {
                 for span in front_end.new_cell_spans() {
                     self.perception.reset_range(span.clone());
+                    if let Some(motion) = &mut self.motion {
+                        motion.reset_range(span.clone());
+                    }
                     self.trace.reset_range(span);
                 }
             }
+        }
+        // The variant's boundary-aware map prior, where the window moved.
+        if let (Some(motion), Prior::Map) = (&mut self.motion, self.prior) {
+            let entered = match front_end.new_cells() {
+                NewCells::All => None,
+                NewCells::Entered(entered) => Some(entered),
+            };
+            motion.refresh_prior(front_end.gis(), window, entered);
         }
         let reset_ms = ms(start);
 
         // Refine, combine with the map prior, discount the past, fuse, accumulate, specialise
         // (SPEC §5), and decide every cell (SPEC §6) while its block is in cache.
         let start = Instant::now();
-        let gis = self.vacuous_gis.as_ref().unwrap_or(front_end.gis());
+        let gis = match (&self.vacuous_gis, &self.motion) {
+            (Some(vacuous), _) => vacuous,
+            (None, Some(motion)) => motion.prior(),
+            (None, None) => front_end.gis(),
+        };
         let step = step_and_decide(
             &mut self.perception,
             front_end.sensor_grid(),
@@ -427,6 +472,18 @@ impl Fusion {
         );
         let step_ms = ms(start);
 
+        // Motion evidence combined into the grid, its cells decided again.
+        let motion = self.motion.as_mut().and_then(|motion| {
+            Some(motion.update(
+                window,
+                front_end.sensor_grid(),
+                front_end.time_s()?,
+                front_end.dt_s(),
+                &mut self.perception,
+                &mut self.decisions,
+            ))
+        });
+
         // Add this frame's moving cells to the trace.
         let start = Instant::now();
         self.trace.record(&self.decisions);
@@ -434,6 +491,7 @@ impl Fusion {
 
         Ok(FusionStats {
             step,
+            motion,
             reset_ms,
             step_ms,
             trace_ms,
@@ -448,6 +506,21 @@ impl Fusion {
     /// The prior it fuses.
     pub fn prior(&self) -> Prior {
         self.prior
+    }
+
+    /// The method it runs.
+    pub fn method(&self) -> Method {
+        if self.motion.is_some() {
+            Method::Evigrid
+        } else {
+            Method::Kurdej2013
+        }
+    }
+
+    /// The motion stage ([`Method::Evigrid`] only): the velocity planes, the boundary-aware
+    /// map prior.
+    pub fn motion(&self) -> Option<&MotionStage> {
+        self.motion.as_deref()
     }
 
     /// The PerceptionGrid, in storage order.
