@@ -650,6 +650,9 @@ pub struct MotionParams {
     pub gate_m: f64,
     /// A track unseen for longer than this, s, is dropped. By default 1.
     pub max_coast_s: f64,
+    /// Registrations a track needs before its cells get mass on {M} (a one-frame shift can be
+    /// a cluster matched to another object's past), 1-8. By default 1.
+    pub moving_after_measurements: usize,
     /// Largest mass on {M} given to a moving track's cells, `[0, 1]`. By default 0.8.
     pub mu_moving: f64,
     /// Mass on Ω∖{M} given to a static track's cells, `[0, 1]`. By default 0.6.
@@ -673,6 +676,7 @@ impl Default for MotionParams {
             shift_sigma_cells: 0.5,
             gate_m: 2.0,
             max_coast_s: 1.0,
+            moving_after_measurements: 1,
             mu_moving: 0.8,
             mu_static: 0.6,
             building_margin_cells: 1,
@@ -689,6 +693,10 @@ impl MotionParams {
         for (name, value) in [
             ("motion.history_frames", self.history_frames),
             ("motion.search_radius_cells", self.search_radius_cells),
+            (
+                "motion.moving_after_measurements",
+                self.moving_after_measurements,
+            ),
         ] {
             if value == 0 {
                 return Err(ParamsError::NotPositive { name, value: 0.0 });
@@ -697,6 +705,11 @@ impl MotionParams {
         at_most("motion.history_frames", self.history_frames, 8)?;
         at_most("motion.search_radius_cells", self.search_radius_cells, 16)?;
         at_most("motion.building_margin_cells", self.building_margin_cells, 2)?;
+        at_most(
+            "motion.moving_after_measurements",
+            self.moving_after_measurements,
+            8,
+        )?;
         positive("motion.max_speed_mps", self.max_speed_mps)?;
         unit("motion.match_fraction", self.match_fraction)?;
         unit("motion.shift_margin_fraction", self.shift_margin_fraction)?;

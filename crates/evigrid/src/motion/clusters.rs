@@ -38,6 +38,13 @@ impl Clusters {
 
     /// Labels the occupied storage cells `occupied` of `window` into 8-connected clusters.
     pub(crate) fn label(&mut self, window: &Window, occupied: &[u32]) {
+        // The labels of the previous frame are cleared first (they are kept until now so that
+        // `label_of` can answer).
+        for c in &self.cells {
+            if let Some(m) = self.marks.get_mut(c.idx as usize) {
+                *m = FREE;
+            }
+        }
         self.cells.clear();
         self.starts.clear();
         for &idx in occupied {
@@ -79,11 +86,23 @@ impl Clusters {
             }
         }
         self.starts.push(self.cells.len());
-        for &idx in occupied {
-            if let Some(m) = self.marks.get_mut(idx as usize) {
+    }
+
+    /// The cluster of an occupied storage cell of the last labelling, `None` for a cell that
+    /// is not occupied.
+    pub(crate) fn label_of(&self, idx: usize) -> Option<u32> {
+        self.marks.get(idx).copied().filter(|&m| m < PENDING)
+    }
+
+    /// Forgets the labels (the window's storage was reassigned).
+    pub(crate) fn clear(&mut self) {
+        for c in &self.cells {
+            if let Some(m) = self.marks.get_mut(c.idx as usize) {
                 *m = FREE;
             }
         }
+        self.cells.clear();
+        self.starts.clear();
     }
 
     /// Number of clusters.
@@ -133,9 +152,15 @@ mod tests {
             .collect();
         sets.sort();
         assert_eq!(sets, vec![vec![0, 7], vec![3], vec![17, 23]]);
-        // The labels are cleared: labelling again gives the same.
-        clusters.label(&window, &occupied);
-        assert_eq!(clusters.len(), 3);
+        let zero = clusters.label_of(0);
+        assert!(zero.is_some() && zero == clusters.label_of(7));
+        assert_ne!(zero, clusters.label_of(3));
+        assert_eq!(clusters.label_of(1), None);
+        // Labelling again clears the old labels first.
+        clusters.label(&window, &[1]);
+        assert_eq!(clusters.len(), 1);
+        assert_eq!(clusters.label_of(0), None);
+        assert_eq!(clusters.label_of(1), Some(0));
     }
 
     #[test]

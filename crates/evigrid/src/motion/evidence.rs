@@ -3,7 +3,8 @@
 //! A track's velocity v (per-axis variances σ²) gives the statistic χ² = vx²/σx² + vy²/σy²,
 //! whose χ²(2) distribution under "v = 0" gives the confidence that the object moves,
 //! c = 1 − exp(−χ²/2). Then, on the cells of the track's cluster in this frame:
-//! - moving (|v| ≥ `min_speed_mps`): m({M}) = `mu_moving` · c, the rest on Ω;
+//! - moving (|v| ≥ `min_speed_mps`, and at least `moving_after_measurements` registrations
+//!   of the track): m({M}) = `mu_moving` · c, the rest on Ω;
 //! - static (|v| < `min_speed_mps` and √(σx² + σy²) < `min_speed_mps`: slow and known to be
 //!   slow): m(Ω∖{M}) = `mu_static`, the rest on Ω: "not moving", which says nothing about
 //!   I, U or S;
@@ -33,12 +34,15 @@ pub enum MotionMass {
 
 /// The evidence a track gives its cells.
 pub(crate) fn track_mass(track: &Track, params: &MotionParams) -> MotionMass {
-    if !track.measured {
+    if track.measurements == 0 {
         return MotionMass::Vacuous;
     }
     let [x, y] = track.velocity;
     let speed = x.mean_mps.hypot(y.mean_mps);
     if speed >= params.min_speed_mps {
+        if (track.measurements as usize) < params.moving_after_measurements {
+            return MotionMass::Vacuous;
+        }
         let chi_sq = x.mean_mps * x.mean_mps / x.variance + y.mean_mps * y.mean_mps / y.variance;
         let confidence = 1.0 - (-0.5 * chi_sq).exp();
         MotionMass::Moving((params.mu_moving * confidence) as f32)
@@ -162,12 +166,12 @@ mod tests {
         assert!((m.iter().sum::<f32>() - 1.0).abs() < 1e-6);
     }
 
-    fn track(v: [f64; 2], variance: f64, measured: bool) -> Track {
+    fn track(v: [f64; 2], variance: f64, measurements: u32) -> Track {
         Track {
             position_m: [0.0; 2],
             velocity: v.map(|v| VelocityFilter::new(v, variance)),
             last_seen_s: 0.0,
-            measured,
+            measurements,
         }
     }
 
@@ -177,22 +181,35 @@ mod tests {
         // 3 m/s east with σ = 1 m/s per axis: χ² = 9, c = 1 − e^{−4.5}.
         let expected = (0.8 * (1.0 - (-4.5f64).exp())) as f32;
         assert_eq!(
-            track_mass(&track([3.0, 0.0], 1.0, true), &p),
+            track_mass(&track([3.0, 0.0], 1.0, 2), &p),
             MotionMass::Moving(expected)
         );
         // Slow and well known: static.
         assert_eq!(
-            track_mass(&track([0.1, 0.0], 0.01, true), &p),
+            track_mass(&track([0.1, 0.0], 0.01, 1), &p),
             MotionMass::Static(0.6)
         );
         // Slow but uncertain, or never measured: nothing.
         assert_eq!(
-            track_mass(&track([0.1, 0.0], 1.0, true), &p),
+            track_mass(&track([0.1, 0.0], 1.0, 3), &p),
             MotionMass::Vacuous
         );
         assert_eq!(
-            track_mass(&track([3.0, 0.0], 1.0, false), &p),
+            track_mass(&track([3.0, 0.0], 1.0, 0), &p),
             MotionMass::Vacuous
+        );
+        // Moving after one registration only, when two are asked for: not yet.
+        let two = MotionParams {
+            moving_after_measurements: 2,
+            ..p.clone()
+        };
+        assert_eq!(
+            track_mass(&track([3.0, 0.0], 1.0, 1), &two),
+            MotionMass::Vacuous
+        );
+        assert_eq!(
+            track_mass(&track([3.0, 0.0], 1.0, 1), &p),
+            MotionMass::Moving(expected)
         );
     }
 }

@@ -40,7 +40,7 @@ use crate::params::{MotionParams, ResidualPolicy};
 use crate::window::{Entered, Window};
 use clusters::Clusters;
 use history::OccupancyHistory;
-use register::Registrar;
+use register::{Now, Registrar};
 use tracks::{Observation, Tracks};
 
 /// What the motion stage did in one frame.
@@ -74,6 +74,11 @@ pub struct MotionStage {
     tracks: Tracks,
     observations: Vec<Observation>,
     occupied: Vec<u32>,
+    /// The scan's cells crossed by a ray without a return.
+    free: Vec<u32>,
+    /// Per cell of the clusters, in cluster order: whether it may have moved
+    /// (`Registrar::moved`).
+    moved: Vec<bool>,
     /// The boundary-aware map prior ([`context`]).
     gis: GisGrid,
     velocity_east: Vec<f32>,
@@ -97,6 +102,8 @@ impl MotionStage {
             tracks: Tracks::default(),
             observations: Vec::new(),
             occupied: Vec::new(),
+            free: Vec::new(),
+            moved: Vec::new(),
             gis: GisGrid::new(width, height),
             velocity_east: vec![0.0; len],
             velocity_north: vec![0.0; len],
@@ -107,6 +114,7 @@ impl MotionStage {
     /// Forgets everything (the first frame of a drive).
     pub fn reset_all(&mut self) {
         self.history.reset_all();
+        self.clusters.clear();
         self.tracks.clear();
         self.velocity_east.fill(0.0);
         self.velocity_north.fill(0.0);
@@ -166,9 +174,10 @@ impl MotionStage {
         let start = Instant::now();
         let cell_size_m = window.cell_size_m();
 
-        // 1. The scan's occupied cells, only in the blocks the sensor model wrote.
+        // 1. The scan's occupied and free cells, only in the blocks the sensor model wrote.
         self.occupied.clear();
-        let m_occupied = sensor.m_occupied();
+        self.free.clear();
+        let (m_free, m_occupied) = (sensor.m_free(), sensor.m_occupied());
         for (block, _) in sensor
             .may_hold_mass()
             .iter()
@@ -177,9 +186,11 @@ impl MotionStage {
         {
             let first = block * CELLS_PER_BLOCK;
             let end = (first + CELLS_PER_BLOCK).min(m_occupied.len());
-            for (idx, &m) in m_occupied[first..end].iter().enumerate() {
-                if m > 0.0 {
-                    self.occupied.push((first + idx) as u32);
+            for idx in first..end {
+                if m_occupied[idx] > 0.0 {
+                    self.occupied.push(idx as u32);
+                } else if m_free[idx] > 0.0 {
+                    self.free.push(idx as u32);
                 }
             }
         }
@@ -187,6 +198,7 @@ impl MotionStage {
         // 2-3. Clusters, each registered against the past frames.
         self.clusters.label(window, &self.occupied);
         self.observations.clear();
+        self.moved.clear();
         let mut registered = 0;
         for k in 0..self.clusters.len() {
             let cells = self.clusters.cluster(k);
@@ -198,19 +210,26 @@ impl MotionStage {
             let n = cells.len().max(1) as f64;
             let velocity = self
                 .registrar
-                .register(cells, window, &self.history, time_s, &self.params)
+                .register(
+                    cells,
+                    window,
+                    &self.history,
+                    Now {
+                        time_s,
+                        clusters: &self.clusters,
+                        cluster: k as u32,
+                        m_free: sensor.m_free(),
+                    },
+                    &self.params,
+                )
                 .map(|r| {
-                    let scale = cell_size_m / r.span_s;
-                    let sigma = self.params.shift_sigma_cells * scale;
-                    (
-                        [
-                            f64::from(r.shift_cells.0) * scale,
-                            f64::from(r.shift_cells.1) * scale,
-                        ],
-                        sigma * sigma,
-                    )
+                    let sigma = self.params.shift_sigma_cells * cell_size_m / r.sum_span_sq.sqrt();
+                    let (vx, vy) = r.velocity_cells_per_s;
+                    ([vx * cell_size_m, vy * cell_size_m], sigma * sigma)
                 });
             registered += usize::from(velocity.is_some());
+            self.moved
+                .extend(cells.iter().map(|c| velocity.is_none() || self.registrar.moved(c)));
             self.observations.push(Observation {
                 centroid_m: [sx / n * cell_size_m, sy / n * cell_size_m],
                 velocity,
@@ -232,27 +251,30 @@ impl MotionStage {
         }
         self.velocity_cells.clear();
         let (mut moving_cells, mut static_cells) = (0, 0);
+        let mut first = 0;
         for k in 0..self.clusters.len() {
+            let cells = self.clusters.cluster(k);
+            let moved = &self.moved[first..first + cells.len()];
+            first += cells.len();
             let Some(track) = self.tracks.of_observation(k) else {
                 continue;
             };
             let mass = evidence::track_mass(track, &self.params);
-            let cells = self.clusters.cluster(k);
-            match mass {
-                MotionMass::Vacuous => continue,
-                MotionMass::Moving(_) => {
-                    moving_cells += cells.len();
-                    let [vx, vy] = track.velocity.map(|v| v.mean_mps as f32);
-                    for c in cells {
-                        self.velocity_east[c.idx as usize] = vx;
-                        self.velocity_north[c.idx as usize] = vy;
+            let [vx, vy] = track.velocity.map(|v| v.mean_mps as f32);
+            for (c, &moved) in cells.iter().zip(moved) {
+                let idx = c.idx as usize;
+                match mass {
+                    MotionMass::Vacuous => continue,
+                    // A static part of a moving cluster gets no evidence.
+                    MotionMass::Moving(_) if !moved => continue,
+                    MotionMass::Moving(_) => {
+                        moving_cells += 1;
+                        self.velocity_east[idx] = vx;
+                        self.velocity_north[idx] = vy;
                         self.velocity_cells.push(c.idx);
                     }
+                    MotionMass::Static(_) => static_cells += 1,
                 }
-                MotionMass::Static(_) => static_cells += cells.len(),
-            }
-            for c in cells {
-                let idx = c.idx as usize;
                 let mut m = perception.cell_masses(idx);
                 combine(&mut m, mass, self.residual);
                 write_cell(perception, idx, &m);
@@ -261,7 +283,7 @@ impl MotionStage {
         }
 
         // 6. This frame joins the history.
-        self.history.push(&self.occupied, time_s);
+        self.history.push(&self.occupied, &self.free, time_s);
         MotionStats {
             occupied_cells: self.occupied.len(),
             clusters: self.clusters.len(),

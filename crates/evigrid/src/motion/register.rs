@@ -16,30 +16,64 @@
 //! no static cell's shift, and one of a cell or more moves all the clusters of a frame alike,
 //! which the zero-shift preference absorbs for objects that stay in view.
 
-use super::clusters::Cell;
+use super::clusters::{Cell, Clusters};
 use super::history::{OccupancyHistory, SLOTS};
 use crate::params::MotionParams;
 use crate::window::Window;
 
+/// A past frame whose shift is this far, cells, from the velocity of the newer frames shows a
+/// change of motion and ends the search.
+const CHANGE_CELLS: f64 = 1.5;
+
 /// Cells of a cluster counted at most: a long façade is sampled evenly.
 const MAX_COUNTED_CELLS: usize = 256;
 
-/// A cluster's measured shift against one past frame.
+/// A cluster's velocity measured against the past frames.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Registration {
-    /// Shift from the past frame to now, cells (east, north).
-    pub(crate) shift_cells: (i32, i32),
-    /// Which past frame (1 = previous).
-    pub(crate) frames_back: usize,
-    /// Time from that frame to now, seconds.
-    pub(crate) span_s: f64,
+    /// Velocity in cells per second (east, north): the least-squares slope through the
+    /// origin of the shifts d_k against the time spans τ_k of the frames that matched,
+    /// Σ d_k·τ_k / Σ τ_k².
+    pub(crate) velocity_cells_per_s: (f64, f64),
+    /// Σ τ_k² of those frames, s²: a shift error of σ cells gives a velocity error of
+    /// σ / √(Σ τ_k²) cells per second.
+    pub(crate) sum_span_sq: f64,
+    /// Frames that matched.
+    pub(crate) frames: usize,
+}
+
+/// The shift of the oldest frame a registration used, to tell a cluster's cells apart
+/// ([`Registrar::moved`]).
+#[derive(Clone, Copy, Debug, Default)]
+struct LastShift {
+    dx: i64,
+    dy: i64,
+    bit: u8,
+}
+
+/// The frame being registered: its time, its clusters and which of them is registered.
+#[derive(Clone, Copy)]
+pub(crate) struct Now<'a> {
+    pub(crate) time_s: f64,
+    pub(crate) clusters: &'a Clusters,
+    pub(crate) cluster: u32,
+    /// m(F) of the frame's SensorGrid: where rays crossed.
+    pub(crate) m_free: &'a [f32],
 }
 
 /// Scratch buffers of the search, kept between clusters and frames.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Registrar {
+    /// Per patch cell, the occupied-history byte (0 where another cluster is now).
     patch: Vec<u8>,
+    /// Per patch cell, the seen-free history byte.
+    free: Vec<u8>,
+    /// Per patch cell, 0xff if the cell is now this cluster's or seen free, else 0.
+    left: Vec<u8>,
     counts: Vec<[u32; SLOTS]>,
+    /// Patch geometry of the last cluster: width, first column and row (radius included).
+    patch_origin: (usize, i64, i64),
+    last: LastShift,
 }
 
 /// `SPREAD[b]` has byte `j` equal to bit `j` of `b`.
@@ -67,9 +101,10 @@ impl Registrar {
         cells: &[Cell],
         window: &Window,
         history: &OccupancyHistory,
-        now_s: f64,
+        now: Now<'_>,
         params: &MotionParams,
     ) -> Option<Registration> {
+        let now_s = now.time_s;
         let first = cells.first()?;
         let radius = params.search_radius_cells as i64;
         let (mut c0, mut c1, mut r0, mut r1) = (first.col, first.col, first.row, first.row);
@@ -80,12 +115,30 @@ impl Registrar {
         // The history around the cluster, `radius` cells beyond its bounding box.
         let pw = (c1 - c0 + 1 + 2 * radius) as usize;
         let ph = (r1 - r0 + 1 + 2 * radius) as usize;
-        self.patch.clear();
-        self.patch.resize(pw * ph, 0);
+        for plane in [&mut self.patch, &mut self.free, &mut self.left] {
+            plane.clear();
+            plane.resize(pw * ph, 0);
+        }
+        self.patch_origin = (pw, c0 - radius, r0 - radius);
+        self.last = LastShift::default();
         for (pr, row) in (r0 - radius..=r1 + radius).enumerate() {
             for (pc, col) in (c0 - radius..=c1 + radius).enumerate() {
-                if let Some(idx) = window.storage_index(col, row) {
-                    self.patch[pr * pw + pc] = history.bits(idx);
+                let Some(idx) = window.storage_index(col, row) else {
+                    continue;
+                };
+                let p = pr * pw + pc;
+                self.free[p] = history.free_bits(idx);
+                match now.clusters.label_of(idx) {
+                    // Another cluster occupies it now: that object is still there, so this
+                    // one did not come from it.
+                    Some(l) if l != now.cluster => {}
+                    Some(_) => (self.patch[p], self.left[p]) = (history.bits(idx), 0xff),
+                    None => {
+                        self.patch[p] = history.bits(idx);
+                        if now.m_free.get(idx).is_some_and(|&f| f > 0.0) {
+                            self.left[p] = 0xff;
+                        }
+                    }
                 }
             }
         }
@@ -101,9 +154,14 @@ impl Registrar {
             let mut lanes = 0u64;
             let mut in_lanes = 0;
             for c in cells.iter().step_by(stride) {
-                let pc = (c.col - dx - c0 + radius) as usize;
-                let pr = (c.row - dy - r0 + radius) as usize;
-                lanes += SPREAD[usize::from(self.patch[pr * pw + pc])];
+                let here = (c.row - r0 + radius) as usize * pw + (c.col - c0 + radius) as usize;
+                let from = (c.row - dy - r0 + radius) as usize * pw
+                    + (c.col - dx - c0 + radius) as usize;
+                // The cell it came from was occupied then, and the move is seen: either that
+                // cell is seen empty (or still its own) now, or this cell was seen free then.
+                // Otherwise the match may be a change of what is visible, not a move.
+                let seen = self.free[here] | self.left[from];
+                lanes += SPREAD[usize::from(self.patch[from] & seen)];
                 in_lanes += 1;
                 // A byte lane holds up to 255.
                 if in_lanes == 255 {
@@ -120,7 +178,7 @@ impl Registrar {
             .ceil()
             .max(1.0) as u32;
         let cell_size_m = window.cell_size_m();
-        let mut found = None;
+        let (mut sum_dt_x, mut sum_dt_y, mut sum_tt, mut frames) = (0.0, 0.0, 0.0, 0);
         for frames_back in 1..=params.history_frames {
             let Some((bit, then_s)) = history.frame_back(frames_back) else {
                 break;
@@ -150,18 +208,55 @@ impl Registrar {
             if f64::from(matched) < needed {
                 continue;
             }
-            found = Some(Registration {
-                shift_cells: (dx as i32, dy as i32),
-                frames_back,
-                span_s,
-            });
+            // A shift off the line of the newer frames by more than CHANGE_CELLS: the object
+            // changed its motion (a car that just stopped shows no shift against the last
+            // frames and a long one against older ones); keep the newer frames only.
+            if frames > 0 {
+                let off_x = dx as f64 - sum_dt_x / sum_tt * span_s;
+                let off_y = dy as f64 - sum_dt_y / sum_tt * span_s;
+                if off_x.abs().max(off_y.abs()) > CHANGE_CELLS {
+                    break;
+                }
+            }
+            sum_dt_x += dx as f64 * span_s;
+            sum_dt_y += dy as f64 * span_s;
+            sum_tt += span_s * span_s;
+            frames += 1;
+            self.last = LastShift { dx, dy, bit };
             // Two cells or more: precise enough, and further back a fast object leaves the
             // search radius.
             if dx * dx + dy * dy >= 4 {
                 break;
             }
         }
-        found
+        (frames > 0).then(|| Registration {
+            velocity_cells_per_s: (sum_dt_x / sum_tt, sum_dt_y / sum_tt),
+            sum_span_sq: sum_tt,
+            frames,
+        })
+    }
+}
+
+impl Registrar {
+    /// After the last registration, whether one of its cells may have moved: false for a cell
+    /// that was occupied in the oldest frame used and is not explained by the shift found
+    /// there (a static object merged into a moving one's cluster, such as a car waiting
+    /// beside crossing traffic); true wherever no shift was found (nothing to tell apart).
+    pub(crate) fn moved(&self, cell: &Cell) -> bool {
+        let LastShift { dx, dy, bit } = self.last;
+        if (dx, dy) == (0, 0) {
+            return true;
+        }
+        let (pw, col0, row0) = self.patch_origin;
+        let at = |col: i64, row: i64| {
+            let (pc, pr) = (col - col0, row - row0);
+            usize::try_from(pc)
+                .ok()
+                .zip(usize::try_from(pr).ok())
+                .and_then(|(pc, pr)| (pc < pw).then(|| self.patch.get(pr * pw + pc)).flatten())
+                .is_some_and(|&b| b & bit != 0)
+        };
+        at(cell.col - dx, cell.row - dy) || !at(cell.col, cell.row)
     }
 }
 
@@ -191,6 +286,23 @@ mod tests {
         cells(window, list).iter().map(|c| c.idx).collect()
     }
 
+    /// Every cell of the 40 × 40 test window seen free now (except the clusters').
+    static ALL_FREE: [f32; 1600] = [0.7; 1600];
+
+    /// A frame at `time_s` with no other cluster in it, everything else seen free.
+    fn alone(time_s: f64, none: &Clusters) -> Now<'_> {
+        Now {
+            time_s,
+            clusters: none,
+            cluster: 0,
+            m_free: &ALL_FREE,
+        }
+    }
+
+    fn window() -> Window {
+        Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"))
+    }
+
     #[test]
     fn spread_puts_each_bit_in_its_byte() {
         assert_eq!(SPREAD[0b1000_0101], 0x0100_0000_0001_0001);
@@ -198,8 +310,7 @@ mod tests {
 
     #[test]
     fn a_face_moving_two_cells_a_frame_is_found_and_a_wall_is_static() {
-        let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
-        let params = MotionParams::default();
+        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
         let mut history = OccupancyHistory::new(window.len());
         // A 4-cell face at column 10 moving east by 2 cells a frame, and a wall at row 30.
         let face = |col: i64| (0..4).map(move |r| (col, 10 + r));
@@ -207,48 +318,150 @@ mod tests {
         for k in 0..3 {
             let mut occupied: Vec<(i64, i64)> = face(10 + 2 * k).collect();
             occupied.extend(&wall);
-            history.push(&indices(&window, &occupied), 0.1 * k as f64);
+            history.push(&indices(&window, &occupied), &[], 0.1 * k as f64);
         }
         let mut registrar = Registrar::default();
         let now: Vec<(i64, i64)> = face(16).collect();
         let found = registrar
-            .register(&cells(&window, &now), &window, &history, 0.3, &params)
+            .register(&cells(&window, &now), &window, &history, alone(0.3, &none), &params)
             .unwrap_or_else(|| panic!("not registered"));
-        assert_eq!(found.shift_cells, (2, 0));
-        assert_eq!(found.frames_back, 1);
-        assert!((found.span_s - 0.1).abs() < 1e-12);
+        // Two cells in 0.1 s, from the previous frame alone.
+        assert_eq!(found.frames, 1);
+        assert!((found.velocity_cells_per_s.0 - 20.0).abs() < 1e-9);
+        assert!(found.velocity_cells_per_s.1.abs() < 1e-12);
+        assert!((found.sum_span_sq - 0.01).abs() < 1e-12);
+        assert!(registrar.moved(&cells(&window, &[(16, 10)])[0]));
         let still = registrar
-            .register(&cells(&window, &wall), &window, &history, 0.3, &params)
+            .register(&cells(&window, &wall), &window, &history, alone(0.3, &none), &params)
             .unwrap_or_else(|| panic!("not registered"));
-        // Static: zero shift, measured against the oldest frame kept (3 back).
-        assert_eq!(still.shift_cells, (0, 0));
-        assert_eq!(still.frames_back, 3);
+        // Static: zero shift against each of the three frames kept.
+        assert_eq!(still.velocity_cells_per_s, (0.0, 0.0));
+        assert_eq!(still.frames, 3);
+        assert!((still.sum_span_sq - (0.01 + 0.04 + 0.09)).abs() < 1e-9);
     }
 
     #[test]
     fn a_slow_object_is_measured_against_older_frames_and_a_new_one_not_at_all() {
-        let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
-        let params = MotionParams::default();
+        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
         let mut history = OccupancyHistory::new(window.len());
         // Two cells moving one cell every three frames (a walker at 1.7 m/s).
         for k in 0..7 {
             let col = 5 + k / 3;
-            history.push(&indices(&window, &[(col, 5), (col, 6)]), 0.1 * k as f64);
+            history.push(&indices(&window, &[(col, 5), (col, 6)]), &[], 0.1 * k as f64);
         }
         let mut registrar = Registrar::default();
         let now = cells(&window, &[(7, 5), (7, 6)]);
         let found = registrar
-            .register(&now, &window, &history, 0.7, &params)
+            .register(&now, &window, &history, alone(0.7, &none), &params)
             .unwrap_or_else(|| panic!("not registered"));
-        // Frames 1 and 2 back read no shift or one cell; frame 2, five back, is at column 5:
-        // two cells in 0.5 s.
-        assert_eq!(found.shift_cells, (2, 0));
-        assert_eq!(found.frames_back, 5);
-        assert!((found.span_s - 0.5).abs() < 1e-9);
+        // One frame back: no shift (0.1 s); two to four back: one cell (0.2, 0.3, 0.4 s); five
+        // back, at column 5: two cells (0.5 s), where the search stops. Slope
+        // (0 + 0.2 + 0.3 + 0.4 + 2·0.5) / (0.01 + 0.04 + 0.09 + 0.16 + 0.25) = 1.9 / 0.55.
+        assert_eq!(found.frames, 5);
+        assert!((found.velocity_cells_per_s.0 - 1.9 / 0.55).abs() < 1e-9);
         let elsewhere = cells(&window, &[(30, 30), (30, 31)]);
-        assert_eq!(
-            registrar.register(&elsewhere, &window, &history, 0.7, &params),
-            None
-        );
+        let none_found = registrar.register(&elsewhere, &window, &history, alone(0.7, &none), &params);
+        assert_eq!(none_found, None);
+    }
+
+    #[test]
+    fn an_object_that_just_stopped_is_measured_on_the_frames_since() {
+        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
+        let mut history = OccupancyHistory::new(window.len());
+        // Two cells a frame east until column 14, then stopped there for two frames.
+        for (k, col) in [8, 10, 12, 14, 14].into_iter().enumerate() {
+            history.push(&indices(&window, &[(col, 5), (col, 6)]), &[], 0.1 * k as f64);
+        }
+        let now = cells(&window, &[(14, 5), (14, 6)]);
+        let found = Registrar::default()
+            .register(&now, &window, &history, alone(0.5, &none), &params)
+            .unwrap_or_else(|| panic!("not registered"));
+        // Zero shift against frames 1 and 2 back; 3 back shows two cells off that line.
+        assert_eq!(found.velocity_cells_per_s, (0.0, 0.0));
+        assert_eq!(found.frames, 2);
+    }
+
+    #[test]
+    fn a_static_cell_merged_into_a_moving_cluster_is_told_apart() {
+        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
+        let mut history = OccupancyHistory::new(window.len());
+        // Three cells moving two cells a frame east, and a static cell at (20, 20).
+        let object = |col: i64| (10..13).map(move |r| (col, r));
+        for (k, col) in [10, 12].into_iter().enumerate() {
+            let mut occupied: Vec<(i64, i64)> = object(col).collect();
+            occupied.push((20, 20));
+            history.push(&indices(&window, &occupied), &[], 0.1 * k as f64);
+        }
+        let mut now: Vec<(i64, i64)> = object(14).collect();
+        now.push((20, 20));
+        let now = cells(&window, &now);
+        let mut registrar = Registrar::default();
+        // Shift (2, 0) explains 3 of 4 cells, zero 1: moving.
+        let found = registrar.register(&now, &window, &history, alone(0.2, &none), &params);
+        assert!(found.is_some_and(|r| (r.velocity_cells_per_s.0 - 20.0).abs() < 1e-9));
+        assert!(registrar.moved(&now[0]));
+        assert!(!registrar.moved(&now[3]), "the static cell");
+    }
+
+    #[test]
+    fn an_object_first_seen_beside_a_static_one_is_not_its_past() {
+        let window = window();
+        let params = MotionParams::default();
+        let mut history = OccupancyHistory::new(window.len());
+        // B at (5, 5) in every frame; A appears at (7, 5): shifted 2 cells, B's cell fits.
+        for k in 0..2 {
+            history.push(&indices(&window, &[(5, 5)]), &[], 0.1 * k as f64);
+        }
+        let a = cells(&window, &[(7, 5)]);
+        let none = Clusters::new(window.len());
+        let mut registrar = Registrar::default();
+        let alone_found = registrar.register(&a, &window, &history, alone(0.2, &none), &params);
+        assert!(alone_found.is_some_and(|r| r.velocity_cells_per_s.0 > 0.0));
+        // With B seen now as another cluster, its cell is not where A came from.
+        let mut clusters = Clusters::new(window.len());
+        clusters.label(&window, &indices(&window, &[(7, 5), (5, 5)]));
+        let own = clusters.label_of(a[0].idx as usize).unwrap_or(u32::MAX);
+        let now = Now {
+            time_s: 0.2,
+            clusters: &clusters,
+            cluster: own,
+            m_free: &ALL_FREE,
+        };
+        assert_eq!(registrar.register(&a, &window, &history, now, &params), None);
+    }
+
+    #[test]
+    fn a_static_side_whose_visible_part_slides_is_static() {
+        let (window, params) = (window(), MotionParams::default());
+        let mut history = OccupancyHistory::new(window.len());
+        // A parked car's side on row 5: columns 0-8 visible a frame ago, 4-12 now, 0-3 now
+        // hidden (not seen free). Shift 4 matches all nine cells, zero only five; but the
+        // cells it would have come from are hidden now, and the new cells were not seen
+        // free then: nothing shows a move.
+        let side = |cols: std::ops::Range<i64>| cols.map(|c| (c, 5)).collect::<Vec<_>>();
+        history.push(&indices(&window, &side(0..9)), &[], 0.0);
+        let now = cells(&window, &side(4..13));
+        let mut clusters = Clusters::new(window.len());
+        clusters.label(&window, &indices(&window, &side(4..13)));
+        let no_free = vec![0.0; window.len()];
+        let now_frame = Now {
+            time_s: 0.1,
+            clusters: &clusters,
+            cluster: 0,
+            m_free: &no_free,
+        };
+        let found = Registrar::default().register(&now, &window, &history, now_frame, &params);
+        assert!(found.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));
+        // Had columns 0-3 been seen empty now, the side would have moved.
+        let mut free = no_free.clone();
+        for idx in indices(&window, &side(0..4)) {
+            free[idx as usize] = 0.7;
+        }
+        let seen = Now {
+            m_free: &free,
+            ..now_frame
+        };
+        let moved = Registrar::default().register(&now, &window, &history, seen, &params);
+        assert!(moved.is_some_and(|r| (r.velocity_cells_per_s.0 - 40.0).abs() < 1e-9));
     }
 }

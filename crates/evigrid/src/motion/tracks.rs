@@ -27,8 +27,8 @@ pub(crate) struct Track {
     pub(crate) velocity: [VelocityFilter; 2],
     /// Time the track was last observed, s.
     pub(crate) last_seen_s: f64,
-    /// Whether a registration ever measured its velocity (else it knows nothing of motion).
-    pub(crate) measured: bool,
+    /// Registrations that measured its velocity (none: it knows nothing of motion).
+    pub(crate) measurements: u32,
 }
 
 /// The tracks and the association scratch, kept between frames.
@@ -84,7 +84,7 @@ impl Tracks {
                 let dx = t.position_m[0] - o.centroid_m[0];
                 let dy = t.position_m[1] - o.centroid_m[1];
                 let d_sq = dx * dx + dy * dy;
-                if d_sq <= gate_sq {
+                if d_sq <= gate_sq && velocity_agrees(t, o) {
                     self.pairs.push((d_sq, ti as u32, oi as u32));
                 }
             }
@@ -110,7 +110,7 @@ impl Tracks {
                         position_m: o.centroid_m,
                         velocity: [VelocityFilter::new(0.0, unknown_variance); 2],
                         last_seen_s: now_s,
-                        measured: false,
+                        measurements: 0,
                     });
                     self.assigned[oi] = (self.tracks.len() - 1) as u32;
                     self.tracks.len() - 1
@@ -124,10 +124,32 @@ impl Tracks {
                 for (filter, &z) in t.velocity.iter_mut().zip(&v) {
                     filter.update(z, variance);
                 }
-                t.measured = true;
+                t.measurements = t.measurements.saturating_add(1);
             }
         }
     }
+}
+
+/// χ²(2) quantile 0.999: a measured velocity further than this (in Mahalanobis distance
+/// squared) from a track's is another object, typically a parked car that a passing car's
+/// track reaches.
+const VELOCITY_GATE: f64 = 13.8;
+
+/// Whether the observation's measured velocity, if any, fits the track's, if it has one.
+fn velocity_agrees(track: &Track, observation: &Observation) -> bool {
+    let Some((v, variance)) = observation.velocity else {
+        return true;
+    };
+    if track.measurements == 0 {
+        return true;
+    }
+    let chi_sq: f64 = track
+        .velocity
+        .iter()
+        .zip(&v)
+        .map(|(f, &z)| (z - f.mean_mps).powi(2) / (f.variance + variance))
+        .sum();
+    chi_sq <= VELOCITY_GATE
 }
 
 #[cfg(test)]
@@ -147,7 +169,7 @@ mod tests {
         let mut tracks = Tracks::default();
         tracks.update(&[seen(0.0, None)], 0.0, 0.0, &params);
         assert_eq!(tracks.len(), 1);
-        assert!(!tracks.of_observation(0).is_some_and(|t| t.measured));
+        assert!(tracks.of_observation(0).is_some_and(|t| t.measurements == 0));
         // 10 m/s east, measured from the second frame.
         for k in 1..6 {
             let x = k as f64;
@@ -163,11 +185,25 @@ mod tests {
         tracks.update(&[seen(9.0, None)], 0.9, 0.1, &params);
         assert_eq!(tracks.len(), 1, "joined the coasting track");
         let t = tracks.of_observation(0).copied();
-        assert!(t.is_some_and(|t| t.measured && t.velocity[0].mean_mps > 9.0));
+        assert!(t.is_some_and(|t| t.measurements == 5 && t.velocity[0].mean_mps > 9.0));
         // Far away: a new track; and after max_coast_s unseen, the old one is gone.
         tracks.update(&[seen(50.0, None)], 1.0, 0.1, &params);
         assert_eq!(tracks.len(), 2);
         tracks.update(&[], 2.05, 1.05, &params);
         assert_eq!(tracks.len(), 0);
+    }
+
+    #[test]
+    fn a_static_cluster_does_not_join_a_moving_track_that_passes_it() {
+        let params = MotionParams::default();
+        let mut tracks = Tracks::default();
+        for k in 0..5 {
+            tracks.update(&[seen(k as f64, Some(10.0))], 0.1 * k as f64, 0.1, &params);
+        }
+        // At 5 m the track meets a cluster measured static: a new track, still 2 in all.
+        tracks.update(&[seen(5.0, Some(0.0))], 0.5, 0.1, &params);
+        assert_eq!(tracks.len(), 2);
+        let v = tracks.of_observation(0).map_or(1.0, |t| t.velocity[0].mean_mps);
+        assert_eq!(v, 0.0);
     }
 }
