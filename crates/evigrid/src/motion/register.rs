@@ -68,8 +68,10 @@ pub(crate) struct Registrar {
     patch: Vec<u8>,
     /// Per patch cell, the seen-free history byte.
     free: Vec<u8>,
-    /// Per patch cell, 0xff if the cell is now this cluster's or seen free, else 0.
+    /// Per patch cell, 0xff if the cell is seen free now, else 0.
     left: Vec<u8>,
+    /// As `counts`, only the cells whose move is seen (see `register`).
+    seen_counts: Vec<[u32; SLOTS]>,
     counts: Vec<[u32; SLOTS]>,
     /// Patch geometry of the last cluster: width, first column and row (radius included).
     patch_origin: (usize, i64, i64),
@@ -132,7 +134,7 @@ impl Registrar {
                     // Another cluster occupies it now: that object is still there, so this
                     // one did not come from it.
                     Some(l) if l != now.cluster => {}
-                    Some(_) => (self.patch[p], self.left[p]) = (history.bits(idx), 0xff),
+                    Some(_) => self.patch[p] = history.bits(idx),
                     None => {
                         self.patch[p] = history.bits(idx);
                         if now.m_free.get(idx).is_some_and(|&f| f > 0.0) {
@@ -147,29 +149,39 @@ impl Registrar {
         let stride = cells.len().div_ceil(MAX_COUNTED_CELLS);
         let counted = cells.len().div_ceil(stride) as u32;
         let side = 2 * radius + 1;
-        self.counts.clear();
-        self.counts.resize((side * side) as usize, [0; SLOTS]);
-        for (s, count) in self.counts.iter_mut().enumerate() {
+        for counts in [&mut self.counts, &mut self.seen_counts] {
+            counts.clear();
+            counts.resize((side * side) as usize, [0; SLOTS]);
+        }
+        for (s, (count, seen_count)) in self
+            .counts
+            .iter_mut()
+            .zip(self.seen_counts.iter_mut())
+            .enumerate()
+        {
             let (dx, dy) = (s as i64 % side - radius, s as i64 / side - radius);
-            let mut lanes = 0u64;
+            let (mut lanes, mut seen_lanes) = (0u64, 0u64);
             let mut in_lanes = 0;
             for c in cells.iter().step_by(stride) {
                 let here = (c.row - r0 + radius) as usize * pw + (c.col - c0 + radius) as usize;
                 let from = (c.row - dy - r0 + radius) as usize * pw
                     + (c.col - dx - c0 + radius) as usize;
-                // The cell it came from was occupied then, and the move is seen: either that
-                // cell is seen empty (or still its own) now, or this cell was seen free then.
-                // Otherwise the match may be a change of what is visible, not a move.
+                let came_from = self.patch[from];
+                lanes += SPREAD[usize::from(came_from)];
+                // The move is seen where the cell it came from is seen empty now, or where
+                // this cell was seen free then.
                 let seen = self.free[here] | self.left[from];
-                lanes += SPREAD[usize::from(self.patch[from] & seen)];
+                seen_lanes += SPREAD[usize::from(came_from & seen)];
                 in_lanes += 1;
                 // A byte lane holds up to 255.
                 if in_lanes == 255 {
                     flush(&mut lanes, count);
+                    flush(&mut seen_lanes, seen_count);
                     in_lanes = 0;
                 }
             }
             flush(&mut lanes, count);
+            flush(&mut seen_lanes, seen_count);
         }
 
         let zero = (radius * side + radius) as usize;
@@ -200,7 +212,12 @@ impl Registrar {
                 }
             }
             let n_zero = self.counts[zero][slot];
-            let (matched, dx, dy) = if best.0 >= n_zero + margin {
+            // A non-zero shift must explain the cluster clearly better than none, and its
+            // move must be seen on at least `margin` cells: where neither the cells left nor
+            // the cells entered were seen, the match may be a change of what is visible (a
+            // parked car whose visible part slides as the ego passes), not a move.
+            let seen = self.seen_counts[((best.2 + radius) * side + best.1 + radius) as usize][slot];
+            let (matched, dx, dy) = if best.0 >= n_zero + margin && seen >= margin {
                 best
             } else {
                 (n_zero, 0, 0)
