@@ -653,9 +653,12 @@ pub struct MotionParams {
     /// Registrations a track needs before its cells get mass on {M} (a one-frame shift can be
     /// a cluster matched to another object's past), 1-8. By default 1.
     pub moving_after_measurements: usize,
+    /// A track slower than `min_speed_mps` counts as static once the standard deviation of its
+    /// speed, √(σx² + σy²), is below this, m/s. By default 1.
+    pub static_sigma_mps: f64,
     /// Largest mass on {M} given to a moving track's cells, `[0, 1]`. By default 0.8.
     pub mu_moving: f64,
-    /// Mass on Ω∖{M} given to a static track's cells, `[0, 1]`. By default 0.6.
+    /// Mass on Ω∖{M} given to a static track's cells, `[0, 1]`. By default 0.9.
     pub mu_static: f64,
     /// Cells of the intermediate space (context T) this close to a building cell, in cells
     /// (4-neighbour steps, 0-2), take the building context: the map prior by the cell centre
@@ -677,8 +680,9 @@ impl Default for MotionParams {
             gate_m: 2.0,
             max_coast_s: 1.0,
             moving_after_measurements: 1,
+            static_sigma_mps: 1.0,
             mu_moving: 0.8,
-            mu_static: 0.6,
+            mu_static: 0.9,
             building_margin_cells: 1,
         }
     }
@@ -704,7 +708,11 @@ impl MotionParams {
         }
         at_most("motion.history_frames", self.history_frames, 8)?;
         at_most("motion.search_radius_cells", self.search_radius_cells, 16)?;
-        at_most("motion.building_margin_cells", self.building_margin_cells, 2)?;
+        at_most(
+            "motion.building_margin_cells",
+            self.building_margin_cells,
+            2,
+        )?;
         at_most(
             "motion.moving_after_measurements",
             self.moving_after_measurements,
@@ -717,6 +725,7 @@ impl MotionParams {
         positive("motion.accel_sigma_mps2", self.accel_sigma_mps2)?;
         positive("motion.shift_sigma_cells", self.shift_sigma_cells)?;
         positive("motion.gate_m", self.gate_m)?;
+        positive("motion.static_sigma_mps", self.static_sigma_mps)?;
         positive("motion.max_coast_s", self.max_coast_s)?;
         unit("motion.mu_moving", self.mu_moving)?;
         unit("motion.mu_static", self.mu_static)?;
@@ -736,8 +745,14 @@ mod tests {
         for (text, name) in [
             ("[motion]\nhistory_frames = 9\n", "motion.history_frames"),
             ("[motion]\nhistory_frames = 0\n", "motion.history_frames"),
-            ("[motion]\nsearch_radius_cells = 0\n", "motion.search_radius_cells"),
-            ("[motion]\nbuilding_margin_cells = 3\n", "motion.building_margin_cells"),
+            (
+                "[motion]\nsearch_radius_cells = 0\n",
+                "motion.search_radius_cells",
+            ),
+            (
+                "[motion]\nbuilding_margin_cells = 3\n",
+                "motion.building_margin_cells",
+            ),
             ("[motion]\nmu_moving = 1.5\n", "motion.mu_moving"),
             ("[motion]\nmin_speed_mps = -1.0\n", "motion.min_speed_mps"),
             ("[motion]\ngate_m = nan\n", "motion.gate_m"),

@@ -391,7 +391,11 @@ impl Fusion {
     /// # Errors
     ///
     /// [`PipelineError::Params`] if the parameters are out of range.
-    pub fn with_method(params: Params, prior: Prior, method: Method) -> Result<Self, PipelineError> {
+    pub fn with_method(
+        params: Params,
+        prior: Prior,
+        method: Method,
+    ) -> Result<Self, PipelineError> {
         params.validate()?;
         let (w, h) = (params.window.width_cells, params.window.height_cells);
         Ok(Self {

@@ -5,9 +5,9 @@
 //! c = 1 − exp(−χ²/2). Then, on the cells of the track's cluster in this frame:
 //! - moving (|v| ≥ `min_speed_mps`, and at least `moving_after_measurements` registrations
 //!   of the track): m({M}) = `mu_moving` · c, the rest on Ω;
-//! - static (|v| < `min_speed_mps` and √(σx² + σy²) < `min_speed_mps`: slow and known to be
-//!   slow): m(Ω∖{M}) = `mu_static`, the rest on Ω: "not moving", which says nothing about
-//!   I, U or S;
+//! - static (|v| < `min_speed_mps` and √(σx² + σy²) < `static_sigma_mps`: slow and known
+//!   well enough): m(Ω∖{M}) = `mu_static`, the rest on Ω: "not moving", which says nothing
+//!   about I, U or S;
 //! - otherwise (never registered, or too uncertain): vacuous.
 //!
 //! The cell's mass function m is combined with it by the conjunctive rule on Ω_PG, and the
@@ -46,7 +46,7 @@ pub(crate) fn track_mass(track: &Track, params: &MotionParams) -> MotionMass {
         let chi_sq = x.mean_mps * x.mean_mps / x.variance + y.mean_mps * y.mean_mps / y.variance;
         let confidence = 1.0 - (-0.5 * chi_sq).exp();
         MotionMass::Moving((params.mu_moving * confidence) as f32)
-    } else if (x.variance + y.variance).sqrt() < params.min_speed_mps {
+    } else if (x.variance + y.variance).sqrt() < params.static_sigma_mps {
         MotionMass::Static(params.mu_static as f32)
     } else {
         MotionMass::Vacuous
@@ -189,7 +189,7 @@ mod tests {
             track_mass(&track([0.1, 0.0], 0.01, 1), &p),
             MotionMass::Static(0.6)
         );
-        // Slow but uncertain, or never measured: nothing.
+        // Slow but uncertain (σ = √2 m/s), or never measured: nothing.
         assert_eq!(
             track_mass(&track([0.1, 0.0], 1.0, 3), &p),
             MotionMass::Vacuous

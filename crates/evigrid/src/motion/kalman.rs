@@ -18,10 +18,7 @@ pub(crate) struct VelocityFilter {
 impl VelocityFilter {
     /// A filter with a prior velocity and its variance.
     pub(crate) fn new(mean_mps: f64, variance: f64) -> Self {
-        Self {
-            mean_mps,
-            variance,
-        }
+        Self { mean_mps, variance }
     }
 
     /// Prediction over `dt_s`: the velocity is kept, its variance grows by (σ_a·dt)².

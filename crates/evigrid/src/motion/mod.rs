@@ -228,8 +228,11 @@ impl MotionStage {
                     ([vx * cell_size_m, vy * cell_size_m], sigma * sigma)
                 });
             registered += usize::from(velocity.is_some());
-            self.moved
-                .extend(cells.iter().map(|c| velocity.is_none() || self.registrar.moved(c)));
+            self.moved.extend(
+                cells
+                    .iter()
+                    .map(|c| velocity.is_none() || self.registrar.moved(c)),
+            );
             self.observations.push(Observation {
                 centroid_m: [sx / n * cell_size_m, sy / n * cell_size_m],
                 velocity,

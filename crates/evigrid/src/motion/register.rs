@@ -164,8 +164,8 @@ impl Registrar {
             let mut in_lanes = 0;
             for c in cells.iter().step_by(stride) {
                 let here = (c.row - r0 + radius) as usize * pw + (c.col - c0 + radius) as usize;
-                let from = (c.row - dy - r0 + radius) as usize * pw
-                    + (c.col - dx - c0 + radius) as usize;
+                let from =
+                    (c.row - dy - r0 + radius) as usize * pw + (c.col - dx - c0 + radius) as usize;
                 let came_from = self.patch[from];
                 lanes += SPREAD[usize::from(came_from)];
                 // The move is seen where the cell it came from is seen empty now, or where
@@ -216,7 +216,8 @@ impl Registrar {
             // move must be seen on at least `margin` cells: where neither the cells left nor
             // the cells entered were seen, the match may be a change of what is visible (a
             // parked car whose visible part slides as the ego passes), not a move.
-            let seen = self.seen_counts[((best.2 + radius) * side + best.1 + radius) as usize][slot];
+            let seen =
+                self.seen_counts[((best.2 + radius) * side + best.1 + radius) as usize][slot];
             let (matched, dx, dy) = if best.0 >= n_zero + margin && seen >= margin {
                 best
             } else {
@@ -340,7 +341,13 @@ mod tests {
         let mut registrar = Registrar::default();
         let now: Vec<(i64, i64)> = face(16).collect();
         let found = registrar
-            .register(&cells(&window, &now), &window, &history, alone(0.3, &none), &params)
+            .register(
+                &cells(&window, &now),
+                &window,
+                &history,
+                alone(0.3, &none),
+                &params,
+            )
             .unwrap_or_else(|| panic!("not registered"));
         // Two cells in 0.1 s, from the previous frame alone.
         assert_eq!(found.frames, 1);
@@ -349,7 +356,13 @@ mod tests {
         assert!((found.sum_span_sq - 0.01).abs() < 1e-12);
         assert!(registrar.moved(&cells(&window, &[(16, 10)])[0]));
         let still = registrar
-            .register(&cells(&window, &wall), &window, &history, alone(0.3, &none), &params)
+            .register(
+                &cells(&window, &wall),
+                &window,
+                &history,
+                alone(0.3, &none),
+                &params,
+            )
             .unwrap_or_else(|| panic!("not registered"));
         // Static: zero shift against each of the three frames kept.
         assert_eq!(still.velocity_cells_per_s, (0.0, 0.0));
@@ -364,7 +377,11 @@ mod tests {
         // Two cells moving one cell every three frames (a walker at 1.7 m/s).
         for k in 0..7 {
             let col = 5 + k / 3;
-            history.push(&indices(&window, &[(col, 5), (col, 6)]), &[], 0.1 * k as f64);
+            history.push(
+                &indices(&window, &[(col, 5), (col, 6)]),
+                &[],
+                0.1 * k as f64,
+            );
         }
         let mut registrar = Registrar::default();
         let now = cells(&window, &[(7, 5), (7, 6)]);
@@ -377,7 +394,8 @@ mod tests {
         assert_eq!(found.frames, 5);
         assert!((found.velocity_cells_per_s.0 - 1.9 / 0.55).abs() < 1e-9);
         let elsewhere = cells(&window, &[(30, 30), (30, 31)]);
-        let none_found = registrar.register(&elsewhere, &window, &history, alone(0.7, &none), &params);
+        let none_found =
+            registrar.register(&elsewhere, &window, &history, alone(0.7, &none), &params);
         assert_eq!(none_found, None);
     }
 
@@ -387,7 +405,11 @@ mod tests {
         let mut history = OccupancyHistory::new(window.len());
         // Two cells a frame east until column 14, then stopped there for two frames.
         for (k, col) in [8, 10, 12, 14, 14].into_iter().enumerate() {
-            history.push(&indices(&window, &[(col, 5), (col, 6)]), &[], 0.1 * k as f64);
+            history.push(
+                &indices(&window, &[(col, 5), (col, 6)]),
+                &[],
+                0.1 * k as f64,
+            );
         }
         let now = cells(&window, &[(14, 5), (14, 6)]);
         let found = Registrar::default()
@@ -444,7 +466,10 @@ mod tests {
             cluster: own,
             m_free: &ALL_FREE,
         };
-        assert_eq!(registrar.register(&a, &window, &history, now, &params), None);
+        assert_eq!(
+            registrar.register(&a, &window, &history, now, &params),
+            None
+        );
     }
 
     #[test]

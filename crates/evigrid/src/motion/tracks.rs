@@ -169,14 +169,20 @@ mod tests {
         let mut tracks = Tracks::default();
         tracks.update(&[seen(0.0, None)], 0.0, 0.0, &params);
         assert_eq!(tracks.len(), 1);
-        assert!(tracks.of_observation(0).is_some_and(|t| t.measurements == 0));
+        assert!(
+            tracks
+                .of_observation(0)
+                .is_some_and(|t| t.measurements == 0)
+        );
         // 10 m/s east, measured from the second frame.
         for k in 1..6 {
             let x = k as f64;
             tracks.update(&[seen(x, Some(10.0))], 0.1 * k as f64, 0.1, &params);
         }
         assert_eq!(tracks.len(), 1);
-        let v = tracks.of_observation(0).map_or(0.0, |t| t.velocity[0].mean_mps);
+        let v = tracks
+            .of_observation(0)
+            .map_or(0.0, |t| t.velocity[0].mean_mps);
         assert!((v - 10.0).abs() < 0.5, "{v}");
         // Hidden for three frames, then seen where it should be, with no registration.
         for k in 6..9 {
@@ -203,7 +209,9 @@ mod tests {
         // At 5 m the track meets a cluster measured static: a new track, still 2 in all.
         tracks.update(&[seen(5.0, Some(0.0))], 0.5, 0.1, &params);
         assert_eq!(tracks.len(), 2);
-        let v = tracks.of_observation(0).map_or(1.0, |t| t.velocity[0].mean_mps);
+        let v = tracks
+            .of_observation(0)
+            .map_or(1.0, |t| t.velocity[0].mean_mps);
         assert_eq!(v, 0.0);
     }
 }
