@@ -49,7 +49,7 @@ pub enum Variant {
     /// evigrid without a map.
     #[serde(rename = "no-map")]
     NoMap,
-    /// evigrid with the map prior and the motion stage ([`Method::Evigrid`]).
+    /// evigrid with the map prior and the motion stage ([`FusionMethod::Evigrid`]).
     #[serde(rename = "evigrid")]
     Evigrid,
     /// Moras et al. 2011 two-class evidential grid.

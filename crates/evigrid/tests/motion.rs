@@ -44,7 +44,7 @@ fn scan(boxes: &[Aabb]) -> Vec<[f32; 3]> {
                 .fold(f64::INFINITY, f64::min);
             range
                 .is_finite()
-                .then(|| [(range * cos) as f32, (range * sin) as f32, 0.0])
+                .then_some([(range * cos) as f32, (range * sin) as f32, 0.0])
         })
         .collect()
 }

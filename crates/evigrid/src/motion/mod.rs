@@ -7,17 +7,17 @@
 //! stage measures motion directly, per object, on the grid:
 //!
 //! 1. the occupied cells of the scan (SensorGrid m(O) > 0) are grouped into 8-connected
-//!    clusters ([`clusters`]);
+//!    clusters (`clusters`);
 //! 2. each cluster is registered against the occupied cells of up to eight past frames
-//!    ([`history`], [`register`]): the whole-cell shift that explains it best, if it explains
+//!    (`history`, `register`): the whole-cell shift that explains it best, if it explains
 //!    it clearly better than no shift, is its displacement;
 //! 3. clusters join tracks whose velocity a Kalman filter follows through occlusions
-//!    ([`tracks`], [`kalman`]);
+//!    (`tracks`, `kalman`);
 //! 4. each track's velocity and its uncertainty give its cells mass on {M} (moving) or on
 //!    Ω∖{M} (static), combined conjunctively with the cell's mass after the SPEC §5 step
-//!    ([`evidence`]); the cells it touched are decided again.
+//!    (`evidence`); the cells it touched are decided again.
 //!
-//! The stage also keeps the boundary-aware map prior of the variant ([`context`]) and a
+//! The stage also keeps the boundary-aware map prior of the variant (`context`) and a
 //! velocity per cell. Memory is sized by the window; after the first frames nothing is
 //! allocated (buffers are kept and only grow to the largest frame seen).
 
@@ -79,7 +79,7 @@ pub struct MotionStage {
     /// Per cell of the clusters, in cluster order: whether it may have moved
     /// (`Registrar::moved`).
     moved: Vec<bool>,
-    /// The boundary-aware map prior ([`context`]).
+    /// The boundary-aware map prior (`context`).
     gis: GisGrid,
     velocity_east: Vec<f32>,
     velocity_north: Vec<f32>,
