@@ -184,10 +184,10 @@ mod tests {
             track_mass(&track([3.0, 0.0], 1.0, 2), &p),
             MotionMass::Moving(expected)
         );
-        // Slow and well known: static.
+        // Slow and well known (σ = 0.14 m/s): static, m(Ω∖{M}) = mu_static = 0.9.
         assert_eq!(
             track_mass(&track([0.1, 0.0], 0.01, 1), &p),
-            MotionMass::Static(0.6)
+            MotionMass::Static(0.9)
         );
         // Slow but uncertain (σ = √2 m/s), or never measured: nothing.
         assert_eq!(
