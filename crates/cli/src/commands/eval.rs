@@ -36,7 +36,7 @@ pub struct EvalArgs {
     /// Scenario (TOML): traffic, ego route, sensor, map errors (see scenarios/README.md).
     #[arg(long)]
     scenario: PathBuf,
-    /// Methods to compare, comma-separated: full, no-map, moras2011, log-odds.
+    /// Methods to compare, comma-separated: full, no-map, evigrid, moras2011, log-odds.
     #[arg(
         long,
         value_delimiter = ',',
