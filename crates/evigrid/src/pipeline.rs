@@ -567,6 +567,8 @@ pub struct FrameStats {
     pub step_ms: f64,
     /// See `window_ms`.
     pub trace_ms: f64,
+    /// Wall time of the motion stage, milliseconds ([`Method::Evigrid`]; 0 otherwise).
+    pub motion_ms: f64,
 }
 
 /// The whole perception loop for one drive: a [`FrontEnd`] and the [`Fusion`] of its map prior.
@@ -584,9 +586,22 @@ impl Pipeline {
     ///
     /// [`PipelineError::Params`] if the parameters are out of range.
     pub fn new(params: Params, map: Option<ContextRaster>) -> Result<Self, PipelineError> {
+        Self::with_method(params, map, Method::Kurdej2013)
+    }
+
+    /// A pipeline running `method` ([`Pipeline::new`] runs [`Method::Kurdej2013`]).
+    ///
+    /// # Errors
+    ///
+    /// [`PipelineError::Params`] if the parameters are out of range.
+    pub fn with_method(
+        params: Params,
+        map: Option<ContextRaster>,
+        method: Method,
+    ) -> Result<Self, PipelineError> {
         Ok(Self {
             front_end: FrontEnd::new(&params, map)?,
-            fusion: Fusion::new(params, Prior::Map)?,
+            fusion: Fusion::with_method(params, Prior::Map, method)?,
         })
     }
 
@@ -621,6 +636,7 @@ impl Pipeline {
             sensor_ms: front.sensor_ms,
             step_ms: back.step_ms,
             trace_ms: back.trace_ms,
+            motion_ms: back.motion.map_or(0.0, |m| m.ms),
         })
     }
 
@@ -788,6 +804,32 @@ mod tests {
         }
         // The map changed something, or the comparison above proves nothing.
         assert_ne!(with_map.decisions(), without_map.decisions());
+    }
+
+    #[test]
+    fn the_evigrid_method_changes_only_what_its_motion_stage_touches() {
+        // Kurdej2013 through `with_method` is `new`, bit for bit; Evigrid reports its stage.
+        let mut paper = Pipeline::new(params(), Some(raster())).unwrap();
+        let mut named =
+            Pipeline::with_method(params(), Some(raster()), Method::Kurdej2013).unwrap();
+        let mut evigrid = Pipeline::with_method(params(), Some(raster()), Method::Evigrid).unwrap();
+        assert_eq!(paper.fusion().method(), Method::Kurdej2013);
+        assert_eq!(evigrid.fusion().method(), Method::Evigrid);
+        assert!(paper.fusion().motion().is_none());
+        for (points, pose, time_s) in drive() {
+            paper.process(&points, &pose, time_s).unwrap();
+            named.process(&points, &pose, time_s).unwrap();
+            let stats = evigrid.process(&points, &pose, time_s).unwrap();
+            assert_eq!(paper.perception(), named.perception());
+            assert_eq!(paper.decisions(), named.decisions());
+            assert!(stats.step_cells > 0);
+        }
+        let motion = evigrid.fusion().motion().unwrap();
+        assert_eq!(motion.velocity_east().len(), 400);
+        // The wall north of the road is static: never moving in the evigrid variant.
+        let window = evigrid.window();
+        let wall = window.storage_index_of_point(1.0, 0.1).unwrap();
+        assert_ne!(evigrid.decisions()[wall], Decision::M);
     }
 
     #[test]
