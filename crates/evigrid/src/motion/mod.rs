@@ -162,6 +162,10 @@ impl MotionStage {
     /// Measures the motion of the scan in `sensor` (taken at `time_s`, `dt_s` after the
     /// previous one), combines the evidence into `perception` after its step, and decides the
     /// cells it changed again in `decisions`.
+    ///
+    /// # Panics
+    /// If `perception`, `decisions` or `sensor` hold fewer cells than `window` (the
+    /// [`Fusion`](crate::pipeline::Fusion) back end sizes them all from one window).
     pub fn update(
         &mut self,
         window: &Window,
