@@ -33,7 +33,7 @@
 //! # Ok::<(), eval::EvalError>(())
 //! ```
 
-use evigrid::{FrontEnd, Fusion, Prior};
+use evigrid::{FrontEnd, Fusion, Method, Prior};
 
 use crate::EvalError;
 use crate::Label;
@@ -56,13 +56,15 @@ pub trait GridMethod {
     fn decide(&self, out: &mut [Label]);
 }
 
-/// evigrid's fusion as SPEC §5 specifies it: `kurdej2013` with [`Prior::Map`], `no-map` with
-/// [`Prior::Vacuous`].
+/// evigrid's method: `kurdej2013` (SPEC §5) with [`Prior::Map`], `no-map` with [`Prior::Vacuous`], `evigrid`
+/// with the motion stage ([`Method::Evigrid`]).
 impl GridMethod for Fusion {
     fn name(&self) -> &'static str {
-        match self.prior() {
-            Prior::Map => "kurdej2013",
-            Prior::Vacuous => "no-map",
+        match (self.method(), self.prior()) {
+            (Method::Evigrid, Prior::Map) => "evigrid",
+            (Method::Evigrid, Prior::Vacuous) => "evigrid-no-map",
+            (Method::Kurdej2013, Prior::Map) => "kurdej2013",
+            (Method::Kurdej2013, Prior::Vacuous) => "no-map",
         }
     }
 

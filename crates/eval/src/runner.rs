@@ -6,6 +6,8 @@
 //! - `kurdej2013`: the paper's method as SPEC §5 specifies it, evigrid's [`Fusion`] of the
 //!   drive's pipeline map ([`Prior::Map`]); `full` is its former, deprecated name;
 //! - `no-map`: the same fusion with a vacuous GISGrid ([`Prior::Vacuous`]);
+//! - `evigrid`: the fusion of the map prior followed by the motion stage
+//!   ([`evigrid::Method::Evigrid`], `docs/motion.md`);
 //! - `moras2011`, `log-odds`: the [`baselines`](crate::baselines).
 //!
 //! Scans go in with the *estimated* sensor pose (localisation noise included); truth is labelled
@@ -30,8 +32,7 @@ use crate::method::GridMethod;
 use crate::metrics::{ConfusionMatrix, Latency, Remanence};
 use crate::report::{EvalReport, SeedScores, VariantReport};
 use evigrid::Params;
-use evigrid::Window;
-use evigrid::{FrontEnd, FrontEndStats, Fusion, Prior};
+use evigrid::{FrontEnd, FrontEndStats, Fusion, Method as FusionMethod, Prior, Window};
 use geodata::{ContextRaster, LocalMap};
 use serde::{Deserialize, Serialize};
 use sim::drive::{Drive, Frame};
@@ -51,6 +52,9 @@ pub enum Variant {
     /// evigrid without a map.
     #[serde(rename = "no-map")]
     NoMap,
+    /// evigrid with the map prior and the motion stage ([`FusionMethod::Evigrid`]).
+    #[serde(rename = "evigrid")]
+    Evigrid,
     /// Moras et al. 2011 two-class evidential grid.
     #[serde(rename = "moras2011")]
     Moras2011,
@@ -61,9 +65,10 @@ pub enum Variant {
 
 impl Variant {
     /// All variants, in report order.
-    pub const ALL: [Variant; 4] = [
+    pub const ALL: [Variant; 5] = [
         Variant::Kurdej2013,
         Variant::NoMap,
+        Variant::Evigrid,
         Variant::Moras2011,
         Variant::LogOdds,
     ];
@@ -72,6 +77,7 @@ impl Variant {
         match self {
             Variant::Kurdej2013 => "kurdej2013",
             Variant::NoMap => "no-map",
+            Variant::Evigrid => "evigrid",
             Variant::Moras2011 => "moras2011",
             Variant::LogOdds => "log-odds",
         }
@@ -99,7 +105,7 @@ impl Variant {
     }
     /// True if the variant fuses the map prior (only those need the front end's GISGrid).
     pub fn uses_map(self) -> bool {
-        matches!(self, Variant::Kurdej2013)
+        matches!(self, Variant::Kurdej2013 | Variant::Evigrid)
     }
 }
 
@@ -199,6 +205,11 @@ impl Runner {
             Variant::NoMap => {
                 Method::Fusion(Box::new(Fusion::new(params.clone(), Prior::Vacuous)?))
             }
+            Variant::Evigrid => Method::Fusion(Box::new(Fusion::with_method(
+                params.clone(),
+                Prior::Map,
+                FusionMethod::Evigrid,
+            )?)),
             Variant::Moras2011 => Method::Other(Box::new(Moras2011::new(len, config.moras2011))),
             Variant::LogOdds => Method::Other(Box::new(LogOdds::new(len, config.log_odds))),
         };
@@ -586,7 +597,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(calls, 30);
-        assert_eq!(report.variants.len(), 4);
+        assert_eq!(report.variants.len(), 5);
         for v in &report.variants {
             assert!(v.scores.scored_cell_frames > 0);
         }

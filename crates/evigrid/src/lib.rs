@@ -57,6 +57,7 @@ pub mod ego_path;
 mod grids;
 mod label;
 mod map_prior;
+pub mod motion;
 mod params;
 mod pipeline;
 mod pose;
@@ -68,14 +69,14 @@ mod window;
 
 // The per-frame pipeline: what an embedding uses first.
 pub use pipeline::{
-    FrameStats, FrontEnd, FrontEndStats, Fusion, FusionStats, NewCells, Pipeline, PipelineError,
-    Prior,
+    FrameStats, FrontEnd, FrontEndStats, Fusion, FusionStats, Method, NewCells, Pipeline,
+    PipelineError, Prior,
 };
 // Parameters (SPEC §7), one type per `[section]`.
 pub use params::{
     AccumulatorParams, ClassRates, DecisionParams, DiscountMode, FusionParams, GridParams,
-    GroundModel, MEMORY_BUDGET_BYTES, MapParams, Params, ParamsError, ResidualPolicy, SensorParams,
-    SetRate, UnobservedCells, WINDOW_BYTES_PER_CELL, WindowParams, check_window_size,
+    GroundModel, MEMORY_BUDGET_BYTES, MapParams, MotionParams, Params, ParamsError, ResidualPolicy,
+    SensorParams, SetRate, UnobservedCells, WINDOW_BYTES_PER_CELL, WindowParams, check_window_size,
 };
 // The labels, the decision and the pignistic probability (SPEC §6).
 pub use decision::{betp, decide, decide_grid};

@@ -115,6 +115,9 @@ pub struct Params {
     pub accumulator: AccumulatorParams,
     /// Decision (SPEC §6).
     pub decision: DecisionParams,
+    /// Motion evidence of the `evigrid` fusion variant (`docs/motion.md`; not in SPEC, unused
+    /// by the paper's method).
+    pub motion: MotionParams,
 }
 
 impl Params {
@@ -205,6 +208,7 @@ impl Params {
             "decision.unknown_threshold",
             self.decision.unknown_threshold,
         )?;
+        self.motion.validate()?;
         // Last: the sensor's own keys are named first when they are what is wrong.
         self.sensor.ground_params().validate()?;
         Ok(())
@@ -266,6 +270,20 @@ fn positive(name: &'static str, value: f64) -> Result<(), ParamsError> {
         Ok(())
     } else {
         Err(ParamsError::NotPositive { name, value })
+    }
+}
+
+/// A count above its largest value, reported as misordered against that value.
+fn at_most(name: &'static str, value: usize, high: usize) -> Result<(), ParamsError> {
+    if value <= high {
+        Ok(())
+    } else {
+        Err(ParamsError::Misordered {
+            low_name: name,
+            low: value as f64,
+            high_name: "its largest value",
+            high: high as f64,
+        })
     }
 }
 
@@ -664,9 +682,154 @@ impl Default for DecisionParams {
     }
 }
 
+/// Motion evidence of the `evigrid` fusion variant: clusters of the scan's occupied cells,
+/// registered against the last frames' occupied cells, filtered per track by a constant-velocity
+/// Kalman filter, and turned into mass on {M} (moving) or Ω∖{M} (static) (`docs/motion.md`).
+///
+/// By default the values measured on the shipped scenarios (`docs/motion.md`, "Parameters").
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MotionParams {
+    /// Frames back a cluster is registered against, 1-8 (slow objects need several). By
+    /// default 8.
+    pub history_frames: usize,
+    /// Largest shift searched, cells, in each axis (1-16). By default 6 (3 m at 0.5 m cells).
+    pub search_radius_cells: usize,
+    /// Fastest object, m/s: limits the shift searched against each past frame. By default 25.
+    pub max_speed_mps: f64,
+    /// A shift is a match when at least this fraction of the cluster's cells land on cells
+    /// occupied in the past frame, `[0, 1]`. By default 0.5.
+    pub match_fraction: f64,
+    /// A non-zero shift is preferred to zero only if it matches this fraction of the cluster's
+    /// cells more (at least one cell), `[0, 1]`. By default 0.25.
+    pub shift_margin_fraction: f64,
+    /// Below this speed, m/s, a track counts as not moving. By default 0.5.
+    pub min_speed_mps: f64,
+    /// Standard deviation of a track's acceleration, m/s² (the filter's process noise). By
+    /// default 3.
+    pub accel_sigma_mps2: f64,
+    /// Standard deviation of a registered shift, cells (quantisation and change of the visible
+    /// face). By default 0.5.
+    pub shift_sigma_cells: f64,
+    /// A cluster joins the nearest track predicted within this distance, m. By default 2.
+    pub gate_m: f64,
+    /// A track unseen for longer than this, s, is dropped. By default 1.
+    pub max_coast_s: f64,
+    /// Registrations a track needs before its cells get mass on {M} (a one-frame shift can be
+    /// a cluster matched to another object's past), 1-8. By default 1.
+    pub moving_after_measurements: usize,
+    /// A track slower than `min_speed_mps` counts as static once the standard deviation of its
+    /// speed, √(σx² + σy²), is below this, m/s. By default 1.
+    pub static_sigma_mps: f64,
+    /// Largest mass on {M} given to a moving track's cells, `[0, 1]`. By default 0.8.
+    pub mu_moving: f64,
+    /// Mass on Ω∖{M} given to a static track's cells, `[0, 1]`. By default 0.9.
+    pub mu_static: f64,
+    /// Cells of the intermediate space (context T) this close to a building cell, in cells
+    /// (4-neighbour steps, 0-2), take the building context: the map prior by the cell centre
+    /// misses building cells cut by a façade. By default 1.
+    pub building_margin_cells: usize,
+}
+
+impl Default for MotionParams {
+    fn default() -> Self {
+        Self {
+            history_frames: 8,
+            search_radius_cells: 6,
+            max_speed_mps: 25.0,
+            match_fraction: 0.5,
+            shift_margin_fraction: 0.25,
+            min_speed_mps: 0.5,
+            accel_sigma_mps2: 3.0,
+            shift_sigma_cells: 0.5,
+            gate_m: 2.0,
+            max_coast_s: 1.0,
+            moving_after_measurements: 1,
+            static_sigma_mps: 1.0,
+            mu_moving: 0.8,
+            mu_static: 0.9,
+            building_margin_cells: 1,
+        }
+    }
+}
+
+impl MotionParams {
+    /// Checks every range.
+    ///
+    /// # Errors
+    /// The first offending parameter by its TOML path (`motion.…`).
+    pub fn validate(&self) -> Result<(), ParamsError> {
+        for (name, value) in [
+            ("motion.history_frames", self.history_frames),
+            ("motion.search_radius_cells", self.search_radius_cells),
+            (
+                "motion.moving_after_measurements",
+                self.moving_after_measurements,
+            ),
+        ] {
+            if value == 0 {
+                return Err(ParamsError::NotPositive { name, value: 0.0 });
+            }
+        }
+        at_most("motion.history_frames", self.history_frames, 8)?;
+        at_most("motion.search_radius_cells", self.search_radius_cells, 16)?;
+        at_most(
+            "motion.building_margin_cells",
+            self.building_margin_cells,
+            2,
+        )?;
+        at_most(
+            "motion.moving_after_measurements",
+            self.moving_after_measurements,
+            8,
+        )?;
+        positive("motion.max_speed_mps", self.max_speed_mps)?;
+        unit("motion.match_fraction", self.match_fraction)?;
+        unit("motion.shift_margin_fraction", self.shift_margin_fraction)?;
+        positive("motion.min_speed_mps", self.min_speed_mps)?;
+        positive("motion.accel_sigma_mps2", self.accel_sigma_mps2)?;
+        positive("motion.shift_sigma_cells", self.shift_sigma_cells)?;
+        positive("motion.gate_m", self.gate_m)?;
+        positive("motion.static_sigma_mps", self.static_sigma_mps)?;
+        positive("motion.max_coast_s", self.max_coast_s)?;
+        unit("motion.mu_moving", self.mu_moving)?;
+        unit("motion.mu_static", self.mu_static)?;
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn motion_defaults_are_valid_and_ranges_are_checked() {
+        let p = Params::default();
+        assert_eq!(p.motion.history_frames, 8);
+        p.validate().unwrap_or_else(|e| panic!("{e}"));
+        for (text, name) in [
+            ("[motion]\nhistory_frames = 9\n", "motion.history_frames"),
+            ("[motion]\nhistory_frames = 0\n", "motion.history_frames"),
+            (
+                "[motion]\nsearch_radius_cells = 0\n",
+                "motion.search_radius_cells",
+            ),
+            (
+                "[motion]\nbuilding_margin_cells = 3\n",
+                "motion.building_margin_cells",
+            ),
+            ("[motion]\nmu_moving = 1.5\n", "motion.mu_moving"),
+            ("[motion]\nmin_speed_mps = -1.0\n", "motion.min_speed_mps"),
+            ("[motion]\ngate_m = nan\n", "motion.gate_m"),
+        ] {
+            match Params::from_toml_str(text) {
+                Ok(_) => panic!("{text} accepted"),
+                Err(e) => assert!(e.to_string().contains(name), "{text}: {e}"),
+            }
+        }
+        let p = Params::from_toml_str("[motion]\nmu_static = 0.3\n").unwrap_or_default();
+        assert_eq!(p.motion.mu_static, 0.3);
+    }
 
     type TestResult = Result<(), Box<dyn std::error::Error>>;
 

@@ -71,6 +71,7 @@ use serde::Serialize;
 use crate::grids::{GisGrid, PerceptionGrid, SensorGrid};
 use crate::label::Label;
 use crate::map_prior::MapPrior;
+use crate::motion::{MotionStage, MotionStats};
 use crate::params::{Params, ParamsError};
 use crate::pose::Isometry3;
 use crate::sensor_model::{SensorModel, SensorStats};
@@ -333,11 +334,25 @@ pub enum Prior {
     Vacuous,
 }
 
+/// Which method a [`Fusion`] runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub enum Method {
+    /// Kurdej et al. 2013 exactly as SPEC §5-§6 specify (evaluation variant `full`).
+    #[default]
+    Kurdej2013,
+    /// The SPEC §5 step followed by the motion stage ([`crate::motion`]): registration-based
+    /// motion evidence combined into the PerceptionGrid, with the boundary-aware map prior
+    /// (`docs/motion.md`; evaluation variant `evigrid`).
+    Evigrid,
+}
+
 /// What the fusion back end did in one frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FusionStats {
     /// The step's counts.
     pub step: StepStats,
+    /// The motion stage's counts ([`Method::Evigrid`] only).
+    pub motion: Option<MotionStats>,
     /// Wall time of the stages, milliseconds: resetting the cells new in the window, fusion
     /// step with the decision, trace of moving cells.
     pub reset_ms: f64,
@@ -358,6 +373,8 @@ pub struct Fusion {
     trace: MovingTrace,
     /// The prior of [`Prior::Vacuous`]: a GISGrid nothing ever writes.
     vacuous_gis: Option<GisGrid>,
+    /// The motion stage of [`Method::Evigrid`].
+    motion: Option<Box<MotionStage>>,
 }
 
 impl Fusion {
@@ -367,9 +384,23 @@ impl Fusion {
     ///
     /// [`PipelineError::Params`] if the parameters are out of range.
     pub fn new(params: Params, prior: Prior) -> Result<Self, PipelineError> {
+        Self::with_method(params, prior, Method::Kurdej2013)
+    }
+
+    /// A vacuous PerceptionGrid of the window size of `params`, fusing `prior` by `method`.
+    ///
+    /// # Errors
+    ///
+    /// [`PipelineError::Params`] if the parameters are out of range.
+    pub fn with_method(
+        params: Params,
+        prior: Prior,
+        method: Method,
+    ) -> Result<Self, PipelineError> {
         params.validate()?;
         let (w, h) = (params.window.width_cells, params.window.height_cells);
         Ok(Self {
+            motion: (method == Method::Evigrid).then(|| Box::new(MotionStage::new(&params, w, h))),
             params,
             prior,
             perception: PerceptionGrid::new(w, h),
@@ -404,20 +435,38 @@ impl Fusion {
             NewCells::All => {
                 self.perception.reset_all();
                 self.trace = MovingTrace::new(window.len());
+                if let Some(motion) = &mut self.motion {
+                    motion.reset_all();
+                }
             }
             NewCells::Entered(_) => {
                 for span in front_end.new_cell_spans() {
                     self.perception.reset_range(span.clone());
+                    if let Some(motion) = &mut self.motion {
+                        motion.reset_range(span.clone());
+                    }
                     self.trace.reset_range(span);
                 }
             }
+        }
+        // The variant's boundary-aware map prior, where the window moved.
+        if let (Some(motion), Prior::Map) = (&mut self.motion, self.prior) {
+            let entered = match front_end.new_cells() {
+                NewCells::All => None,
+                NewCells::Entered(entered) => Some(entered),
+            };
+            motion.refresh_prior(front_end.gis(), window, entered);
         }
         let reset_ms = ms(start);
 
         // Refine, combine with the map prior, discount the past, fuse, accumulate, specialise
         // (SPEC §5), and decide every cell (SPEC §6) while its block is in cache.
         let start = Instant::now();
-        let gis = self.vacuous_gis.as_ref().unwrap_or(front_end.gis());
+        let gis = match (&self.vacuous_gis, &self.motion) {
+            (Some(vacuous), _) => vacuous,
+            (None, Some(motion)) => motion.prior(),
+            (None, None) => front_end.gis(),
+        };
         let step = step_and_decide(
             &mut self.perception,
             front_end.sensor_grid(),
@@ -428,6 +477,18 @@ impl Fusion {
         );
         let step_ms = ms(start);
 
+        // Motion evidence combined into the grid, its cells decided again.
+        let motion = self.motion.as_mut().and_then(|motion| {
+            Some(motion.update(
+                window,
+                front_end.sensor_grid(),
+                front_end.time_s()?,
+                front_end.dt_s(),
+                &mut self.perception,
+                &mut self.decisions,
+            ))
+        });
+
         // Add this frame's moving cells to the trace.
         let start = Instant::now();
         self.trace.record(&self.decisions);
@@ -435,6 +496,7 @@ impl Fusion {
 
         Ok(FusionStats {
             step,
+            motion,
             reset_ms,
             step_ms,
             trace_ms,
@@ -449,6 +511,21 @@ impl Fusion {
     /// The prior it fuses.
     pub fn prior(&self) -> Prior {
         self.prior
+    }
+
+    /// The method it runs.
+    pub fn method(&self) -> Method {
+        if self.motion.is_some() {
+            Method::Evigrid
+        } else {
+            Method::Kurdej2013
+        }
+    }
+
+    /// The motion stage ([`Method::Evigrid`] only): the velocity planes, the boundary-aware
+    /// map prior.
+    pub fn motion(&self) -> Option<&MotionStage> {
+        self.motion.as_deref()
     }
 
     /// The PerceptionGrid, in storage order.
@@ -491,6 +568,8 @@ pub struct FrameStats {
     pub step_ms: f64,
     /// See `window_ms`.
     pub trace_ms: f64,
+    /// Wall time of the motion stage, milliseconds ([`Method::Evigrid`]; 0 otherwise).
+    pub motion_ms: f64,
 }
 
 /// The whole perception loop for one drive: a [`FrontEnd`] and the [`Fusion`] of its map prior.
@@ -508,9 +587,22 @@ impl Pipeline {
     ///
     /// [`PipelineError::Params`] if the parameters are out of range.
     pub fn new(params: Params, map: Option<ContextRaster>) -> Result<Self, PipelineError> {
+        Self::with_method(params, map, Method::Kurdej2013)
+    }
+
+    /// A pipeline running `method` ([`Pipeline::new`] runs [`Method::Kurdej2013`]).
+    ///
+    /// # Errors
+    ///
+    /// [`PipelineError::Params`] if the parameters are out of range.
+    pub fn with_method(
+        params: Params,
+        map: Option<ContextRaster>,
+        method: Method,
+    ) -> Result<Self, PipelineError> {
         Ok(Self {
             front_end: FrontEnd::new(&params, map)?,
-            fusion: Fusion::new(params, Prior::Map)?,
+            fusion: Fusion::with_method(params, Prior::Map, method)?,
         })
     }
 
@@ -545,6 +637,7 @@ impl Pipeline {
             sensor_ms: front.sensor_ms,
             step_ms: back.step_ms,
             trace_ms: back.trace_ms,
+            motion_ms: back.motion.map_or(0.0, |m| m.ms),
         })
     }
 
@@ -731,6 +824,32 @@ mod tests {
         }
         // The map changed something, or the comparison above proves nothing.
         assert_ne!(with_map.decisions(), without_map.decisions());
+    }
+
+    #[test]
+    fn the_evigrid_method_changes_only_what_its_motion_stage_touches() {
+        // Kurdej2013 through `with_method` is `new`, bit for bit; Evigrid reports its stage.
+        let mut paper = Pipeline::new(params(), Some(raster())).unwrap();
+        let mut named =
+            Pipeline::with_method(params(), Some(raster()), Method::Kurdej2013).unwrap();
+        let mut evigrid = Pipeline::with_method(params(), Some(raster()), Method::Evigrid).unwrap();
+        assert_eq!(paper.fusion().method(), Method::Kurdej2013);
+        assert_eq!(evigrid.fusion().method(), Method::Evigrid);
+        assert!(paper.fusion().motion().is_none());
+        for (points, pose, time_s) in drive() {
+            paper.process(&points, &pose, time_s).unwrap();
+            named.process(&points, &pose, time_s).unwrap();
+            let stats = evigrid.process(&points, &pose, time_s).unwrap();
+            assert_eq!(paper.perception(), named.perception());
+            assert_eq!(paper.decisions(), named.decisions());
+            assert!(stats.step_cells > 0);
+        }
+        let motion = evigrid.fusion().motion().unwrap();
+        assert_eq!(motion.velocity_east().len(), 400);
+        // The wall north of the road is static: never moving in the evigrid variant.
+        let window = evigrid.window();
+        let wall = window.storage_index_of_point(1.0, 0.1).unwrap();
+        assert_ne!(evigrid.decisions()[wall], crate::Label::M);
     }
 
     #[test]

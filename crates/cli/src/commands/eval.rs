@@ -37,7 +37,7 @@ pub struct EvalArgs {
     #[arg(long)]
     scenario: PathBuf,
     /// Methods to compare, comma-separated: kurdej2013 (the paper's method, SPEC §5), no-map,
-    /// moras2011, log-odds; every variant by default. `full` is the deprecated name of
+    /// evigrid (with motion evidence, docs/motion.md), moras2011, log-odds; every variant by default. `full` is the deprecated name of
     /// kurdej2013.
     #[arg(long, value_delimiter = ',')]
     variants: Option<Vec<String>>,

@@ -1,0 +1,141 @@
+//! Which cells were occupied, and which were seen free, in each of the last eight frames: two
+//! bytes a cell.
+//!
+//! Bit `f mod 8` of a cell's byte says whether the cell held a return in frame `f` (or, in the
+//! second plane, was crossed by a ray without holding one). A frame's bit is cleared, eight
+//! frames later, only in the cells that frame listed, so that one frame costs as many writes as
+//! it has observed cells, whatever the window's size.
+
+use std::ops::Range;
+
+/// Frames kept: the bits of a byte.
+pub(crate) const SLOTS: usize = 8;
+
+/// The occupied cells of the last [`SLOTS`] frames.
+#[derive(Clone, Debug)]
+pub(crate) struct OccupancyHistory {
+    bits: Vec<u8>,
+    free_bits: Vec<u8>,
+    /// The storage cells each slot's frame set, to clear them when the slot is reused.
+    lists: [Vec<u32>; SLOTS],
+    free_lists: [Vec<u32>; SLOTS],
+    /// Time of each slot's frame, seconds.
+    times_s: [f64; SLOTS],
+    /// Frames recorded so far.
+    frames: u64,
+}
+
+impl OccupancyHistory {
+    pub(crate) fn new(len: usize) -> Self {
+        Self {
+            bits: vec![0; len],
+            free_bits: vec![0; len],
+            lists: Default::default(),
+            free_lists: Default::default(),
+            times_s: [0.0; SLOTS],
+            frames: 0,
+        }
+    }
+
+    /// Forgets the cells of `range` (they entered the window). Stale indices in the lists only
+    /// ever clear bits that are already clear.
+    pub(crate) fn reset_range(&mut self, range: Range<usize>) {
+        if let Some(cells) = self.bits.get_mut(range.clone()) {
+            cells.fill(0);
+        }
+        if let Some(cells) = self.free_bits.get_mut(range) {
+            cells.fill(0);
+        }
+    }
+
+    /// Forgets everything.
+    pub(crate) fn reset_all(&mut self) {
+        self.bits.fill(0);
+        self.free_bits.fill(0);
+        for list in self.lists.iter_mut().chain(&mut self.free_lists) {
+            list.clear();
+        }
+        self.frames = 0;
+    }
+
+    /// The history byte of a storage cell (0 outside).
+    #[inline]
+    pub(crate) fn bits(&self, idx: usize) -> u8 {
+        self.bits.get(idx).copied().unwrap_or(0)
+    }
+
+    /// The seen-free history byte of a storage cell (0 outside).
+    #[inline]
+    pub(crate) fn free_bits(&self, idx: usize) -> u8 {
+        self.free_bits.get(idx).copied().unwrap_or(0)
+    }
+
+    /// The bit and time of the frame `frames_back` (1 = the last recorded) frames before the
+    /// next one, if it was recorded and is still kept.
+    pub(crate) fn frame_back(&self, frames_back: usize) -> Option<(u8, f64)> {
+        if frames_back == 0 || frames_back > SLOTS || frames_back as u64 > self.frames {
+            return None;
+        }
+        let slot = ((self.frames - frames_back as u64) % SLOTS as u64) as usize;
+        Some((1 << slot, self.times_s[slot]))
+    }
+
+    /// Records the occupied and the seen-free cells of the next frame, taken at `time_s`.
+    pub(crate) fn push(&mut self, occupied: &[u32], free: &[u32], time_s: f64) {
+        let slot = (self.frames % SLOTS as u64) as usize;
+        let bit = 1u8 << slot;
+        for (bits, list, cells) in [
+            (&mut self.bits, &mut self.lists[slot], occupied),
+            (&mut self.free_bits, &mut self.free_lists[slot], free),
+        ] {
+            for &idx in list.iter() {
+                if let Some(b) = bits.get_mut(idx as usize) {
+                    *b &= !bit;
+                }
+            }
+            list.clear();
+            list.extend_from_slice(cells);
+            for &idx in cells {
+                if let Some(b) = bits.get_mut(idx as usize) {
+                    *b |= bit;
+                }
+            }
+        }
+        self.times_s[slot] = time_s;
+        self.frames += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_back_find_their_cells_and_old_frames_are_cleared() {
+        let mut h = OccupancyHistory::new(4);
+        assert_eq!(h.frame_back(1), None);
+        h.push(&[0, 1], &[3], 0.0);
+        h.push(&[1, 2], &[], 0.1);
+        let (one_back, t1) = h.frame_back(1).unwrap_or_default();
+        let (two_back, t2) = h.frame_back(2).unwrap_or_default();
+        assert_eq!((t1, t2), (0.1, 0.0));
+        let occupied = |h: &OccupancyHistory, bit: u8| {
+            (0..4).filter(|&i| h.bits(i) & bit != 0).collect::<Vec<_>>()
+        };
+        assert_eq!(occupied(&h, one_back), vec![1, 2]);
+        assert_eq!(occupied(&h, two_back), vec![0, 1]);
+        assert_eq!(h.free_bits(3), two_back);
+        assert_eq!(h.frame_back(3), None);
+        // Eight frames later the first frame's slot is reused and its cells cleared.
+        for k in 0..7 {
+            h.push(&[3], &[], 0.2 + 0.1 * k as f64);
+        }
+        let (eight_back, _) = h.frame_back(8).unwrap_or_default();
+        assert_eq!(occupied(&h, eight_back), vec![1, 2]);
+        h.push(&[], &[], 1.0);
+        assert_eq!(h.bits(0), 0, "frame 0's cell was cleared with its slot");
+        assert_eq!(h.free_bits(3), 0);
+        h.reset_range(3..4);
+        assert_eq!(h.bits(3), 0);
+    }
+}

@@ -1,0 +1,321 @@
+//! Motion evidence: scan-to-scan registration of the occupied cells, filtered per track, fed
+//! to the PerceptionGrid as belief (the `evigrid` fusion variant; `docs/motion.md`).
+//!
+//! The paper's method tells moving from static by the conflict between the past and the
+//! present of a cell, which a car driving away never creates: its visible face enters cells
+//! never seen free, their mass sits on {S, M} and the accumulator breaks the tie to S. This
+//! stage measures motion directly, per object, on the grid:
+//!
+//! 1. the occupied cells of the scan (SensorGrid m(O) > 0) are grouped into 8-connected
+//!    clusters (`clusters`);
+//! 2. each cluster is registered against the occupied cells of up to eight past frames
+//!    (`history`, `register`): the whole-cell shift that explains it best, if it explains
+//!    it clearly better than no shift, is its displacement;
+//! 3. clusters join tracks whose velocity a Kalman filter follows through occlusions
+//!    (`tracks`, `kalman`);
+//! 4. each track's velocity and its uncertainty give its cells mass on {M} (moving) or on
+//!    Ω∖{M} (static), combined conjunctively with the cell's mass after the SPEC §5 step
+//!    (`evidence`); the cells it touched are decided again.
+//!
+//! The stage also keeps the boundary-aware map prior of the variant (`context`) and a
+//! velocity per cell. Memory is sized by the window; after the first frames nothing is
+//! allocated (buffers are kept and only grow to the largest frame seen).
+
+mod clusters;
+mod context;
+mod evidence;
+mod history;
+mod kalman;
+mod register;
+mod tracks;
+
+use std::ops::Range;
+use std::time::Instant;
+
+pub use evidence::{MotionMass, combine};
+
+use crate::decision::decide;
+use crate::grids::{CELLS_PER_BLOCK, GisGrid, N_SETS, PerceptionGrid, SensorGrid};
+use crate::label::Label;
+use crate::params::{MotionParams, ResidualPolicy};
+use crate::window::{Entered, Window};
+use clusters::Clusters;
+use history::OccupancyHistory;
+use register::{Now, Registrar};
+use tracks::{Observation, Tracks};
+
+/// What the motion stage did in one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MotionStats {
+    /// Occupied cells of the scan.
+    pub occupied_cells: usize,
+    /// Clusters of them.
+    pub clusters: usize,
+    /// Clusters whose shift was measured.
+    pub registered_clusters: usize,
+    /// Tracks alive after the frame.
+    pub tracks: usize,
+    /// Cells given mass on {M}.
+    pub moving_cells: usize,
+    /// Cells given mass on Ω∖{M}.
+    pub static_cells: usize,
+    /// Wall time, milliseconds.
+    pub ms: f64,
+}
+
+/// The motion stage of one window: history, clusters, tracks, and their scratch buffers.
+#[derive(Clone, Debug)]
+pub struct MotionStage {
+    params: MotionParams,
+    residual: ResidualPolicy,
+    unknown_threshold: f64,
+    history: OccupancyHistory,
+    clusters: Clusters,
+    registrar: Registrar,
+    tracks: Tracks,
+    observations: Vec<Observation>,
+    occupied: Vec<u32>,
+    /// The scan's cells crossed by a ray without a return.
+    free: Vec<u32>,
+    /// Per cell of the clusters, in cluster order: whether it may have moved
+    /// (`Registrar::moved`).
+    moved: Vec<bool>,
+    /// The boundary-aware map prior (`context`).
+    gis: GisGrid,
+    velocity_east: Vec<f32>,
+    velocity_north: Vec<f32>,
+    /// Cells whose velocity is set, to clear them on the next frame.
+    velocity_cells: Vec<u32>,
+}
+
+impl MotionStage {
+    /// A stage for a `width × height` window, with the motion parameters and the fusion's
+    /// residual policy and unknown threshold (the cells it changes are decided again).
+    pub fn new(params: &crate::Params, width: usize, height: usize) -> Self {
+        let len = width * height;
+        Self {
+            params: params.motion.clone(),
+            residual: params.fusion.residual,
+            unknown_threshold: params.decision.unknown_threshold,
+            history: OccupancyHistory::new(len),
+            clusters: Clusters::new(len),
+            registrar: Registrar::default(),
+            tracks: Tracks::default(),
+            observations: Vec::new(),
+            occupied: Vec::new(),
+            free: Vec::new(),
+            moved: Vec::new(),
+            gis: GisGrid::new(width, height),
+            velocity_east: vec![0.0; len],
+            velocity_north: vec![0.0; len],
+            velocity_cells: Vec::new(),
+        }
+    }
+
+    /// Forgets everything (the first frame of a drive).
+    pub fn reset_all(&mut self) {
+        self.history.reset_all();
+        self.clusters.clear();
+        self.tracks.clear();
+        self.velocity_east.fill(0.0);
+        self.velocity_north.fill(0.0);
+        self.velocity_cells.clear();
+    }
+
+    /// Forgets the cells of a storage range (they entered the window).
+    pub fn reset_range(&mut self, range: Range<usize>) {
+        self.history.reset_range(range.clone());
+        if let Some(v) = self.velocity_east.get_mut(range.clone()) {
+            v.fill(0.0);
+        }
+        if let Some(v) = self.velocity_north.get_mut(range) {
+            v.fill(0.0);
+        }
+    }
+
+    /// Brings the boundary-aware map prior up to date with `source` (the front end's GISGrid)
+    /// over the whole window (`entered = None`) or where cells entered.
+    pub fn refresh_prior(&mut self, source: &GisGrid, window: &Window, entered: Option<&Entered>) {
+        context::refresh(
+            &mut self.gis,
+            source,
+            window,
+            entered,
+            self.params.building_margin_cells,
+        );
+    }
+
+    /// The boundary-aware map prior, in storage order.
+    pub fn prior(&self) -> &GisGrid {
+        &self.gis
+    }
+
+    /// Estimated velocity east of every cell, m/s (0 where no moving track covers it).
+    pub fn velocity_east(&self) -> &[f32] {
+        &self.velocity_east
+    }
+
+    /// Estimated velocity north of every cell, m/s (0 where no moving track covers it).
+    pub fn velocity_north(&self) -> &[f32] {
+        &self.velocity_north
+    }
+
+    /// Measures the motion of the scan in `sensor` (taken at `time_s`, `dt_s` after the
+    /// previous one), combines the evidence into `perception` after its step, and decides the
+    /// cells it changed again in `decisions`.
+    ///
+    /// # Panics
+    /// If `perception`, `decisions` or `sensor` hold fewer cells than `window` (the
+    /// [`Fusion`](crate::pipeline::Fusion) back end sizes them all from one window).
+    pub fn update(
+        &mut self,
+        window: &Window,
+        sensor: &SensorGrid,
+        time_s: f64,
+        dt_s: f64,
+        perception: &mut PerceptionGrid,
+        decisions: &mut [Label],
+    ) -> MotionStats {
+        let start = Instant::now();
+        let cell_size_m = window.cell_size_m();
+
+        // 1. The scan's occupied and free cells, only in the blocks the sensor model wrote.
+        self.occupied.clear();
+        self.free.clear();
+        let (m_free, m_occupied) = (sensor.m_free(), sensor.m_occupied());
+        for (block, _) in sensor
+            .may_hold_mass()
+            .iter()
+            .enumerate()
+            .filter(|(_, may)| **may)
+        {
+            let first = block * CELLS_PER_BLOCK;
+            let end = (first + CELLS_PER_BLOCK).min(m_occupied.len());
+            for idx in first..end {
+                if m_occupied[idx] > 0.0 {
+                    self.occupied.push(idx as u32);
+                } else if m_free[idx] > 0.0 {
+                    self.free.push(idx as u32);
+                }
+            }
+        }
+
+        // 2-3. Clusters, each registered against the past frames.
+        self.clusters.label(window, &self.occupied);
+        self.observations.clear();
+        self.moved.clear();
+        let mut registered = 0;
+        for k in 0..self.clusters.len() {
+            let cells = self.clusters.cluster(k);
+            let (mut sx, mut sy) = (0.0, 0.0);
+            for c in cells {
+                sx += c.col as f64 + 0.5;
+                sy += c.row as f64 + 0.5;
+            }
+            let n = cells.len().max(1) as f64;
+            let velocity = self
+                .registrar
+                .register(
+                    cells,
+                    window,
+                    &self.history,
+                    Now {
+                        time_s,
+                        clusters: &self.clusters,
+                        cluster: k as u32,
+                        m_free: sensor.m_free(),
+                    },
+                    &self.params,
+                )
+                .map(|r| {
+                    let sigma = self.params.shift_sigma_cells * cell_size_m / r.sum_span_sq.sqrt();
+                    let (vx, vy) = r.velocity_cells_per_s;
+                    ([vx * cell_size_m, vy * cell_size_m], sigma * sigma)
+                });
+            registered += usize::from(velocity.is_some());
+            self.moved.extend(
+                cells
+                    .iter()
+                    .map(|c| velocity.is_none() || self.registrar.moved(c)),
+            );
+            self.observations.push(Observation {
+                centroid_m: [sx / n * cell_size_m, sy / n * cell_size_m],
+                velocity,
+            });
+        }
+
+        // 4. Tracks.
+        self.tracks
+            .update(&self.observations, time_s, dt_s, &self.params);
+
+        // 5. Evidence into the grid, the decision again, the velocity planes.
+        for &idx in &self.velocity_cells {
+            if let Some(v) = self.velocity_east.get_mut(idx as usize) {
+                *v = 0.0;
+            }
+            if let Some(v) = self.velocity_north.get_mut(idx as usize) {
+                *v = 0.0;
+            }
+        }
+        self.velocity_cells.clear();
+        let (mut moving_cells, mut static_cells) = (0, 0);
+        let mut first = 0;
+        for k in 0..self.clusters.len() {
+            let cells = self.clusters.cluster(k);
+            let moved = &self.moved[first..first + cells.len()];
+            first += cells.len();
+            let Some(track) = self.tracks.of_observation(k) else {
+                continue;
+            };
+            let mass = evidence::track_mass(track, &self.params);
+            let [vx, vy] = track.velocity.map(|v| v.mean_mps as f32);
+            for (c, &moved) in cells.iter().zip(moved) {
+                let idx = c.idx as usize;
+                match mass {
+                    MotionMass::Vacuous => continue,
+                    // A static part of a moving cluster gets no evidence.
+                    MotionMass::Moving(_) if !moved => continue,
+                    MotionMass::Moving(_) => {
+                        moving_cells += 1;
+                        self.velocity_east[idx] = vx;
+                        self.velocity_north[idx] = vy;
+                        self.velocity_cells.push(c.idx);
+                    }
+                    MotionMass::Static(_) => static_cells += 1,
+                }
+                let mut m = perception.cell_masses(idx);
+                combine(&mut m, mass, self.residual);
+                write_cell(perception, idx, &m);
+                decisions[idx] = decide(&m, perception.seen()[idx] != 0, self.unknown_threshold);
+            }
+        }
+
+        // 6. This frame joins the history.
+        self.history.push(&self.occupied, &self.free, time_s);
+        MotionStats {
+            occupied_cells: self.occupied.len(),
+            clusters: self.clusters.len(),
+            registered_clusters: registered,
+            tracks: self.tracks.len(),
+            moving_cells,
+            static_cells,
+            ms: start.elapsed().as_secs_f64() * 1e3,
+        }
+    }
+}
+
+/// Writes one cell's masses, keeping the grid's notes true: the block's bits gain the planes
+/// now non-zero, and, as [`combine`] moves mass on A only to A ∩ {M} or A∖{M} (or ∅, Ω), masses
+/// stay on the sets the step can reach, so the grid is not marked as leaving them (which
+/// would make every later step read all 32 planes).
+fn write_cell(perception: &mut PerceptionGrid, idx: usize, m: &[f32; N_SETS]) {
+    let planes = perception.planes_mut();
+    let mut bits = 0;
+    for (set, (plane, &v)) in planes.masses.into_iter().zip(m).enumerate() {
+        plane[idx] = v;
+        if v.to_bits() != 0 {
+            bits |= 1 << set;
+        }
+    }
+    planes.nonzero[idx / CELLS_PER_BLOCK] |= bits;
+}

@@ -1,0 +1,509 @@
+//! How far a cluster moved: its occupied cells shifted against the occupied cells of the last
+//! frames (a correlation search over whole-cell shifts), one past frame after another.
+//!
+//! For each past frame `k` (1 = the previous one) and each shift `d` within the search radius,
+//! `n_k(d)` counts the cluster's cells `c` whose cell `c − d` was occupied in frame `k`. A
+//! non-zero best shift is kept only if it explains at least `shift_margin_fraction` of the
+//! cluster (and one cell) more than the zero shift, so that a static object, whose best shift
+//! is zero give or take a cell of pose error or of a face that slid into view, reads as
+//! static; the shift is a measurement only if it explains at least `match_fraction` of the
+//! cluster (an object first seen explains nothing and gives none). Frames further back are
+//! tried until the shift is at least two cells long: a car at 10 m/s moves two cells in a
+//! tenth of a second, a pedestrian needs the eight frames kept. All past frames are counted in
+//! one pass per shift: each history byte is spread into eight byte lanes of a `u64`.
+//!
+//! The search works on whole cells of the world-fixed grid, so a pose error below a cell moves
+//! no static cell's shift, and one of a cell or more moves all the clusters of a frame alike,
+//! which the zero-shift preference absorbs for objects that stay in view.
+
+use super::clusters::{Cell, Clusters};
+use super::history::{OccupancyHistory, SLOTS};
+use crate::params::MotionParams;
+use crate::window::Window;
+
+/// A past frame whose shift is this far, cells, from the velocity of the newer frames shows a
+/// change of motion and ends the search.
+const CHANGE_CELLS: f64 = 1.5;
+
+/// Cells of a cluster counted at most: a long façade is sampled evenly.
+const MAX_COUNTED_CELLS: usize = 256;
+
+/// A cluster's velocity measured against the past frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Registration {
+    /// Velocity in cells per second (east, north): the least-squares slope through the
+    /// origin of the shifts d_k against the time spans τ_k of the frames that matched,
+    /// Σ d_k·τ_k / Σ τ_k².
+    pub(crate) velocity_cells_per_s: (f64, f64),
+    /// Σ τ_k² of those frames, s²: a shift error of σ cells gives a velocity error of
+    /// σ / √(Σ τ_k²) cells per second.
+    pub(crate) sum_span_sq: f64,
+    /// Frames that matched.
+    pub(crate) frames: usize,
+}
+
+/// The shift of the oldest frame a registration used, to tell a cluster's cells apart
+/// ([`Registrar::moved`]).
+#[derive(Clone, Copy, Debug, Default)]
+struct LastShift {
+    dx: i64,
+    dy: i64,
+    bit: u8,
+}
+
+/// The frame being registered: its time, its clusters and which of them is registered.
+#[derive(Clone, Copy)]
+pub(crate) struct Now<'a> {
+    pub(crate) time_s: f64,
+    pub(crate) clusters: &'a Clusters,
+    pub(crate) cluster: u32,
+    /// m(F) of the frame's SensorGrid: where rays crossed.
+    pub(crate) m_free: &'a [f32],
+}
+
+/// Scratch buffers of the search, kept between clusters and frames.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Registrar {
+    /// Per patch cell, the occupied-history byte (0 where another cluster is now).
+    patch: Vec<u8>,
+    /// Per patch cell, the seen-free history byte.
+    free: Vec<u8>,
+    /// Per patch cell, 0xff if the cell is seen free now, else 0.
+    left: Vec<u8>,
+    /// As `counts`, only the cells whose move is seen (see `register`).
+    seen_counts: Vec<[u32; SLOTS]>,
+    counts: Vec<[u32; SLOTS]>,
+    /// Patch geometry of the last cluster: width, first column and row (radius included).
+    patch_origin: (usize, i64, i64),
+    last: LastShift,
+}
+
+/// `SPREAD[b]` has byte `j` equal to bit `j` of `b`.
+const SPREAD: [u64; 256] = {
+    let mut table = [0u64; 256];
+    let mut b = 0;
+    while b < 256 {
+        let mut j = 0;
+        while j < 8 {
+            if b & (1 << j) != 0 {
+                table[b] |= 1 << (8 * j);
+            }
+            j += 1;
+        }
+        b += 1;
+    }
+    table
+};
+
+impl Registrar {
+    /// The shift of the cluster `cells` (this frame's, at `now_s`) against the history, or
+    /// `None` when no past frame explains enough of it.
+    pub(crate) fn register(
+        &mut self,
+        cells: &[Cell],
+        window: &Window,
+        history: &OccupancyHistory,
+        now: Now<'_>,
+        params: &MotionParams,
+    ) -> Option<Registration> {
+        let now_s = now.time_s;
+        let first = cells.first()?;
+        let radius = params.search_radius_cells as i64;
+        let (mut c0, mut c1, mut r0, mut r1) = (first.col, first.col, first.row, first.row);
+        for c in cells {
+            (c0, c1) = (c0.min(c.col), c1.max(c.col));
+            (r0, r1) = (r0.min(c.row), r1.max(c.row));
+        }
+        // The history around the cluster, `radius` cells beyond its bounding box.
+        let pw = (c1 - c0 + 1 + 2 * radius) as usize;
+        let ph = (r1 - r0 + 1 + 2 * radius) as usize;
+        for plane in [&mut self.patch, &mut self.free, &mut self.left] {
+            plane.clear();
+            plane.resize(pw * ph, 0);
+        }
+        self.patch_origin = (pw, c0 - radius, r0 - radius);
+        self.last = LastShift::default();
+        for (pr, row) in (r0 - radius..=r1 + radius).enumerate() {
+            for (pc, col) in (c0 - radius..=c1 + radius).enumerate() {
+                let Some(idx) = window.storage_index(col, row) else {
+                    continue;
+                };
+                let p = pr * pw + pc;
+                self.free[p] = history.free_bits(idx);
+                match now.clusters.label_of(idx) {
+                    // Another cluster occupies it now: that object is still there, so this
+                    // one did not come from it.
+                    Some(l) if l != now.cluster => {}
+                    Some(_) => self.patch[p] = history.bits(idx),
+                    None => {
+                        self.patch[p] = history.bits(idx);
+                        if now.m_free.get(idx).is_some_and(|&f| f > 0.0) {
+                            self.left[p] = 0xff;
+                        }
+                    }
+                }
+            }
+        }
+
+        // n_k(d) for every shift d and past frame k at once.
+        let stride = cells.len().div_ceil(MAX_COUNTED_CELLS);
+        let counted = cells.len().div_ceil(stride) as u32;
+        let side = 2 * radius + 1;
+        for counts in [&mut self.counts, &mut self.seen_counts] {
+            counts.clear();
+            counts.resize((side * side) as usize, [0; SLOTS]);
+        }
+        for (s, (count, seen_count)) in self
+            .counts
+            .iter_mut()
+            .zip(self.seen_counts.iter_mut())
+            .enumerate()
+        {
+            let (dx, dy) = (s as i64 % side - radius, s as i64 / side - radius);
+            let (mut lanes, mut seen_lanes) = (0u64, 0u64);
+            let mut in_lanes = 0;
+            for c in cells.iter().step_by(stride) {
+                let here = (c.row - r0 + radius) as usize * pw + (c.col - c0 + radius) as usize;
+                let from =
+                    (c.row - dy - r0 + radius) as usize * pw + (c.col - dx - c0 + radius) as usize;
+                let came_from = self.patch[from];
+                lanes += SPREAD[usize::from(came_from)];
+                // The move is seen where the cell it came from is seen empty now, or where
+                // this cell was seen free then.
+                let seen = self.free[here] | self.left[from];
+                seen_lanes += SPREAD[usize::from(came_from & seen)];
+                in_lanes += 1;
+                // A byte lane holds up to 255.
+                if in_lanes == 255 {
+                    flush(&mut lanes, count);
+                    flush(&mut seen_lanes, seen_count);
+                    in_lanes = 0;
+                }
+            }
+            flush(&mut lanes, count);
+            flush(&mut seen_lanes, seen_count);
+        }
+
+        let zero = (radius * side + radius) as usize;
+        let needed = (params.match_fraction * f64::from(counted)).max(1.0);
+        let margin = (params.shift_margin_fraction * f64::from(counted))
+            .ceil()
+            .max(1.0) as u32;
+        let cell_size_m = window.cell_size_m();
+        let (mut sum_dt_x, mut sum_dt_y, mut sum_tt, mut frames) = (0.0, 0.0, 0.0, 0);
+        for frames_back in 1..=params.history_frames {
+            let Some((bit, then_s)) = history.frame_back(frames_back) else {
+                break;
+            };
+            let span_s = now_s - then_s;
+            if span_s <= 0.0 {
+                continue;
+            }
+            let slot = bit.trailing_zeros() as usize;
+            let reach = ((params.max_speed_mps * span_s / cell_size_m).ceil() as i64).min(radius);
+            let mut best = (self.counts[zero][slot], 0i64, 0i64);
+            for dy in -reach..=reach {
+                for dx in -reach..=reach {
+                    let n = self.counts[((dy + radius) * side + dx + radius) as usize][slot];
+                    let closer = dx * dx + dy * dy < best.1 * best.1 + best.2 * best.2;
+                    if n > best.0 || (n == best.0 && closer) {
+                        best = (n, dx, dy);
+                    }
+                }
+            }
+            let n_zero = self.counts[zero][slot];
+            // A non-zero shift must explain the cluster clearly better than none, and its
+            // move must be seen on at least `margin` cells: where neither the cells left nor
+            // the cells entered were seen, the match may be a change of what is visible (a
+            // parked car whose visible part slides as the ego passes), not a move.
+            let seen =
+                self.seen_counts[((best.2 + radius) * side + best.1 + radius) as usize][slot];
+            let (matched, dx, dy) = if best.0 >= n_zero + margin && seen >= margin {
+                best
+            } else {
+                (n_zero, 0, 0)
+            };
+            if f64::from(matched) < needed {
+                continue;
+            }
+            // A shift off the line of the newer frames by more than CHANGE_CELLS: the object
+            // changed its motion (a car that just stopped shows no shift against the last
+            // frames and a long one against older ones); keep the newer frames only.
+            if frames > 0 {
+                let off_x = dx as f64 - sum_dt_x / sum_tt * span_s;
+                let off_y = dy as f64 - sum_dt_y / sum_tt * span_s;
+                if off_x.abs().max(off_y.abs()) > CHANGE_CELLS {
+                    break;
+                }
+            }
+            sum_dt_x += dx as f64 * span_s;
+            sum_dt_y += dy as f64 * span_s;
+            sum_tt += span_s * span_s;
+            frames += 1;
+            self.last = LastShift { dx, dy, bit };
+            // Two cells or more: precise enough, and further back a fast object leaves the
+            // search radius.
+            if dx * dx + dy * dy >= 4 {
+                break;
+            }
+        }
+        (frames > 0).then(|| Registration {
+            velocity_cells_per_s: (sum_dt_x / sum_tt, sum_dt_y / sum_tt),
+            sum_span_sq: sum_tt,
+            frames,
+        })
+    }
+}
+
+impl Registrar {
+    /// After the last registration, whether one of its cells may have moved: false for a cell
+    /// that was occupied in the oldest frame used and is not explained by the shift found
+    /// there (a static object merged into a moving one's cluster, such as a car waiting
+    /// beside crossing traffic); true wherever no shift was found (nothing to tell apart).
+    pub(crate) fn moved(&self, cell: &Cell) -> bool {
+        let LastShift { dx, dy, bit } = self.last;
+        if (dx, dy) == (0, 0) {
+            return true;
+        }
+        let (pw, col0, row0) = self.patch_origin;
+        let at = |col: i64, row: i64| {
+            let (pc, pr) = (col - col0, row - row0);
+            usize::try_from(pc)
+                .ok()
+                .zip(usize::try_from(pr).ok())
+                .and_then(|(pc, pr)| (pc < pw).then(|| self.patch.get(pr * pw + pc)).flatten())
+                .is_some_and(|&b| b & bit != 0)
+        };
+        at(cell.col - dx, cell.row - dy) || !at(cell.col, cell.row)
+    }
+}
+
+/// Adds the eight byte lanes of `lanes` to `count` and clears them.
+fn flush(lanes: &mut u64, count: &mut [u32; SLOTS]) {
+    for (j, c) in count.iter_mut().enumerate() {
+        *c += ((*lanes >> (8 * j)) & 0xff) as u32;
+    }
+    *lanes = 0;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cells(window: &Window, list: &[(i64, i64)]) -> Vec<Cell> {
+        list.iter()
+            .map(|&(col, row)| Cell {
+                idx: window.storage_index(col, row).unwrap_or(0) as u32,
+                col,
+                row,
+            })
+            .collect()
+    }
+
+    fn indices(window: &Window, list: &[(i64, i64)]) -> Vec<u32> {
+        cells(window, list).iter().map(|c| c.idx).collect()
+    }
+
+    /// Every cell of the 40 × 40 test window seen free now (except the clusters').
+    static ALL_FREE: [f32; 1600] = [0.7; 1600];
+
+    /// A frame at `time_s` with no other cluster in it, everything else seen free.
+    fn alone(time_s: f64, none: &Clusters) -> Now<'_> {
+        Now {
+            time_s,
+            clusters: none,
+            cluster: 0,
+            m_free: &ALL_FREE,
+        }
+    }
+
+    fn window() -> Window {
+        Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    #[test]
+    fn spread_puts_each_bit_in_its_byte() {
+        assert_eq!(SPREAD[0b1000_0101], 0x0100_0000_0001_0001);
+    }
+
+    #[test]
+    fn a_face_moving_two_cells_a_frame_is_found_and_a_wall_is_static() {
+        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
+        let mut history = OccupancyHistory::new(window.len());
+        // A 4-cell face at column 10 moving east by 2 cells a frame, and a wall at row 30.
+        let face = |col: i64| (0..4).map(move |r| (col, 10 + r));
+        let wall: Vec<(i64, i64)> = (0..20).map(|c| (c, 30)).collect();
+        for k in 0..3 {
+            let mut occupied: Vec<(i64, i64)> = face(10 + 2 * k).collect();
+            occupied.extend(&wall);
+            history.push(&indices(&window, &occupied), &[], 0.1 * k as f64);
+        }
+        let mut registrar = Registrar::default();
+        let now: Vec<(i64, i64)> = face(16).collect();
+        let found = registrar
+            .register(
+                &cells(&window, &now),
+                &window,
+                &history,
+                alone(0.3, &none),
+                &params,
+            )
+            .unwrap_or_else(|| panic!("not registered"));
+        // Two cells in 0.1 s, from the previous frame alone.
+        assert_eq!(found.frames, 1);
+        assert!((found.velocity_cells_per_s.0 - 20.0).abs() < 1e-9);
+        assert!(found.velocity_cells_per_s.1.abs() < 1e-12);
+        assert!((found.sum_span_sq - 0.01).abs() < 1e-12);
+        assert!(registrar.moved(&cells(&window, &[(16, 10)])[0]));
+        let still = registrar
+            .register(
+                &cells(&window, &wall),
+                &window,
+                &history,
+                alone(0.3, &none),
+                &params,
+            )
+            .unwrap_or_else(|| panic!("not registered"));
+        // Static: zero shift against each of the three frames kept.
+        assert_eq!(still.velocity_cells_per_s, (0.0, 0.0));
+        assert_eq!(still.frames, 3);
+        assert!((still.sum_span_sq - (0.01 + 0.04 + 0.09)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_slow_object_is_measured_against_older_frames_and_a_new_one_not_at_all() {
+        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
+        let mut history = OccupancyHistory::new(window.len());
+        // Two cells moving one cell every three frames (a walker at 1.7 m/s).
+        for k in 0..7 {
+            let col = 5 + k / 3;
+            history.push(
+                &indices(&window, &[(col, 5), (col, 6)]),
+                &[],
+                0.1 * k as f64,
+            );
+        }
+        let mut registrar = Registrar::default();
+        let now = cells(&window, &[(7, 5), (7, 6)]);
+        let found = registrar
+            .register(&now, &window, &history, alone(0.7, &none), &params)
+            .unwrap_or_else(|| panic!("not registered"));
+        // One frame back: no shift (0.1 s); two to four back: one cell (0.2, 0.3, 0.4 s); five
+        // back, at column 5: two cells (0.5 s), where the search stops. Slope
+        // (0 + 0.2 + 0.3 + 0.4 + 2·0.5) / (0.01 + 0.04 + 0.09 + 0.16 + 0.25) = 1.9 / 0.55.
+        assert_eq!(found.frames, 5);
+        assert!((found.velocity_cells_per_s.0 - 1.9 / 0.55).abs() < 1e-9);
+        let elsewhere = cells(&window, &[(30, 30), (30, 31)]);
+        let none_found =
+            registrar.register(&elsewhere, &window, &history, alone(0.7, &none), &params);
+        assert_eq!(none_found, None);
+    }
+
+    #[test]
+    fn an_object_that_just_stopped_is_measured_on_the_frames_since() {
+        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
+        let mut history = OccupancyHistory::new(window.len());
+        // Two cells a frame east until column 14, then stopped there for two frames.
+        for (k, col) in [8, 10, 12, 14, 14].into_iter().enumerate() {
+            history.push(
+                &indices(&window, &[(col, 5), (col, 6)]),
+                &[],
+                0.1 * k as f64,
+            );
+        }
+        let now = cells(&window, &[(14, 5), (14, 6)]);
+        let found = Registrar::default()
+            .register(&now, &window, &history, alone(0.5, &none), &params)
+            .unwrap_or_else(|| panic!("not registered"));
+        // Zero shift against frames 1 and 2 back; 3 back shows two cells off that line.
+        assert_eq!(found.velocity_cells_per_s, (0.0, 0.0));
+        assert_eq!(found.frames, 2);
+    }
+
+    #[test]
+    fn a_static_cell_merged_into_a_moving_cluster_is_told_apart() {
+        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
+        let mut history = OccupancyHistory::new(window.len());
+        // Three cells moving two cells a frame east, and a static cell at (20, 20).
+        let object = |col: i64| (10..13).map(move |r| (col, r));
+        for (k, col) in [10, 12].into_iter().enumerate() {
+            let mut occupied: Vec<(i64, i64)> = object(col).collect();
+            occupied.push((20, 20));
+            history.push(&indices(&window, &occupied), &[], 0.1 * k as f64);
+        }
+        let mut now: Vec<(i64, i64)> = object(14).collect();
+        now.push((20, 20));
+        let now = cells(&window, &now);
+        let mut registrar = Registrar::default();
+        // Shift (2, 0) explains 3 of 4 cells, zero 1: moving.
+        let found = registrar.register(&now, &window, &history, alone(0.2, &none), &params);
+        assert!(found.is_some_and(|r| (r.velocity_cells_per_s.0 - 20.0).abs() < 1e-9));
+        assert!(registrar.moved(&now[0]));
+        assert!(!registrar.moved(&now[3]), "the static cell");
+    }
+
+    #[test]
+    fn an_object_first_seen_beside_a_static_one_is_not_its_past() {
+        let window = window();
+        let params = MotionParams::default();
+        let mut history = OccupancyHistory::new(window.len());
+        // B at (5, 5) in every frame; A appears at (7, 5): shifted 2 cells, B's cell fits.
+        for k in 0..2 {
+            history.push(&indices(&window, &[(5, 5)]), &[], 0.1 * k as f64);
+        }
+        let a = cells(&window, &[(7, 5)]);
+        let none = Clusters::new(window.len());
+        let mut registrar = Registrar::default();
+        let alone_found = registrar.register(&a, &window, &history, alone(0.2, &none), &params);
+        assert!(alone_found.is_some_and(|r| r.velocity_cells_per_s.0 > 0.0));
+        // With B seen now as another cluster, its cell is not where A came from.
+        let mut clusters = Clusters::new(window.len());
+        clusters.label(&window, &indices(&window, &[(7, 5), (5, 5)]));
+        let own = clusters.label_of(a[0].idx as usize).unwrap_or(u32::MAX);
+        let now = Now {
+            time_s: 0.2,
+            clusters: &clusters,
+            cluster: own,
+            m_free: &ALL_FREE,
+        };
+        assert_eq!(
+            registrar.register(&a, &window, &history, now, &params),
+            None
+        );
+    }
+
+    #[test]
+    fn a_static_side_whose_visible_part_slides_is_static() {
+        let (window, params) = (window(), MotionParams::default());
+        let mut history = OccupancyHistory::new(window.len());
+        // A parked car's side on row 5: columns 0-8 visible a frame ago, 4-12 now, 0-3 now
+        // hidden (not seen free). Shift 4 matches all nine cells, zero only five; but the
+        // cells it would have come from are hidden now, and the new cells were not seen
+        // free then: nothing shows a move.
+        let side = |cols: std::ops::Range<i64>| cols.map(|c| (c, 5)).collect::<Vec<_>>();
+        history.push(&indices(&window, &side(0..9)), &[], 0.0);
+        let now = cells(&window, &side(4..13));
+        let mut clusters = Clusters::new(window.len());
+        clusters.label(&window, &indices(&window, &side(4..13)));
+        let no_free = vec![0.0; window.len()];
+        let now_frame = Now {
+            time_s: 0.1,
+            clusters: &clusters,
+            cluster: 0,
+            m_free: &no_free,
+        };
+        let found = Registrar::default().register(&now, &window, &history, now_frame, &params);
+        assert!(found.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));
+        // Had columns 0-3 been seen empty now, the side would have moved.
+        let mut free = no_free.clone();
+        for idx in indices(&window, &side(0..4)) {
+            free[idx as usize] = 0.7;
+        }
+        let seen = Now {
+            m_free: &free,
+            ..now_frame
+        };
+        let moved = Registrar::default().register(&now, &window, &history, seen, &params);
+        assert!(moved.is_some_and(|r| (r.velocity_cells_per_s.0 - 40.0).abs() < 1e-9));
+    }
+}

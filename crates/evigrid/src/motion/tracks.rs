@@ -1,0 +1,217 @@
+//! Tracks: clusters followed from frame to frame, each with a filtered velocity.
+//!
+//! Every frame, tracks are predicted (position moved by the velocity, the velocity's variance
+//! grown), then each cluster joins the nearest free track predicted within the gate (greedy, by
+//! distance), or starts a new one. A track keeps its velocity while its object is hidden, for
+//! up to `max_coast_s`, so that an object coming out of occlusion, whose cells have no history
+//! to register against, still carries its speed.
+
+use super::kalman::VelocityFilter;
+use crate::params::MotionParams;
+
+/// What a frame says about one cluster.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Observation {
+    /// Centroid of the cluster's cells, m (east, north).
+    pub(crate) centroid_m: [f64; 2],
+    /// Velocity measured by registration, m/s, with its variance per axis, (m/s)².
+    pub(crate) velocity: Option<([f64; 2], f64)>,
+}
+
+/// One followed object.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Track {
+    /// Last centroid, moved by the velocity while the object is not seen, m.
+    pub(crate) position_m: [f64; 2],
+    /// Velocity east and north.
+    pub(crate) velocity: [VelocityFilter; 2],
+    /// Time the track was last observed, s.
+    pub(crate) last_seen_s: f64,
+    /// Registrations that measured its velocity (none: it knows nothing of motion).
+    pub(crate) measurements: u32,
+}
+
+/// The tracks and the association scratch, kept between frames.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Tracks {
+    tracks: Vec<Track>,
+    pairs: Vec<(f64, u32, u32)>,
+    taken: Vec<bool>,
+    /// After [`Tracks::update`], the track of each observation.
+    assigned: Vec<u32>,
+}
+
+impl Tracks {
+    /// Forgets every track.
+    pub(crate) fn clear(&mut self) {
+        self.tracks.clear();
+    }
+
+    /// Number of tracks.
+    pub(crate) fn len(&self) -> usize {
+        self.tracks.len()
+    }
+
+    /// The track observation `k` of the last update belongs to.
+    pub(crate) fn of_observation(&self, k: usize) -> Option<&Track> {
+        self.tracks.get(*self.assigned.get(k)? as usize)
+    }
+
+    /// Predicts every track to `now_s` (`dt_s` after the last frame), drops those unseen for
+    /// too long, and assigns the frame's observations to tracks, new ones where none is near.
+    pub(crate) fn update(
+        &mut self,
+        observations: &[Observation],
+        now_s: f64,
+        dt_s: f64,
+        params: &MotionParams,
+    ) {
+        // Predict, and drop tracks lost for too long.
+        self.tracks
+            .retain(|t| now_s - t.last_seen_s <= params.max_coast_s);
+        for t in &mut self.tracks {
+            for (p, v) in t.position_m.iter_mut().zip(&mut t.velocity) {
+                *p += v.mean_mps * dt_s;
+                v.predict(dt_s, params.accel_sigma_mps2);
+            }
+        }
+
+        // Nearest pairs first, each track and observation used once.
+        self.pairs.clear();
+        let gate_sq = params.gate_m * params.gate_m;
+        for (ti, t) in self.tracks.iter().enumerate() {
+            for (oi, o) in observations.iter().enumerate() {
+                let dx = t.position_m[0] - o.centroid_m[0];
+                let dy = t.position_m[1] - o.centroid_m[1];
+                let d_sq = dx * dx + dy * dy;
+                if d_sq <= gate_sq && velocity_agrees(t, o) {
+                    self.pairs.push((d_sq, ti as u32, oi as u32));
+                }
+            }
+        }
+        self.pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        self.taken.clear();
+        self.taken.resize(self.tracks.len(), false);
+        self.assigned.clear();
+        self.assigned.resize(observations.len(), u32::MAX);
+        for &(_, ti, oi) in &self.pairs {
+            if !self.taken[ti as usize] && self.assigned[oi as usize] == u32::MAX {
+                self.taken[ti as usize] = true;
+                self.assigned[oi as usize] = ti;
+            }
+        }
+
+        // Update the tracks observed; start one for each observation left.
+        let unknown_variance = params.max_speed_mps * params.max_speed_mps;
+        for (oi, o) in observations.iter().enumerate() {
+            let ti = match self.assigned[oi] {
+                u32::MAX => {
+                    self.tracks.push(Track {
+                        position_m: o.centroid_m,
+                        velocity: [VelocityFilter::new(0.0, unknown_variance); 2],
+                        last_seen_s: now_s,
+                        measurements: 0,
+                    });
+                    self.assigned[oi] = (self.tracks.len() - 1) as u32;
+                    self.tracks.len() - 1
+                }
+                ti => ti as usize,
+            };
+            let t = &mut self.tracks[ti];
+            t.position_m = o.centroid_m;
+            t.last_seen_s = now_s;
+            if let Some((v, variance)) = o.velocity {
+                for (filter, &z) in t.velocity.iter_mut().zip(&v) {
+                    filter.update(z, variance);
+                }
+                t.measurements = t.measurements.saturating_add(1);
+            }
+        }
+    }
+}
+
+/// χ²(2) quantile 0.999: a measured velocity further than this (in Mahalanobis distance
+/// squared) from a track's is another object, typically a parked car that a passing car's
+/// track reaches.
+const VELOCITY_GATE: f64 = 13.8;
+
+/// Whether the observation's measured velocity, if any, fits the track's, if it has one.
+fn velocity_agrees(track: &Track, observation: &Observation) -> bool {
+    let Some((v, variance)) = observation.velocity else {
+        return true;
+    };
+    if track.measurements == 0 {
+        return true;
+    }
+    let chi_sq: f64 = track
+        .velocity
+        .iter()
+        .zip(&v)
+        .map(|(f, &z)| (z - f.mean_mps).powi(2) / (f.variance + variance))
+        .sum();
+    chi_sq <= VELOCITY_GATE
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn seen(x: f64, v: Option<f64>) -> Observation {
+        Observation {
+            centroid_m: [x, 0.0],
+            velocity: v.map(|v| ([v, 0.0], 1.0)),
+        }
+    }
+
+    #[test]
+    fn a_track_follows_its_object_and_coasts_through_a_gap() {
+        let params = MotionParams::default();
+        let mut tracks = Tracks::default();
+        tracks.update(&[seen(0.0, None)], 0.0, 0.0, &params);
+        assert_eq!(tracks.len(), 1);
+        assert!(
+            tracks
+                .of_observation(0)
+                .is_some_and(|t| t.measurements == 0)
+        );
+        // 10 m/s east, measured from the second frame.
+        for k in 1..6 {
+            let x = k as f64;
+            tracks.update(&[seen(x, Some(10.0))], 0.1 * k as f64, 0.1, &params);
+        }
+        assert_eq!(tracks.len(), 1);
+        let v = tracks
+            .of_observation(0)
+            .map_or(0.0, |t| t.velocity[0].mean_mps);
+        assert!((v - 10.0).abs() < 0.5, "{v}");
+        // Hidden for three frames, then seen where it should be, with no registration.
+        for k in 6..9 {
+            tracks.update(&[], 0.1 * k as f64, 0.1, &params);
+        }
+        tracks.update(&[seen(9.0, None)], 0.9, 0.1, &params);
+        assert_eq!(tracks.len(), 1, "joined the coasting track");
+        let t = tracks.of_observation(0).copied();
+        assert!(t.is_some_and(|t| t.measurements == 5 && t.velocity[0].mean_mps > 9.0));
+        // Far away: a new track; and after max_coast_s unseen, the old one is gone.
+        tracks.update(&[seen(50.0, None)], 1.0, 0.1, &params);
+        assert_eq!(tracks.len(), 2);
+        tracks.update(&[], 2.05, 1.05, &params);
+        assert_eq!(tracks.len(), 0);
+    }
+
+    #[test]
+    fn a_static_cluster_does_not_join_a_moving_track_that_passes_it() {
+        let params = MotionParams::default();
+        let mut tracks = Tracks::default();
+        for k in 0..5 {
+            tracks.update(&[seen(k as f64, Some(10.0))], 0.1 * k as f64, 0.1, &params);
+        }
+        // At 5 m the track meets a cluster measured static: a new track, still 2 in all.
+        tracks.update(&[seen(5.0, Some(0.0))], 0.5, 0.1, &params);
+        assert_eq!(tracks.len(), 2);
+        let v = tracks
+            .of_observation(0)
+            .map_or(1.0, |t| t.velocity[0].mean_mps);
+        assert_eq!(v, 0.0);
+    }
+}
