@@ -30,6 +30,9 @@ enum Command {
     Cell(commands::cell::CellArgs),
     /// The perception pipeline over a drive: scans + poses + map → decision maps and grids.
     Run(commands::run::RunArgs),
+    /// ROS 2 recordings (MCAP): info (topics, types, counts, time span, what a run would read).
+    #[command(subcommand)]
+    Bag(commands::bag::BagCommand),
     /// Speed of the fusion step against the memory floor and a naive baseline (ratios).
     Bench(commands::bench::BenchArgs),
     /// Variants side by side on simulated drives over a real map, scored against the truth.
@@ -47,6 +50,7 @@ fn main() -> std::process::ExitCode {
         Command::Map(cmd) => commands::map::run(cmd),
         Command::Cell(args) => commands::cell::run(args),
         Command::Run(args) => commands::run::run(args),
+        Command::Bag(cmd) => commands::bag::run(cmd),
         Command::Bench(args) => commands::bench::run(args),
         Command::Eval(args) => commands::eval::run(args),
         Command::Demo(args) => commands::demo::run(args),
