@@ -78,6 +78,30 @@ pub enum PoseSource {
     None,
 }
 
+impl std::str::FromStr for PoseSource {
+    type Err = String;
+
+    /// `auto`, `none`, `tf[:FIXED_FRAME]`, `odom[:TOPIC]`, `navsat[:TOPIC]` (for command lines).
+    fn from_str(text: &str) -> Result<Self, String> {
+        let (kind, arg) = match text.split_once(':') {
+            Some((k, a)) if !a.is_empty() => (k, Some(a.to_owned())),
+            Some((k, _)) => (k, None),
+            None => (text, None),
+        };
+        match (kind, arg) {
+            ("auto", None) => Ok(PoseSource::Auto),
+            ("none", None) => Ok(PoseSource::None),
+            ("tf", fixed_frame) => Ok(PoseSource::Tf { fixed_frame }),
+            ("odom" | "odometry", topic) => Ok(PoseSource::Odometry { topic }),
+            ("navsat" | "navsatfix" | "gps", topic) => Ok(PoseSource::NavSatFix { topic }),
+            _ => Err(format!(
+                "pose source `{text}`: expected auto, none, tf[:FIXED_FRAME], odom[:TOPIC] or \
+                 navsat[:TOPIC]"
+            )),
+        }
+    }
+}
+
 /// What to read from a recording.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct BagOptions {
@@ -400,7 +424,8 @@ impl BagDrive {
         &self.scan_times
     }
 
-    /// The poses, `world_from_sensor`.
+    /// The poses, `world_from_sensor` in the source's own world frame (tf's fixed frame,
+    /// odometry's `frame_id`, or the caller's projection for NavSatFix).
     pub fn poses(&self) -> &BagPoses {
         &self.poses
     }
@@ -704,5 +729,34 @@ impl Iterator for BagScans {
             );
         }
         None
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pose_sources_parse() {
+        let p = |t: &str| t.parse::<PoseSource>();
+        assert_eq!(p("auto"), Ok(PoseSource::Auto));
+        assert_eq!(p("none"), Ok(PoseSource::None));
+        assert_eq!(p("tf"), Ok(PoseSource::Tf { fixed_frame: None }));
+        assert_eq!(
+            p("tf:map"),
+            Ok(PoseSource::Tf {
+                fixed_frame: Some("map".into())
+            })
+        );
+        assert_eq!(
+            p("odom:/odometry/filtered"),
+            Ok(PoseSource::Odometry {
+                topic: Some("/odometry/filtered".into())
+            })
+        );
+        assert_eq!(p("navsat"), Ok(PoseSource::NavSatFix { topic: None }));
+        assert!(p("imu").unwrap_err().contains("tf[:FIXED_FRAME]"));
+        assert!(p("none:x").is_err());
     }
 }
