@@ -234,6 +234,16 @@ fn unknown_or_wrong_topics_list_what_the_file_has() {
 fn rewrite(
     dir: &Path,
     compression: Option<mcap::Compression>,
+    edit: impl FnMut(&str, usize, &[u8]) -> Option<Vec<u8>>,
+) -> PathBuf {
+    rewrite_without(dir, compression, &[], edit)
+}
+
+/// As [`rewrite`], leaving out the messages of `dropped` topics.
+fn rewrite_without(
+    dir: &Path,
+    compression: Option<mcap::Compression>,
+    dropped: &[&str],
     mut edit: impl FnMut(&str, usize, &[u8]) -> Option<Vec<u8>>,
 ) -> PathBuf {
     let bytes = std::fs::read(fixture()).unwrap();
@@ -244,6 +254,9 @@ fn rewrite(
     let mut counts = std::collections::HashMap::new();
     for message in mcap::MessageStream::new(&bytes).unwrap() {
         let message = message.unwrap();
+        if dropped.contains(&message.channel.topic.as_str()) {
+            continue;
+        }
         let index = counts
             .entry(message.channel.topic.clone())
             .or_insert(0usize);
@@ -430,4 +443,55 @@ fn the_script_regenerates_the_fixture() {
     assert_eq!(new.poses(), old.poses());
     let scans = |b: &BagDrive| b.scans().unwrap().map(Result::unwrap).collect::<Vec<_>>();
     assert_eq!(scans(&new), scans(&old));
+}
+
+#[test]
+fn auto_falls_back_from_tf_to_odometry_to_navsat_to_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: [(&[&str], &str); 3] = [
+        (&["/tf"], "odometry /odom"),
+        (&["/tf", "/odom"], "navsatfix /gps/fix"),
+        (&["/tf", "/odom", "/gps/fix"], "none"),
+    ];
+    for (dropped, expected) in cases {
+        let path = rewrite_without(dir.path(), None, dropped, |_, _, _| None);
+        let bag = BagDrive::open(&path, &BagOptions::default()).unwrap();
+        assert_eq!(bag.pose_source(), expected, "without {dropped:?}");
+        if expected == "odometry /odom" {
+            check_local_poses(&bag, 1e-3, 0.01);
+        }
+        assert_eq!(bag.scans().unwrap().count(), FRAMES.len());
+    }
+    // Odometry of base_link cannot place the velodyne's clouds without /tf_static.
+    let path = rewrite_without(dir.path(), None, &["/tf_static"], |_, _, _| None);
+    let err = BagDrive::open(
+        &path,
+        &BagOptions {
+            cloud_topic: None,
+            pose_source: PoseSource::Odometry { topic: None },
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("no static tf chain from `base_link` to the cloud's frame `velodyne`"),
+        "{err}"
+    );
+}
+
+#[test]
+fn clouds_that_change_frame_are_refused_at_open() {
+    let dir = tempfile::tempdir().unwrap();
+    // "velodyne" -> "velodyme" in the second cloud's header (same length, same layout).
+    let path = rewrite(dir.path(), None, |topic, i, data| {
+        (topic == "/velodyne_points" && i == 1).then(|| {
+            let mut d = data.to_vec();
+            let at = d.windows(8).position(|w| w == b"velodyne").unwrap();
+            d[at + 6] = b'm';
+            d
+        })
+    });
+    let err = BagDrive::open(&path, &BagOptions::default()).unwrap_err();
+    assert!(matches!(err, BagError::Message { index: 1, .. }), "{err:?}");
+    assert!(err.to_string().contains("`velodyme` differs"), "{err}");
 }

@@ -759,4 +759,47 @@ mod tests {
         assert!(p("imu").unwrap_err().contains("tf[:FIXED_FRAME]"));
         assert!(p("none:x").is_err());
     }
+
+    fn topic(name: &str, schema: &str) -> TopicInfo {
+        TopicInfo {
+            topic: name.into(),
+            schema: schema.into(),
+            encoding: "cdr".into(),
+            count: 3,
+            log_time_ns: (0, 1),
+        }
+    }
+
+    #[test]
+    fn topics_are_picked_or_the_choice_is_explained() {
+        let path = Path::new("b.mcap");
+        let topics = [
+            topic("/front/points", POINTCLOUD2),
+            topic("/odom", ODOMETRY),
+            topic("/rear/points", POINTCLOUD2),
+        ];
+        let err = pick_topic(path, &topics, None, POINTCLOUD2, "--cloud-topic")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("2 sensor_msgs/msg/PointCloud2 topics; choose --cloud-topic"),
+            "{err}"
+        );
+        assert!(
+            err.contains("/rear/points (sensor_msgs/msg/PointCloud2, 3)"),
+            "{err}"
+        );
+        assert_eq!(
+            pick_topic(path, &topics, Some("/rear/points"), POINTCLOUD2, "").unwrap(),
+            "/rear/points"
+        );
+        assert_eq!(
+            pick_topic(path, &topics, None, ODOMETRY, "").unwrap(),
+            "/odom"
+        );
+        let err = pick_topic(path, &topics, None, NAVSATFIX, "")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("no sensor_msgs/msg/NavSatFix topic"), "{err}");
+    }
 }
