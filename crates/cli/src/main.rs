@@ -64,6 +64,9 @@ enum Command {
     Run(commands::run::RunArgs),
     /// Lidar odometry: poses from the scans alone, written as TUM or KITTI odometry.
     Odometry(commands::odometry::OdometryArgs),
+    /// ROS 2 recordings (MCAP): info (topics, types, counts, time span, what a run would read).
+    #[command(subcommand)]
+    Bag(commands::bag::BagCommand),
     /// Speed of the fusion step against the memory floor and a naive baseline (ratios).
     Bench(commands::bench::BenchArgs),
     /// Variants side by side on simulated drives over a real map, scored against the truth.
@@ -85,6 +88,7 @@ fn main() -> std::process::ExitCode {
         Command::Cell(args) => commands::cell::run(args),
         Command::Run(args) => commands::run::run(args),
         Command::Odometry(args) => commands::odometry::run(args),
+        Command::Bag(cmd) => commands::bag::run(cmd),
         Command::Bench(args) => commands::bench::run(args),
         Command::Eval(args) => commands::eval::run(args),
         Command::Demo(args) => commands::demo::run(args),

@@ -3,7 +3,7 @@
 //! This crate reads; it computes nothing about grids or belief functions. A scan is a list of
 //! points in the sensor frame ([`scan`]); what places it in the world comes from pose files
 //! ([`poses`]) or from a published drive's own layout ([`kitti_raw`], built on [`timestamp`],
-//! [`calib`] and [`oxts`]).
+//! [`calib`] and [`oxts`]), or from a ROS 2 recording ([`bag`]).
 //!
 //! Conventions, everywhere in this crate:
 //! - rigid transforms are [`nalgebra::Isometry3<f64>`] named by what they map:
@@ -16,6 +16,7 @@
 
 #![deny(missing_docs)]
 
+pub mod bag;
 pub mod calib;
 pub mod error;
 pub mod kitti_raw;
@@ -25,6 +26,7 @@ pub mod scan;
 mod text;
 pub mod timestamp;
 
+pub use bag::{BagDrive, BagError, BagOptions, BagPoses, PoseSource};
 pub use error::ReadError;
 pub use kitti_raw::{KittiRawDrive, KittiRawError, KittiRawFrame};
 pub use poses::{PoseFormat, PoseTrack, TrackError};

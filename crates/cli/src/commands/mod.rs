@@ -1,5 +1,6 @@
 //! One module per subcommand: each has its clap arguments and a `run` returning `anyhow::Result`.
 
+pub mod bag;
 pub mod bench;
 pub mod cell;
 pub mod config;
