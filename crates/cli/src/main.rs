@@ -6,6 +6,7 @@
 mod commands;
 mod drive_input;
 mod exit;
+mod figures;
 mod input;
 mod progress;
 

@@ -24,8 +24,7 @@ use evigrid::ego_path::{
 use evigrid::{FrameStats, Pipeline};
 use odometry::OdometryParams;
 use output::{
-    ClassColours, OccupancyGridExport, count_decisions, decision_image, pignistic_image,
-    trace_image, write_masses, write_png,
+    ClassColours, OccupancyGridExport, count_decisions, decision_image, write_masses, write_png,
 };
 use serde::Serialize;
 
@@ -117,8 +116,10 @@ Matching poses to scans:
 
 Outputs (in --out):
   frames/decision-NNNNNN.png   decision map per frame (north up, one pixel per cell)
-  decision.png                 final decision map, I, U, S in three shades of blue
+  decision.png                 final decision map for people: enlarged (>= 800 px), Okabe-Ito
+                               colours, legend, scale bar, north arrow, map outlines, ego path
   pignistic.png                final betP colour mix;  trace.png  moving objects over the drive
+                               (both drawn as decision.png)
   occupancy.json               final decided grid, ROS nav_msgs/OccupancyGrid layout
   masses.json, masses.bin      final masses, one float32 field per focal set (foxglove.Grid layout)
   summary.json                 parameters, per-frame timing, counts, ground and obstacle shares and
@@ -430,24 +431,18 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     progress.finish_and_clear();
     let window = pipeline.window();
-    let five = ClassColours::FIVE_CLASSES;
-    write_png(
-        &decision_image(window, pipeline.decisions(), &five)?,
-        &args.out.join("decision.png"),
-    )?;
-    write_png(
-        &pignistic_image(window, pipeline.perception(), &five)?,
-        &args.out.join("pignistic.png"),
-    )?;
-    write_png(
-        &trace_image(
-            window,
-            pipeline.decisions(),
-            pipeline.trace(),
-            &ClassColours::THREE_CLASSES,
-        )?,
-        &args.out.join("trace.png"),
-    )?;
+    // Figures for people: enlarged, legend, scale bar, north arrow, map outlines, the path so far.
+    let views = crate::figures::Views {
+        window,
+        perception: pipeline.perception(),
+        decisions: pipeline.decisions(),
+        trace: pipeline.trace(),
+    };
+    let gis = pipeline.has_map().then(|| pipeline.gis());
+    let driven = &positions[..per_frame.len().min(positions.len())];
+    for (name, image) in crate::figures::final_figures(&views, gis, driven)? {
+        write_png(&image, &args.out.join(name))?;
+    }
     OccupancyGridExport::new(window, pipeline.decisions(), "map")?
         .write(&args.out.join("occupancy.json"))?;
     write_masses(
