@@ -4,6 +4,7 @@
 //! errors into exit codes. Every computation is in a library crate.
 
 mod commands;
+mod demo_page;
 mod drive_input;
 mod exit;
 mod figures;

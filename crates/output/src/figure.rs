@@ -161,14 +161,7 @@ pub fn figure(
             TITLE_PX,
             INK,
         );
-        // Nearest-neighbour enlargement, straight into the canvas.
-        for (x, y, p) in panel.enumerate_pixels() {
-            for dy in 0..scale {
-                for dx in 0..scale {
-                    canvas.put_pixel(left + x * scale + dx, top + y * scale + dy, *p);
-                }
-            }
-        }
+        enlarge_into(&mut canvas, panel, (left, top), scale);
         if let Some(context) = &context {
             draw_outlines(&mut canvas, (left, top), (w, h), scale, context);
         }
@@ -272,6 +265,30 @@ pub fn figure(
         INK,
     );
     Ok(canvas)
+}
+
+/// Nearest-neighbour enlargement of `panel` into `canvas` with its top-left corner at
+/// (`left`, `top`): each row is widened once and copied `scale` times (the canvas is made to
+/// hold it).
+fn enlarge_into(canvas: &mut RgbImage, panel: &RgbImage, (left, top): (u32, u32), scale: u32) {
+    let canvas_width = canvas.width() as usize;
+    let mut wide = Vec::with_capacity(panel.width() as usize * scale as usize * 3);
+    let buffer: &mut [u8] = canvas;
+    for (y, row) in panel.rows().enumerate() {
+        wide.clear();
+        for p in row {
+            for _ in 0..scale {
+                wide.extend_from_slice(&p.0);
+            }
+        }
+        for dy in 0..scale as usize {
+            let start =
+                ((top as usize + y * scale as usize + dy) * canvas_width + left as usize) * 3;
+            if let Some(dst) = buffer.get_mut(start..start + wide.len()) {
+                dst.copy_from_slice(&wide);
+            }
+        }
+    }
 }
 
 /// 1, 2 or 5 times a power of ten, the largest not above `m` (at least 1 cm).

@@ -42,7 +42,7 @@ mod testing;
 pub mod text;
 mod views;
 
-pub use atomic::{write_atomic, write_png};
+pub use atomic::{write_atomic, write_png, write_png_fast};
 pub use error::OutputError;
 pub use export::{
     GridField, GridInfo, GridOrigin, MassesDescription, OccupancyGridExport, count_decisions,

@@ -7,9 +7,12 @@
 //! (`ttf`) goes through `font-kit` and the system's fontconfig/FreeType, so a picture would
 //! depend on the machine's fonts; its `ab_glyph` backend is not released.
 
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::rc::Rc;
 use std::sync::LazyLock;
 
-use ab_glyph::{Font, FontRef, PxScale, ScaleFont, point};
+use ab_glyph::{Font, FontRef, GlyphId, PxScale, ScaleFont, point};
 use image::{Rgb, RgbImage};
 
 /// The embedded font file.
@@ -47,15 +50,80 @@ pub fn line_height(size_px: f32) -> u32 {
     })
 }
 
+/// A glyph rasterised once at a size, its pen at the origin of integer pixel (0, 0) on the
+/// baseline: coverage of the box whose top-left pixel is (`left`, `top`).
+struct Raster {
+    left: i64,
+    top: i64,
+    width: usize,
+    coverage: Vec<f32>,
+}
+
+/// Glyphs already rasterised, by glyph and size: figures repeat the same few labels on every
+/// frame of a drive, and rasterising outlines was most of the cost of drawing one.
+type GlyphCache = HashMap<(u16, u32), Rc<Raster>>;
+
+thread_local! {
+    static GLYPHS: RefCell<GlyphCache> = RefCell::new(HashMap::new());
+}
+
+/// Bound on [`GLYPHS`] per thread; past it the cache starts again.
+const MAX_CACHED_GLYPHS: usize = 4096;
+
+/// The raster of glyph `id` at `scale`, from the cache or made now.
+fn raster(font: &FontRef<'static>, id: GlyphId, scale: PxScale) -> Rc<Raster> {
+    let key = (id.0, scale.y.to_bits());
+    GLYPHS.with(|cache| {
+        let mut cache = cache.borrow_mut();
+        if let Some(r) = cache.get(&key) {
+            return Rc::clone(r);
+        }
+        let glyph = id.with_scale_and_position(scale, point(0.0, 0.0));
+        let made = match font.outline_glyph(glyph) {
+            Some(outline) => {
+                let bounds = outline.px_bounds();
+                let width = bounds.width().max(0.0) as usize;
+                let height = bounds.height().max(0.0) as usize;
+                let mut coverage = vec![0.0f32; width * height];
+                outline.draw(|gx, gy, c| {
+                    if let Some(v) = coverage.get_mut(gy as usize * width + gx as usize) {
+                        *v = c;
+                    }
+                });
+                Raster {
+                    left: bounds.min.x as i64,
+                    top: bounds.min.y as i64,
+                    width,
+                    coverage,
+                }
+            }
+            // A space: nothing to draw.
+            None => Raster {
+                left: 0,
+                top: 0,
+                width: 0,
+                coverage: Vec::new(),
+            },
+        };
+        if cache.len() >= MAX_CACHED_GLYPHS {
+            cache.clear();
+        }
+        let made = Rc::new(made);
+        cache.insert(key, Rc::clone(&made));
+        made
+    })
+}
+
 /// Draws `text` with the top of its line box at `y` and its pen starting at `x`, blending
-/// `colour` by each pixel's coverage. Pixels outside the image are skipped.
+/// `colour` by each pixel's coverage. Glyphs sit on whole pixels (the pen is rounded), so each
+/// is rasterised once per size. Pixels outside the image are skipped.
 pub fn draw_text(image: &mut RgbImage, x: i64, y: i64, text: &str, size_px: f32, colour: Rgb<u8>) {
     let Some(font) = FONT.as_ref() else {
         return;
     };
     let scale = PxScale::from(size_px);
     let scaled = font.as_scaled(scale);
-    let baseline = y as f32 + scaled.ascent();
+    let baseline = y + scaled.ascent().round() as i64;
     let mut pen = x as f32;
     let mut previous = None;
     for c in text.chars() {
@@ -63,18 +131,14 @@ pub fn draw_text(image: &mut RgbImage, x: i64, y: i64, text: &str, size_px: f32,
         if let Some(p) = previous {
             pen += scaled.kern(p, id);
         }
-        let glyph = id.with_scale_and_position(scale, point(pen, baseline));
+        let r = raster(font, id, scale);
+        let (left, top) = (pen.round() as i64 + r.left, baseline + r.top);
+        for (k, &coverage) in r.coverage.iter().enumerate() {
+            let (gx, gy) = ((k % r.width.max(1)) as i64, (k / r.width.max(1)) as i64);
+            blend(image, left + gx, top + gy, colour, coverage);
+        }
         pen += scaled.h_advance(id);
         previous = Some(id);
-        let Some(outline) = font.outline_glyph(glyph) else {
-            continue; // a space
-        };
-        let bounds = outline.px_bounds();
-        let (left, top) = (bounds.min.x as i64, bounds.min.y as i64);
-        outline.draw(|gx, gy, coverage| {
-            let (px, py) = (left + i64::from(gx), top + i64::from(gy));
-            blend(image, px, py, colour, coverage);
-        });
     }
 }
 

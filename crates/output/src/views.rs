@@ -59,7 +59,8 @@ impl ClassColours {
 
     /// The readable palette, colour-blind safe (Okabe & Ito 2008, "Color Universal Design"):
     /// free bluish green, mapped infrastructure I blue, unmapped infrastructure U sky blue,
-    /// stopped S yellow, moving M vermillion, unknown black, unresolved occupied reddish purple.
+    /// stopped S yellow, moving M vermillion, unknown black, unresolved occupied grey (reddish
+    /// purple is left to the ego's path in figures).
     /// I, U and S differ in lightness as well as hue, so they stay apart with deuteranopia and
     /// protanopia (checked in `palette`'s tests by simulating them: every pair of unknown, F, I,
     /// U, S, M at least 20 ΔE apart).
@@ -72,7 +73,7 @@ impl ClassColours {
             [240, 228, 66],
             [213, 94, 0],
         ],
-        occupied: [204, 121, 167],
+        occupied: [150, 150, 150],
     };
 
     /// The colour of a label.
