@@ -28,5 +28,5 @@ page="$(cd "$dir" && pwd)/index.html"
 # network would show it broken in the screenshot.
 "$browser" --headless --no-sandbox --disable-gpu --hide-scrollbars \
   --host-resolver-rules="MAP * ~NOTFOUND" \
-  --window-size=1400,4200 --screenshot="$out" "file://$page" 2> /dev/null
+  --window-size=1400,3400 --screenshot="$out" "file://$page" 2> /dev/null
 echo "screenshot of $page in $out"

@@ -39,7 +39,8 @@ fn page(report: &EvalReport, colours: &ClassColours, markdown: &str) -> String {
          body { font-family: sans-serif; max-width: 1600px; margin: 1em auto; padding: 0 1em; \
          color: #111; }\n\
          img { max-width: 100%; height: auto; border: 1px solid #ccc; }\n\
-         img.full { width: 100%; margin-bottom: 1em; }\n\
+         a.third { flex: 1 1 30%; min-width: 300px; }\n\
+         a.third img { width: 100%; }\n\
          img.cells { image-rendering: pixelated; width: 100%; max-width: 1296px; }\n\
          table { border-collapse: collapse; margin: 0.5em 0 1em; }\n\
          td, th { border: 1px solid #bbb; padding: 2px 8px; text-align: right; }\n\
@@ -79,12 +80,10 @@ fn page(report: &EvalReport, colours: &ClassColours, markdown: &str) -> String {
     }
     h.push_str("<img src=\"per-class-iou.png\" alt=\"IoU per class and variant\">\n</div>\n");
 
-    h.push_str("<h2>Report</h2>\n");
-    h.push_str(&markdown_to_html(markdown));
     h.push_str(
         "<h2>After the last frame</h2>\n<p>Enlarged, with the map's outlines (white), the \
          ego's path, a scale bar and a north arrow; click one for full size.</p>\n\
-         <div>\n",
+         <div class=\"row\">\n",
     );
     for (file, alt) in [
         ("decision.png", "truth beside the final decision map"),
@@ -93,11 +92,13 @@ fn page(report: &EvalReport, colours: &ClassColours, markdown: &str) -> String {
     ] {
         let _ = writeln!(
             h,
-            "<a href=\"{file}\"><img class=\"third\" src=\"{file}\" alt=\"{alt}\"></a>"
+            "<a class=\"third\" href=\"{file}\"><img src=\"{file}\" alt=\"{alt}\"></a>"
         );
     }
 
     h.push_str("</div>\n");
+    h.push_str("<h2>Report</h2>\n");
+    h.push_str(&markdown_to_html(markdown));
     let _ = writeln!(h, "<p><small>{}.</small></p>", escape(OSM_ATTRIBUTION));
     h.push_str("</body>\n</html>\n");
     h
