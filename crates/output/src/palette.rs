@@ -152,11 +152,18 @@ mod tests {
             Deficiency::Protanopia,
         ] {
             let min = min_pairwise_delta_e(&readable, d);
+            println!("Okabe-Ito, {d:?}: smallest ΔE {min:.1}");
             assert!(min > 20.0, "{d:?}: {min}");
         }
-        assert!(min_pairwise_delta_e(&readable, Deficiency::Tritanopia) > 15.0);
+        let tritan = min_pairwise_delta_e(&readable, Deficiency::Tritanopia);
+        println!("Okabe-Ito, Tritanopia: smallest ΔE {tritan:.1}");
+        assert!(tritan > 15.0, "{tritan}");
         // The three blues of FIVE_CLASSES fall below it for a deuteranope (issue 16).
         let old = decided(&ClassColours::FIVE_CLASSES);
+        for d in Deficiency::ALL {
+            let min = min_pairwise_delta_e(&old, d);
+            println!("FIVE_CLASSES, {d:?}: smallest ΔE {min:.1}");
+        }
         assert!(min_pairwise_delta_e(&old, Deficiency::Deuteranopia) < 20.0);
         assert_eq!(
             min_pairwise_delta_e(&old[..1], Deficiency::None),
