@@ -16,7 +16,7 @@ use evigrid::{GisGrid, Label, Window};
 use geodata::MapContext;
 use image::{Rgb, RgbImage};
 
-use crate::error::{OutputError, check_len};
+use crate::error::{MAX_FIGURE_PIXELS, OutputError, check_len};
 use crate::text::{draw_text, draw_text_centred, line_height, text_width};
 use crate::views::ClassColours;
 
@@ -130,7 +130,20 @@ pub fn figure(
     if let Some(gis) = overlay.gis {
         check_len("GISGrid", gis.len(), window)?;
     }
-    let (pw, ph) = (w * scale, h * scale);
+    // A panel's size in u64 first: a large window times a large scale must be an error, not an
+    // overflow.
+    let (pw64, ph64) = (
+        u64::from(w) * u64::from(scale),
+        u64::from(h) * u64::from(scale),
+    );
+    let too_large = OutputError::FigureTooLarge {
+        width: pw64 * panels.len().max(1) as u64,
+        height: ph64,
+    };
+    if (pw64 * panels.len().max(1) as u64).saturating_mul(ph64) > MAX_FIGURE_PIXELS {
+        return Err(too_large);
+    }
+    let (pw, ph) = (pw64 as u32, ph64 as u32);
     let title_h = line_height(TITLE_PX) + 8;
     let label_h = line_height(LABEL_PX);
     let swatch = label_h;
@@ -582,6 +595,11 @@ mod tests {
             path: &path,
         };
         assert!(figure(&w, &[("x", &cells)], &bad, &legend, 2).is_err());
+        // An enlargement past any memory: an error, not an overflow or an abort.
+        assert!(matches!(
+            figure(&w, &[("x", &cells)], &overlay, &legend, u32::MAX),
+            Err(OutputError::FigureTooLarge { .. })
+        ));
     }
 
     #[test]

@@ -43,7 +43,7 @@ pub mod text;
 mod views;
 
 pub use atomic::{write_atomic, write_png, write_png_fast};
-pub use error::OutputError;
+pub use error::{MAX_FIGURE_PIXELS, OutputError};
 pub use export::{
     GridField, GridInfo, GridOrigin, MassesDescription, OccupancyGridExport, count_decisions,
     focal_set_name, write_masses,
