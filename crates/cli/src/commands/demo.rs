@@ -189,7 +189,7 @@ const QUEUED_FRAMES: usize = 8;
 
 /// Enlargement of the per-frame decision figure: 2 px a cell (the pignistic and trace figures
 /// of each frame, 1 px a cell) keeps 600 frames within the demo's time and its folder near
-/// 100 MB; the final figures use `readable_scale`, ≥ 800 px a panel.
+/// 120 MB; the final figures use `readable_scale`, ≥ 800 px a panel.
 const FRAME_SCALE: u32 = 2;
 
 /// How a figure is compressed: the large per-frame decision figures fast, the others with the
