@@ -4,8 +4,10 @@
 //! errors into exit codes. Every computation is in a library crate.
 
 mod commands;
+mod demo_page;
 mod drive_input;
 mod exit;
+mod figures;
 mod input;
 mod interrupt;
 mod out_dir;

@@ -68,6 +68,47 @@ fn demo_writes_every_view_per_frame_the_gif_and_the_report() {
     ] {
         assert!(out.join(png).is_file(), "{png}");
     }
+
+    // Truth beside prediction: a frame's figure holds two 320-cell panels at 2 px a cell, the
+    // final one two panels of at least 800 px; the GIF two panels at 1 px a cell.
+    let frame = image::open(out.join("frames/decision-000000.png")).unwrap();
+    assert!(
+        frame.width() > 2 * 640 && frame.height() > 640,
+        "{:?}",
+        frame.width()
+    );
+    let last = image::open(out.join("decision.png")).unwrap();
+    assert!(last.width() > 2 * 800 && last.height() > 800);
+    let gif = std::fs::read(out.join("decision.gif")).unwrap();
+    let decoder = image::codecs::gif::GifDecoder::new(std::io::Cursor::new(gif)).unwrap();
+    assert!(image::ImageDecoder::dimensions(&decoder).0 >= 640);
+
+    // index.html: every picture and link it names is in the folder (relative, no network).
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    for needle in [
+        "decision.gif",
+        "per-class-iou.png",
+        "<table>",
+        "M  moving object",
+    ] {
+        assert!(html.contains(needle), "{needle} not in index.html");
+    }
+    let mut targets = 0;
+    for attr in ["src=\"", "href=\""] {
+        for part in html.split(attr).skip(1) {
+            let target = &part[..part.find('"').unwrap()];
+            assert!(
+                !target.contains("//") && !target.starts_with('/'),
+                "{target}"
+            );
+            assert!(
+                out.join(target).exists(),
+                "index.html names missing {target}"
+            );
+            targets += 1;
+        }
+    }
+    assert!(targets >= 10, "{targets} links");
 }
 
 #[test]

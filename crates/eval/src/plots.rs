@@ -1,40 +1,34 @@
 //! Pictures of an evaluation: a confusion-matrix heat map per variant and a per-class IoU bar
-//! chart, as plain [`RgbImage`]s (the caller encodes and writes them).
-//!
-//! No font library is available, so labels are drawn with a tiny built-in 5 × 7 bitmap font
-//! ([`draw_text`]): digits, the letters A–Z (lower case is drawn as upper case), space and
-//! `. - % ?`. Any other character is drawn as `?`.
+//! chart, as plain [`RgbImage`]s (the caller encodes and writes them). Text is the embedded
+//! DejaVu Sans of [`output::text`], anti-aliased.
 //!
 //! # Confusion heat map ([`confusion_heatmap`])
 //! ```text
-//!   TITLE (variant name)
-//!        F    I    U    S    M    O    ?      ← predicted class (? = no decision)
-//!   F  [ 75 ][ 25 ][  0 ] ...                 ← one row per truth class
-//!   I  [    ][    ] ...
+//!   Confusion: <variant>, cells in view (% of each truth row)
+//!                          prediction
+//!                     F    I    U    S    M    O  unknown
+//!  t  F  free       [75%][25%][ 0%] ...                   ← one row per truth class
+//!  r  I  mapped …   [   ][   ] ...
 //! ```
-//! Rows are truth F, I, U, S, M; columns are predictions F, I, U, S, M, O (occupied, static, not
-//! resolved: two-class baselines), ? (unknown). A cell's shade goes from white (0 % of its row)
-//! to dark blue (100 % of its row) and it shows the row percentage, rounded. A row without any
-//! truth cell is grey. Row normalisation shows per-class recall on the diagonal whatever the
-//! class frequencies (free cells outnumber moving ones by orders of magnitude).
+//! Rows are truth F, I, U, S, M (axis title "truth", names spelled out); columns are predictions
+//! F, I, U, S, M, O (occupied, static, not resolved: two-class baselines), unknown (axis title
+//! "prediction"). A cell's shade goes from white (0 % of its row) to dark blue (100 % of its
+//! row) and it shows the row percentage, rounded. A row without any truth cell is grey. Row
+//! normalisation shows per-class recall on the diagonal whatever the class frequencies (free
+//! cells outnumber moving ones by orders of magnitude).
 //!
 //! # Per-class IoU chart ([`per_class_iou_chart`])
-//! Five groups F, I, U, S, M from left to right; in each group one bar per variant in the given
-//! order, coloured by the variant's index in [`PALETTE`] (Okabe–Ito colours, distinguishable with
-//! colour-blindness). Bar height is the IoU on a 0–1 axis with grey grid lines every 0.25; an
-//! undefined IoU (class absent from truth and prediction) is a short grey stub below the axis. A
-//! legend (colour swatch, variant name) is on the right.
+//! Five groups F, I, U, S, M from left to right (named under the axis, axis title "class"); in
+//! each group one bar per variant in the given order, coloured by the variant's index in
+//! [`PALETTE`] (Okabe–Ito colours, distinguishable with colour-blindness), its value printed
+//! above it. Bar height is the IoU on a 0–1 axis (y title "IoU") with grey grid lines and tick
+//! labels every 0.25; an undefined IoU (class absent from truth and prediction) is a short grey
+//! stub below the axis marked "n/a". A legend (colour swatch, variant name) is on the right.
 
 use crate::metrics::{ConfusionMatrix, TRUTH_NAMES};
 use crate::report::{EvalReport, VariantReport};
 use image::{Rgb, RgbImage};
-
-/// Width of a glyph of the built-in font, pixels at scale 1.
-pub const GLYPH_WIDTH: u32 = 5;
-/// Height of a glyph of the built-in font, pixels at scale 1.
-pub const GLYPH_HEIGHT: u32 = 7;
-/// Horizontal advance per character, pixels at scale 1 (glyph plus one blank column).
-pub const GLYPH_ADVANCE: u32 = GLYPH_WIDTH + 1;
+use output::text::{draw_text, draw_text_centred, draw_text_vertical, line_height, text_width};
 
 /// Colours of the variants' bars, in order (Okabe & Ito 2008, colour-blind safe).
 pub const PALETTE: [Rgb<u8>; 8] = [
@@ -59,83 +53,20 @@ pub const EMPTY_ROW: Rgb<u8> = Rgb([200, 200, 200]);
 /// Colour of grid lines and of undefined-IoU stubs.
 pub const GRID_GREY: Rgb<u8> = Rgb([190, 190, 190]);
 
-/// Rows of a glyph, top to bottom; bit 4 is the leftmost of the 5 columns.
-// One glyph per line keeps the bitmaps readable; rustfmt would split each over three lines.
-#[rustfmt::skip]
-fn glyph(c: char) -> [u8; 7] {
-    match c.to_ascii_uppercase() {
-        '0' => [0b01110, 0b10001, 0b10011, 0b10101, 0b11001, 0b10001, 0b01110],
-        '1' => [0b00100, 0b01100, 0b00100, 0b00100, 0b00100, 0b00100, 0b01110],
-        '2' => [0b01110, 0b10001, 0b00001, 0b00010, 0b00100, 0b01000, 0b11111],
-        '3' => [0b11111, 0b00010, 0b00100, 0b00010, 0b00001, 0b10001, 0b01110],
-        '4' => [0b00010, 0b00110, 0b01010, 0b10010, 0b11111, 0b00010, 0b00010],
-        '5' => [0b11111, 0b10000, 0b11110, 0b00001, 0b00001, 0b10001, 0b01110],
-        '6' => [0b00110, 0b01000, 0b10000, 0b11110, 0b10001, 0b10001, 0b01110],
-        '7' => [0b11111, 0b00001, 0b00010, 0b00100, 0b01000, 0b01000, 0b01000],
-        '8' => [0b01110, 0b10001, 0b10001, 0b01110, 0b10001, 0b10001, 0b01110],
-        '9' => [0b01110, 0b10001, 0b10001, 0b01111, 0b00001, 0b00010, 0b01100],
-        'A' => [0b01110, 0b10001, 0b10001, 0b11111, 0b10001, 0b10001, 0b10001],
-        'B' => [0b11110, 0b10001, 0b10001, 0b11110, 0b10001, 0b10001, 0b11110],
-        'C' => [0b01110, 0b10001, 0b10000, 0b10000, 0b10000, 0b10001, 0b01110],
-        'D' => [0b11100, 0b10010, 0b10001, 0b10001, 0b10001, 0b10010, 0b11100],
-        'E' => [0b11111, 0b10000, 0b10000, 0b11110, 0b10000, 0b10000, 0b11111],
-        'F' => [0b11111, 0b10000, 0b10000, 0b11110, 0b10000, 0b10000, 0b10000],
-        'G' => [0b01110, 0b10001, 0b10000, 0b10111, 0b10001, 0b10001, 0b01111],
-        'H' => [0b10001, 0b10001, 0b10001, 0b11111, 0b10001, 0b10001, 0b10001],
-        'I' => [0b01110, 0b00100, 0b00100, 0b00100, 0b00100, 0b00100, 0b01110],
-        'J' => [0b00111, 0b00010, 0b00010, 0b00010, 0b00010, 0b10010, 0b01100],
-        'K' => [0b10001, 0b10010, 0b10100, 0b11000, 0b10100, 0b10010, 0b10001],
-        'L' => [0b10000, 0b10000, 0b10000, 0b10000, 0b10000, 0b10000, 0b11111],
-        'M' => [0b10001, 0b11011, 0b10101, 0b10101, 0b10001, 0b10001, 0b10001],
-        'N' => [0b10001, 0b10001, 0b11001, 0b10101, 0b10011, 0b10001, 0b10001],
-        'O' => [0b01110, 0b10001, 0b10001, 0b10001, 0b10001, 0b10001, 0b01110],
-        'P' => [0b11110, 0b10001, 0b10001, 0b11110, 0b10000, 0b10000, 0b10000],
-        'Q' => [0b01110, 0b10001, 0b10001, 0b10001, 0b10101, 0b10010, 0b01101],
-        'R' => [0b11110, 0b10001, 0b10001, 0b11110, 0b10100, 0b10010, 0b10001],
-        'S' => [0b01111, 0b10000, 0b10000, 0b01110, 0b00001, 0b00001, 0b11110],
-        'T' => [0b11111, 0b00100, 0b00100, 0b00100, 0b00100, 0b00100, 0b00100],
-        'U' => [0b10001, 0b10001, 0b10001, 0b10001, 0b10001, 0b10001, 0b01110],
-        'V' => [0b10001, 0b10001, 0b10001, 0b10001, 0b10001, 0b01010, 0b00100],
-        'W' => [0b10001, 0b10001, 0b10001, 0b10101, 0b10101, 0b10101, 0b01010],
-        'X' => [0b10001, 0b10001, 0b01010, 0b00100, 0b01010, 0b10001, 0b10001],
-        'Y' => [0b10001, 0b10001, 0b10001, 0b01010, 0b00100, 0b00100, 0b00100],
-        'Z' => [0b11111, 0b00001, 0b00010, 0b00100, 0b01000, 0b10000, 0b11111],
-        ' ' => [0; 7],
-        '.' => [0, 0, 0, 0, 0, 0b01100, 0b01100],
-        '-' => [0, 0, 0, 0b11111, 0, 0, 0],
-        '%' => [0b11000, 0b11001, 0b00010, 0b00100, 0b01000, 0b10011, 0b00011],
-        _ => [0b01110, 0b10001, 0b00001, 0b00010, 0b00100, 0, 0b00100], // '?'
-    }
-}
+/// Font sizes, pixels: titles, axis titles, labels, small print.
+const TITLE_PX: f32 = 20.0;
+const AXIS_PX: f32 = 17.0;
+const LABEL_PX: f32 = 15.0;
+const SMALL_PX: f32 = 12.0;
 
-/// Width in pixels of `text` drawn at `scale` (no trailing blank column).
-pub fn text_width(text: &str, scale: u32) -> u32 {
-    let n = text.chars().count() as u32;
-    (n * GLYPH_ADVANCE).saturating_sub(1) * scale
-}
-
-/// Draws `text` with its top-left corner at (`x`, `y`), each font pixel a `scale` × `scale`
-/// square. Pixels falling outside the image are skipped.
-pub fn draw_text(image: &mut RgbImage, x: i64, y: i64, text: &str, scale: u32, colour: Rgb<u8>) {
-    let scale = i64::from(scale.max(1));
-    for (k, c) in text.chars().enumerate() {
-        let left = x + k as i64 * i64::from(GLYPH_ADVANCE) * scale;
-        for (row, bits) in glyph(c).iter().enumerate() {
-            for col in 0..GLYPH_WIDTH {
-                if bits & (1 << (GLYPH_WIDTH - 1 - col)) != 0 {
-                    fill_rect(
-                        image,
-                        left + i64::from(col) * scale,
-                        y + row as i64 * scale,
-                        scale as u32,
-                        scale as u32,
-                        colour,
-                    );
-                }
-            }
-        }
-    }
-}
+/// The names of the truth classes F, I, U, S, M for people.
+pub const CLASS_NAMES: [&str; 5] = [
+    "free",
+    "mapped infrastructure",
+    "unmapped infrastructure",
+    "stopped",
+    "moving",
+];
 
 /// Fills a rectangle, clipped to the image.
 fn fill_rect(image: &mut RgbImage, x: i64, y: i64, width: u32, height: u32, colour: Rgb<u8>) {
@@ -161,23 +92,23 @@ pub fn heat_colour(fraction: f64) -> Rgb<u8> {
     Rgb([mix(HEAT_FULL[0]), mix(HEAT_FULL[1]), mix(HEAT_FULL[2])])
 }
 
-/// Labels of the heat map's columns: predictions F, I, U, S, M, O and unknown (`?`).
-const PREDICTED_LABELS: [&str; 7] = ["F", "I", "U", "S", "M", "O", "?"];
+/// Labels of the heat map's columns: predictions F, I, U, S, M, O and unknown.
+const PREDICTED_LABELS: [&str; 7] = ["F", "I", "U", "S", "M", "O", "unknown"];
 
 /// Geometry of the confusion heat map, pixels.
 pub mod heatmap_layout {
     /// Width of a matrix cell.
-    pub const CELL_WIDTH: u32 = 44;
+    pub const CELL_WIDTH: u32 = 64;
     /// Height of a matrix cell.
-    pub const CELL_HEIGHT: u32 = 30;
-    /// Scale of the font for labels and percentages.
-    pub const FONT_SCALE: u32 = 2;
-    /// Left edge of the matrix (room for the row labels).
-    pub const LEFT: u32 = 32;
-    /// Top edge of the matrix (room for the title and the column labels).
-    pub const TOP: u32 = 56;
-    /// Outer margin on the right and at the bottom.
-    pub const MARGIN: u32 = 8;
+    pub const CELL_HEIGHT: u32 = 36;
+    /// Left edge of the matrix (room for the axis title and the row labels).
+    pub const LEFT: u32 = 250;
+    /// Top edge of the matrix (room for the title, the axis title and the column labels).
+    pub const TOP: u32 = 100;
+    /// Outer margin on the right; room for the key at the bottom.
+    pub const MARGIN: u32 = 12;
+    /// Room below the matrix for the key of the column letters.
+    pub const BOTTOM: u32 = 36;
 }
 
 /// The confusion heat map of `matrix` with `title` above it (layout in the module docs and
@@ -187,33 +118,36 @@ pub fn confusion_heatmap(title: &str, matrix: &ConfusionMatrix) -> RgbImage {
     use heatmap_layout::*;
     let columns = PREDICTED_LABELS.len() as u32;
     let rows = TRUTH_NAMES.len() as u32;
-    let width = (LEFT + columns * CELL_WIDTH + MARGIN).max(text_width(title, FONT_SCALE) + 16);
-    let height = TOP + rows * CELL_HEIGHT + MARGIN;
+    let title = format!("Confusion: {title}, cells in view (% of each truth row)");
+    let key = "O: occupied, class not resolved (two-class baselines)";
+    let width = (LEFT + columns * CELL_WIDTH + MARGIN)
+        .max(text_width(&title, TITLE_PX) + 2 * MARGIN)
+        .max(text_width(key, SMALL_PX) + LEFT);
+    let height = TOP + rows * CELL_HEIGHT + BOTTOM;
     let mut image = RgbImage::from_pixel(width, height, BACKGROUND);
-    let glyph_h = GLYPH_HEIGHT * FONT_SCALE;
-    draw_text(&mut image, 8, 6, title, FONT_SCALE, INK);
+    let label_h = i64::from(line_height(LABEL_PX));
+    draw_text(&mut image, i64::from(MARGIN), 8, &title, TITLE_PX, INK);
+    let matrix_centre_x = i64::from(LEFT + columns * CELL_WIDTH / 2);
+    draw_text_centred(&mut image, matrix_centre_x, 40, "prediction", AXIS_PX, INK);
     for (p, label) in PREDICTED_LABELS.iter().enumerate() {
-        let x = LEFT + p as u32 * CELL_WIDTH + (CELL_WIDTH - text_width(label, FONT_SCALE)) / 2;
-        draw_text(
-            &mut image,
-            i64::from(x),
-            i64::from(TOP - glyph_h - 6),
-            label,
-            FONT_SCALE,
-            INK,
-        );
+        let centre = LEFT + p as u32 * CELL_WIDTH + CELL_WIDTH / 2;
+        let y = i64::from(TOP) - label_h - 6;
+        draw_text_centred(&mut image, i64::from(centre), y, label, LABEL_PX, INK);
     }
+    let matrix_centre_y = i64::from(TOP + rows * CELL_HEIGHT / 2);
+    draw_text_vertical(
+        &mut image,
+        i64::from(MARGIN),
+        matrix_centre_y,
+        "truth",
+        AXIS_PX,
+        INK,
+    );
     for (t, row) in matrix.counts.iter().enumerate() {
         let top = TOP + t as u32 * CELL_HEIGHT;
-        let label = TRUTH_NAMES[t];
-        draw_text(
-            &mut image,
-            i64::from((LEFT - text_width(label, FONT_SCALE)) / 2),
-            i64::from(top + (CELL_HEIGHT - glyph_h) / 2),
-            label,
-            FONT_SCALE,
-            INK,
-        );
+        let label = format!("{}  {}", TRUTH_NAMES[t], CLASS_NAMES[t]);
+        let text_top = i64::from(top + CELL_HEIGHT / 2) - label_h / 2;
+        draw_text(&mut image, 40, text_top, &label, LABEL_PX, INK);
         let total: u64 = row.iter().sum();
         for (p, &count) in row.iter().enumerate() {
             let left = LEFT + p as u32 * CELL_WIDTH;
@@ -239,40 +173,36 @@ pub fn confusion_heatmap(title: &str, matrix: &ConfusionMatrix) -> RgbImage {
             );
             // White on the darker half of the scale keeps the number readable.
             let ink = if fraction > 0.5 { BACKGROUND } else { INK };
-            let text = format!("{}", (fraction * 100.0).round() as u32);
-            draw_text(
-                &mut image,
-                i64::from(left + (CELL_WIDTH - text_width(&text, FONT_SCALE)) / 2),
-                i64::from(top + (CELL_HEIGHT - glyph_h) / 2),
-                &text,
-                FONT_SCALE,
-                ink,
-            );
+            let text = format!("{}%", (fraction * 100.0).round() as u32);
+            let centre = i64::from(left + CELL_WIDTH / 2);
+            draw_text_centred(&mut image, centre, text_top, &text, LABEL_PX, ink);
         }
     }
+    let key_y = i64::from(TOP + rows * CELL_HEIGHT + 10);
+    draw_text(&mut image, i64::from(LEFT), key_y, key, SMALL_PX, INK);
     image
 }
 
 /// Geometry of the per-class IoU chart, pixels.
 pub mod chart_layout {
     /// Width of one bar.
-    pub const BAR_WIDTH: u32 = 14;
+    pub const BAR_WIDTH: u32 = 30;
     /// Gap between two bars of a group.
-    pub const BAR_GAP: u32 = 2;
+    pub const BAR_GAP: u32 = 4;
     /// Gap between two groups (and before the first one).
-    pub const GROUP_GAP: u32 = 20;
+    pub const GROUP_GAP: u32 = 36;
     /// Height of the 0–1 axis.
-    pub const PLOT_HEIGHT: u32 = 200;
-    /// Left edge of the plot area (room for the tick labels).
-    pub const LEFT: u32 = 40;
-    /// Top edge of the plot area (the IoU = 1 line).
-    pub const TOP: u32 = 12;
-    /// Room below the axis for the class labels.
-    pub const BOTTOM: u32 = 34;
-    /// Font scale of the class labels (tick labels and the legend use scale 1 … 2, see code).
-    pub const FONT_SCALE: u32 = 2;
+    pub const PLOT_HEIGHT: u32 = 300;
+    /// Left edge of the plot area (room for the axis title and the tick labels).
+    pub const LEFT: u32 = 80;
+    /// Top edge of the plot area (the IoU = 1 line; room for the title and values above it).
+    pub const TOP: u32 = 64;
+    /// Room below the axis for the class labels and the axis title.
+    pub const BOTTOM: u32 = 100;
     /// Height of a stub marking an undefined IoU, below the axis.
     pub const STUB_HEIGHT: u32 = 3;
+    /// Vertical distance between two legend entries.
+    pub const LEGEND_STEP: u32 = 26;
 }
 
 /// The per-class IoU bar chart of `series` (name, IoU of F, I, U, S, M); layout in the module
@@ -284,19 +214,22 @@ pub fn per_class_iou_chart(series: &[(&str, [Option<f64>; 5])]) -> RgbImage {
     let n = series.len().max(1) as u32;
     let group_width = n * (BAR_WIDTH + BAR_GAP);
     let plot_right = LEFT + GROUP_GAP + 5 * (group_width + GROUP_GAP);
-    let legend_left = plot_right + 12;
+    let legend_left = plot_right + 16;
     let legend_text_width = series
         .iter()
-        .map(|(name, _)| text_width(name, FONT_SCALE))
+        .map(|(name, _)| text_width(name, LABEL_PX))
         .max()
         .unwrap_or(0);
-    let width = legend_left + 20 + legend_text_width + 12;
+    let title = "Per-class IoU, cells in view";
+    let width = (legend_left + 24 + legend_text_width + 16).max(text_width(title, TITLE_PX) + 32);
     let axis_y = TOP + PLOT_HEIGHT;
-    let legend_height = 10 + series.len() as u32 * 22;
+    let legend_height = 10 + series.len() as u32 * LEGEND_STEP;
     let height = (axis_y + BOTTOM).max(TOP + legend_height);
     let mut image = RgbImage::from_pixel(width, height, BACKGROUND);
+    let small_h = i64::from(line_height(SMALL_PX));
+    draw_text(&mut image, 16, 10, title, TITLE_PX, INK);
 
-    // Grid lines every 0.25 with tick labels at 0, 0.5 and 1.
+    // Grid lines and tick labels every 0.25.
     for k in 0..=4u32 {
         let y = axis_y - k * PLOT_HEIGHT / 4;
         let colour = if k == 0 { INK } else { GRID_GREY };
@@ -308,17 +241,16 @@ pub fn per_class_iou_chart(series: &[(&str, [Option<f64>; 5])]) -> RgbImage {
             1,
             colour,
         );
-        if k % 2 == 0 {
-            let label = ["0", "", "0.5", "", "1"][k as usize];
-            draw_text(
-                &mut image,
-                i64::from(LEFT - 6 - text_width(label, 1)),
-                i64::from(y) - i64::from(GLYPH_HEIGHT / 2),
-                label,
-                1,
-                INK,
-            );
-        }
+        let label = ["0", "0.25", "0.5", "0.75", "1"][k as usize];
+        let x = i64::from(LEFT) - 8 - i64::from(text_width(label, SMALL_PX));
+        draw_text(
+            &mut image,
+            x,
+            i64::from(y) - small_h / 2,
+            label,
+            SMALL_PX,
+            INK,
+        );
     }
     fill_rect(
         &mut image,
@@ -328,11 +260,14 @@ pub fn per_class_iou_chart(series: &[(&str, [Option<f64>; 5])]) -> RgbImage {
         PLOT_HEIGHT + 1,
         INK,
     );
+    let centre_y = i64::from(TOP + PLOT_HEIGHT / 2);
+    draw_text_vertical(&mut image, 14, centre_y, "IoU", AXIS_PX, INK);
 
     for (g, class) in TRUTH_NAMES.iter().enumerate() {
         let group_left = LEFT + GROUP_GAP + g as u32 * (group_width + GROUP_GAP);
         for (v, (_, ious)) in series.iter().enumerate() {
             let x = group_left + v as u32 * (BAR_WIDTH + BAR_GAP);
+            let centre = i64::from(x + BAR_WIDTH / 2);
             match ious[g] {
                 Some(iou) if iou.is_finite() => {
                     let bar = (iou.clamp(0.0, 1.0) * f64::from(PLOT_HEIGHT)).round() as u32;
@@ -344,44 +279,54 @@ pub fn per_class_iou_chart(series: &[(&str, [Option<f64>; 5])]) -> RgbImage {
                         bar,
                         PALETTE[v % PALETTE.len()],
                     );
+                    let value = format!("{iou:.2}");
+                    let y = i64::from(axis_y - bar) - small_h - 2;
+                    draw_text_centred(&mut image, centre, y, &value, SMALL_PX, INK);
                 }
-                _ => fill_rect(
-                    &mut image,
-                    i64::from(x),
-                    i64::from(axis_y + 2),
-                    BAR_WIDTH,
-                    STUB_HEIGHT,
-                    GRID_GREY,
-                ),
+                _ => {
+                    fill_rect(
+                        &mut image,
+                        i64::from(x),
+                        i64::from(axis_y + 2),
+                        BAR_WIDTH,
+                        STUB_HEIGHT,
+                        GRID_GREY,
+                    );
+                    let y = i64::from(axis_y) - small_h - 2;
+                    draw_text_centred(&mut image, centre, y, "n/a", SMALL_PX, INK);
+                }
             }
         }
-        let label_x = group_left + (group_width - text_width(class, FONT_SCALE)) / 2;
-        draw_text(
-            &mut image,
-            i64::from(label_x),
-            i64::from(axis_y + 2 + STUB_HEIGHT + 6),
-            class,
-            FONT_SCALE,
-            INK,
-        );
+        let centre = i64::from(group_left + group_width / 2);
+        let y = i64::from(axis_y + 2 + STUB_HEIGHT + 6);
+        draw_text_centred(&mut image, centre, y, class, LABEL_PX, INK);
+        // The name one word a line, so that long names do not run into the next group's.
+        let mut name_y = y + i64::from(line_height(LABEL_PX));
+        for word in CLASS_NAMES[g].split(' ') {
+            draw_text_centred(&mut image, centre, name_y, word, SMALL_PX, INK);
+            name_y += small_h;
+        }
     }
+    let axis_title_y = i64::from(axis_y + BOTTOM) - i64::from(line_height(AXIS_PX)) - 6;
+    let plot_centre = i64::from((LEFT + plot_right) / 2);
+    draw_text_centred(&mut image, plot_centre, axis_title_y, "class", AXIS_PX, INK);
 
     for (v, (name, _)) in series.iter().enumerate() {
-        let y = TOP + v as u32 * 22;
+        let y = TOP + v as u32 * LEGEND_STEP;
         fill_rect(
             &mut image,
             i64::from(legend_left),
             i64::from(y),
-            14,
-            14,
+            16,
+            16,
             PALETTE[v % PALETTE.len()],
         );
         draw_text(
             &mut image,
-            i64::from(legend_left + 20),
+            i64::from(legend_left + 24),
             i64::from(y),
             name,
-            FONT_SCALE,
+            LABEL_PX,
             INK,
         );
     }
@@ -418,6 +363,15 @@ mod tests {
         *image.get_pixel(x, y)
     }
 
+    /// Pixels in the rectangle that are neither of the two given colours (text's ink and its
+    /// anti-aliased edge).
+    fn inked(image: &RgbImage, x: u32, y: u32, w: u32, h: u32, not: [Rgb<u8>; 2]) -> usize {
+        (y..y + h)
+            .flat_map(|py| (x..x + w).map(move |px| (px, py)))
+            .filter(|&(px, py)| !not.contains(&pixel(image, px, py)))
+            .count()
+    }
+
     #[test]
     fn heat_colour_mixes_white_and_dark_blue() {
         assert_eq!(heat_colour(0.0), Rgb([255, 255, 255]));
@@ -430,7 +384,7 @@ mod tests {
     }
 
     #[test]
-    fn heatmap_cells_are_shaded_by_row_fraction() {
+    fn heatmap_cells_are_shaded_by_row_fraction_and_labelled() {
         use heatmap_layout::*;
         let mut m = ConfusionMatrix::default();
         // Truth F: 3 predicted F, 1 predicted I → 75 % and 25 %.
@@ -440,8 +394,8 @@ mod tests {
         m.counts[4][6] = 10;
         // Truth I, U, S: no cells → grey rows.
         let image = confusion_heatmap("kurdej2013", &m);
-        assert_eq!(image.width(), LEFT + 7 * CELL_WIDTH + MARGIN);
-        assert_eq!(image.height(), TOP + 5 * CELL_HEIGHT + MARGIN);
+        assert!(image.width() >= LEFT + 7 * CELL_WIDTH + MARGIN);
+        assert_eq!(image.height(), TOP + 5 * CELL_HEIGHT + BOTTOM);
         // A point in a cell's corner, away from its centred number.
         let corner =
             |t: u32, p: u32| pixel(&image, LEFT + p * CELL_WIDTH + 2, TOP + t * CELL_HEIGHT + 2);
@@ -456,27 +410,30 @@ mod tests {
                 assert_eq!(corner(t, p), EMPTY_ROW);
             }
         }
-        // The 100 % cell prints "100" in white, centred: the '1' glyph's stem (column 2, rows
-        // 0–6) sits at x = left + (44 − 34)/2 + 2·2, y = top + (30 − 14)/2.
-        let left = LEFT + 6 * CELL_WIDTH + 5;
-        let top = TOP + 4 * CELL_HEIGHT + 8;
-        assert_eq!(pixel(&image, left + 4, top + 2), BACKGROUND);
-        assert_eq!(pixel(&image, left + 4, top + 12), BACKGROUND);
-        // The '1' has no pixel in its column 0 at row 0: the cell's shade shows through.
-        assert_eq!(pixel(&image, left, top), HEAT_FULL);
-        // Row label 'F' of truth F: its top bar spans the whole glyph width at row 0.
-        let label_left = (LEFT - text_width("F", FONT_SCALE)) / 2;
-        let label_top = TOP + (CELL_HEIGHT - GLYPH_HEIGHT * FONT_SCALE) / 2;
-        for dx in 0..GLYPH_WIDTH * FONT_SCALE {
-            assert_eq!(pixel(&image, label_left + dx, label_top), INK);
-        }
-        // Row 1 of 'F' has only its first column set.
-        assert_eq!(pixel(&image, label_left, label_top + 2), INK);
-        assert_eq!(pixel(&image, label_left + 2, label_top + 2), BACKGROUND);
+        // The 100 % cell prints its number in white: white and blends of white over the cell's
+        // shade, in its middle, none in an empty cell of the same row.
+        let (cx, cy) = (LEFT + 6 * CELL_WIDTH + 8, TOP + 4 * CELL_HEIGHT + 6);
+        let text = inked(
+            &image,
+            cx,
+            cy,
+            CELL_WIDTH - 16,
+            CELL_HEIGHT - 12,
+            [HEAT_FULL, HEAT_FULL],
+        );
+        assert!(text > 30, "{text}");
+        assert_eq!(pixel(&image, cx + 20, cy + 2), HEAT_FULL);
+        // Row labels, axis titles and the title carry ink; the matrix's left margin does.
+        let names = inked(&image, 40, TOP, LEFT - 50, 5 * CELL_HEIGHT, [BACKGROUND; 2]);
+        assert!(names > 500, "{names}");
+        let truth_title = inked(&image, MARGIN, TOP, 24, 5 * CELL_HEIGHT, [BACKGROUND; 2]);
+        assert!(truth_title > 40, "{truth_title}");
+        let prediction = inked(&image, LEFT, 36, 7 * CELL_WIDTH, 24, [BACKGROUND; 2]);
+        assert!(prediction > 40, "{prediction}");
     }
 
     #[test]
-    fn chart_bars_have_iou_heights_and_variant_colours() {
+    fn chart_bars_have_iou_heights_variant_colours_and_values() {
         use chart_layout::*;
         let series = [
             (
@@ -494,16 +451,26 @@ mod tests {
             LEFT + GROUP_GAP + g * (group_width + GROUP_GAP) + v * (BAR_WIDTH + BAR_GAP) + 1
         };
         let axis = TOP + PLOT_HEIGHT;
-        // Class F, variant 0: IoU 1 fills the rows axis−200 … axis−1.
+        // Class F, variant 0: IoU 1 fills the rows axis−300 … axis−1.
         assert_eq!(pixel(&image, bar_x(0, 0), axis - 1), PALETTE[0]);
         assert_eq!(pixel(&image, bar_x(0, 0), axis - PLOT_HEIGHT), PALETTE[0]);
-        // Class F, variant 1: IoU 0.5 → 100 rows: row axis−100 coloured, axis−101 not.
-        assert_eq!(pixel(&image, bar_x(0, 1), axis - 100), PALETTE[1]);
-        assert_ne!(pixel(&image, bar_x(0, 1), axis - 101), PALETTE[1]);
-        // Class M: 0.25 → 50 rows for variant 0, 0.75 → 150 rows for variant 1.
-        assert_eq!(pixel(&image, bar_x(4, 0), axis - 50), PALETTE[0]);
-        assert_ne!(pixel(&image, bar_x(4, 0), axis - 51), PALETTE[0]);
-        assert_eq!(pixel(&image, bar_x(4, 1), axis - 150), PALETTE[1]);
+        // Class F, variant 1: IoU 0.5 → 150 rows: row axis−150 coloured, axis−151 not.
+        assert_eq!(pixel(&image, bar_x(0, 1), axis - 150), PALETTE[1]);
+        assert_ne!(pixel(&image, bar_x(0, 1), axis - 151), PALETTE[1]);
+        // Class M: 0.25 → 75 rows for variant 0, 0.75 → 225 rows for variant 1.
+        assert_eq!(pixel(&image, bar_x(4, 0), axis - 75), PALETTE[0]);
+        assert_ne!(pixel(&image, bar_x(4, 0), axis - 76), PALETTE[0]);
+        assert_eq!(pixel(&image, bar_x(4, 1), axis - 225), PALETTE[1]);
+        // The value is printed just above a bar: ink in the 16 rows above variant 1's M bar.
+        let above = inked(
+            &image,
+            bar_x(4, 1) - 1,
+            axis - 225 - 18,
+            BAR_WIDTH,
+            16,
+            [BACKGROUND, GRID_GREY],
+        );
+        assert!(above > 20, "{above}");
         // Class U undefined for both: grey stub below the axis, nothing above it.
         assert_eq!(pixel(&image, bar_x(2, 0), axis + 3), GRID_GREY);
         assert_ne!(pixel(&image, bar_x(2, 0), axis - 1), PALETTE[0]);
@@ -512,31 +479,17 @@ mod tests {
         assert_eq!(pixel(&image, bar_x(3, 1), axis + 3), BACKGROUND);
         // The axis itself is black.
         assert_eq!(pixel(&image, LEFT + 2, axis), INK);
+        // The y title "IoU" left of the tick labels.
+        let y_title = inked(&image, 10, TOP, 26, PLOT_HEIGHT, [BACKGROUND; 2]);
+        assert!(y_title > 40, "{y_title}");
         // Legend swatches in the variants' colours, right of the plot.
-        let legend_left = LEFT + GROUP_GAP + 5 * (group_width + GROUP_GAP) + 12;
-        assert_eq!(pixel(&image, legend_left + 7, TOP + 7), PALETTE[0]);
-        assert_eq!(pixel(&image, legend_left + 7, TOP + 22 + 7), PALETTE[1]);
-        assert!(image.width() > legend_left + 20 + text_width("log-odds", FONT_SCALE));
-    }
-
-    #[test]
-    fn text_is_clipped_not_panicking_and_unknown_characters_draw_a_question_mark() {
-        let mut image = RgbImage::from_pixel(8, 8, BACKGROUND);
-        draw_text(&mut image, -3, -3, "É%", 3, INK);
-        draw_text(&mut image, 100, 100, "x", 1, INK);
-        let mut a = RgbImage::from_pixel(6, 8, BACKGROUND);
-        let mut b = RgbImage::from_pixel(6, 8, BACKGROUND);
-        draw_text(&mut a, 0, 0, "~", 1, INK);
-        draw_text(&mut b, 0, 0, "?", 1, INK);
-        assert_eq!(a, b);
-        // Lower case is drawn as upper case.
-        let mut c = RgbImage::from_pixel(6, 8, BACKGROUND);
-        let mut d = RgbImage::from_pixel(6, 8, BACKGROUND);
-        draw_text(&mut c, 0, 0, "m", 1, INK);
-        draw_text(&mut d, 0, 0, "M", 1, INK);
-        assert_eq!(c, d);
-        assert_eq!(text_width("", 2), 0);
-        assert_eq!(text_width("ab", 2), 22);
+        let legend_left = LEFT + GROUP_GAP + 5 * (group_width + GROUP_GAP) + 16;
+        assert_eq!(pixel(&image, legend_left + 8, TOP + 8), PALETTE[0]);
+        assert_eq!(
+            pixel(&image, legend_left + 8, TOP + LEGEND_STEP + 8),
+            PALETTE[1]
+        );
+        assert!(image.width() > legend_left + 24 + text_width("log-odds", LABEL_PX));
     }
 
     #[test]

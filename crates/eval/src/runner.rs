@@ -161,6 +161,12 @@ pub struct FusionFrame<'a> {
     pub front_end: &'a FrontEnd,
     /// The variant's fusion after the frame: PerceptionGrid, decisions, trace.
     pub fusion: &'a Fusion,
+    /// The simulator's truth over the window after the frame, in storage order
+    /// ([`IGNORED`](sim::truth::IGNORED) where the ego's own sensor cannot see), for pictures
+    /// of truth beside prediction.
+    pub truth: &'a [evigrid::Label],
+    /// The sensor's position (x east, y north, metres) as the method was given it this frame.
+    pub ego_position: [f64; 2],
 }
 
 /// A variant's method: evigrid's fusion is kept by type so that observers can see its grids.
@@ -430,6 +436,11 @@ fn run_drive(
                     frame: frame.index,
                     front_end,
                     fusion,
+                    truth: &truth_storage,
+                    ego_position: [
+                        scan.world_from_sensor_estimated.position_m.x,
+                        scan.world_from_sensor_estimated.position_m.y,
+                    ],
                 });
             }
             for span in front_end.new_cell_spans() {

@@ -75,6 +75,30 @@ pub fn write_png(image: &RgbImage, path: &Path) -> Result<(), OutputError> {
     write_atomic(path, |file| file.write_all(&encoded))
 }
 
+/// As [`write_png`], with fast compression: about six times quicker to encode and some 60 %
+/// larger, for the many per-frame pictures of a drive.
+///
+/// # Errors
+///
+/// As [`write_png`].
+pub fn write_png_fast(image: &RgbImage, path: &Path) -> Result<(), OutputError> {
+    use image::ImageEncoder as _;
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    let mut encoded = Vec::new();
+    PngEncoder::new_with_quality(&mut encoded, CompressionType::Fast, FilterType::Adaptive)
+        .write_image(
+            image.as_raw(),
+            image.width(),
+            image.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|source| OutputError::Image {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    write_atomic(path, |file| file.write_all(&encoded))
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {

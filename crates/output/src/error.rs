@@ -33,6 +33,14 @@ pub enum OutputError {
         /// The serialiser's error.
         source: serde_json::Error,
     },
+    /// A figure would be too large to hold (window × enlargement beyond [`MAX_FIGURE_PIXELS`]).
+    #[error("a figure of {width} × {height} px is too large (at most {MAX_FIGURE_PIXELS} px)")]
+    FigureTooLarge {
+        /// Width it would have, pixels.
+        width: u64,
+        /// Height it would have, pixels.
+        height: u64,
+    },
     /// A buffer does not have one entry per window cell.
     #[error("{what} holds {len} cells, the window {expected}")]
     Size {
@@ -44,6 +52,9 @@ pub enum OutputError {
         expected: usize,
     },
 }
+
+/// The most pixels a figure may have (2^28, 768 MiB of RGB).
+pub const MAX_FIGURE_PIXELS: u64 = 1 << 28;
 
 /// `Ok` if a buffer of `len` entries has one per cell of `window`.
 pub(crate) fn check_len(

@@ -57,6 +57,25 @@ impl ClassColours {
         occupied: [150, 150, 150],
     };
 
+    /// The readable palette, colour-blind safe (Okabe & Ito 2008, "Color Universal Design"):
+    /// free bluish green, mapped infrastructure I blue, unmapped infrastructure U sky blue,
+    /// stopped S yellow, moving M vermillion, unknown black, unresolved occupied grey (reddish
+    /// purple is left to the ego's path in figures).
+    /// I, U and S differ in lightness as well as hue, so they stay apart with deuteranopia and
+    /// protanopia (checked in `palette`'s tests by simulating them: every pair of unknown, F, I,
+    /// U, S, M at least 20 ΔE apart).
+    pub const OKABE_ITO: Self = Self {
+        unknown: [0, 0, 0],
+        classes: [
+            [0, 158, 115],
+            [0, 114, 178],
+            [86, 180, 233],
+            [240, 228, 66],
+            [213, 94, 0],
+        ],
+        occupied: [150, 150, 150],
+    };
+
     /// The colour of a label.
     pub fn of(&self, label: Label) -> [u8; 3] {
         match label {

@@ -24,14 +24,19 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 use eval::{EvalConfig, FusionFrame, Progress, Variant};
+use evigrid::Label;
 use evigrid::Params;
 use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, DynamicImage, RgbImage};
-use output::{ClassColours, decision_image, pignistic_image, trace_image, write_atomic, write_png};
+use output::{
+    Legend, Overlay, class_name, decision_image, figure, pignistic_image, readable_scale,
+    trace_image, write_atomic, write_png, write_png_fast,
+};
 use rayon::prelude::*;
 use sim::Scenario;
 
 use crate::exit::BadInput;
+use crate::figures::{COLOURS, DECISION_NOTE, PIGNISTIC_NOTE, TRACE_NOTE};
 
 /// The embedded map: buildings, roads and car parks around the demo route, GeoJSON.
 const MAP_GEOJSON: &[u8] = include_bytes!("../../assets/helsinki-demo.geojson");
@@ -67,12 +72,19 @@ pub struct DemoArgs {
 
 const OUTPUTS_HELP: &str = "\
 Outputs (in --out):
-  frames/pignistic-NNNNNN.png  per frame, `kurdej2013`: betP colour mix (F green, I dark blue,
-                               U mid blue, S light blue, M red; black = never observed)
-  frames/decision-NNNNNN.png   per frame, `kurdej2013`: decided class, same colours
-  frames/trace-NNNNNN.png      per frame, `kurdej2013`: decision map with every cell ever
-                               decided moving painted red (trace of moving objects)
-  decision.gif                 the decision view over the whole drive, 10 frames per second
+  index.html                   open this: the animation, legend, final views, tables and plots
+                               (self-contained, relative links only)
+  frames/decision-NNNNNN.png   per frame: the simulator's truth beside `kurdej2013`'s decision,
+                               2 px per 0.5 m cell, Okabe-Ito colours (F bluish green, I blue,
+                               U sky blue, S yellow, M vermillion, black = unknown), map outlines
+                               in white, the ego's path, legend, scale bar, north arrow
+  frames/pignistic-NNNNNN.png  per frame: truth beside the betP colour mix, 1 px per cell
+  frames/trace-NNNNNN.png      per frame: truth beside the decision map with every cell ever
+                               decided moving in M's colour (trace of moving objects), 1 px
+  decision.png, pignistic.png, trace.png
+                               the same after the last frame, enlarged to >= 800 px a panel
+  decision.gif                 truth beside decision over the whole drive, 1 px per cell,
+                               10 frames per second
   metrics.json                 evaluation of kurdej2013 and no-map against the simulator's truth
   report.md                    its tables (cells in view first), parameters and the command line
   confusion-<variant>.png      row-normalised confusion matrix per variant, cells in view
@@ -117,9 +129,12 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let bar = crate::progress::bar(frames as u64, "demo");
     let (views_tx, views_rx) = mpsc::sync_channel::<FrameViews>(QUEUED_FRAMES);
     let (report, rendered, encoded) = std::thread::scope(|scope| {
-        let frames_dir = &frames_dir;
-        let encoder = scope.spawn(move || encode_views(views_rx, frames_dir, delay_ms));
+        let out = &args.out;
+        let encoder = scope.spawn(move || encode_views(views_rx, out, delay_ms));
         let mut rendered: Result<()> = Ok(());
+        // The ego's positions so far, for the path drawn over the views.
+        let mut path: Vec<[f64; 2]> = Vec::with_capacity(frames);
+        let period_s = 1.0 / scenario.sensor.rate_hz;
         let report = eval::evaluate_observed(
             &loaded.map,
             &scenario,
@@ -131,7 +146,9 @@ pub fn run(args: DemoArgs) -> Result<()> {
                 if f.variant != VIEWS_OF || rendered.is_err() {
                     return;
                 }
-                rendered = render_views(&f, f.frame).map(|views| {
+                path.push(f.ego_position);
+                let last = f.frame + 1 == frames;
+                rendered = render_views(&f, f.frame, &path, period_s, last).map(|views| {
                     // A closed queue means the encoder failed; its error is reported below.
                     let _ = views_tx.send(views);
                 });
@@ -154,6 +171,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let params = config.params_for(&scenario);
     let json = super::eval::write_outputs(&args.out, &report, &params, "evigrid demo", seconds)?;
     append_attribution(&args.out.join("report.md"))?;
+    crate::demo_page::write_index(&args.out, &report, &COLOURS)?;
     out_dir.finish()?;
 
     if args.json {
@@ -170,37 +188,119 @@ pub fn run(args: DemoArgs) -> Result<()> {
     Ok(())
 }
 
-/// Frames rendered ahead of the encoder at most (three 320 × 320 RGB images each, 300 kB).
+/// Frames rendered ahead of the encoder at most (figures of about 2 Mpx and a GIF frame each,
+/// some 7 MB).
 const QUEUED_FRAMES: usize = 8;
 
-/// The three views of one frame, rendered and waiting to be encoded.
+/// Enlargement of the per-frame decision figure: 2 px a cell (the pignistic and trace figures
+/// of each frame, 1 px a cell) keeps 600 frames within the demo's time and its folder near
+/// 120 MB; the final figures use `readable_scale`, ≥ 800 px a panel.
+const FRAME_SCALE: u32 = 2;
+
+/// How a figure is compressed: the large per-frame decision figures fast, the others with the
+/// encoder's default (smaller files).
+#[derive(Clone, Copy)]
+enum Compression {
+    Fast,
+    Default,
+}
+
+/// The views of one frame, composed and waiting to be encoded.
 struct FrameViews {
+    /// File name, figure and compression: per-frame PNGs, and after the last frame the final
+    /// ones.
+    figures: Vec<(String, RgbImage, Compression)>,
+    /// The GIF frame: truth beside decision, one pixel per cell.
+    gif: RgbImage,
+}
+
+/// The legend of the demo's figures: the decided classes, and the truth's edge band.
+fn demo_legend(note: &str) -> Legend {
+    let mut legend = Legend::classes(&COLOURS, false, note);
+    legend
+        .entries
+        .push((COLOURS.of(Label::Edge), class_name(Label::Edge).to_owned()));
+    legend
+}
+
+/// Renders the [`VIEWS_OF`] method's three views of the paper's Fig. 2 after frame `index`,
+/// each beside the simulator's truth, with the map's outlines and `path` (the ego so far);
+/// after the last frame (`last`) also the final figures at [`readable_scale`]. Frames are
+/// `period_s` apart.
+fn render_views(
+    frame: &FusionFrame<'_>,
     index: usize,
-    pignistic: RgbImage,
-    trace: RgbImage,
-    decision: RgbImage,
-}
-
-/// Renders the [`VIEWS_OF`] method's three views of the paper's Fig. 2 after frame `index`.
-fn render_views(frame: &FusionFrame<'_>, index: usize) -> Result<FrameViews> {
-    let five = ClassColours::FIVE_CLASSES;
+    path: &[[f64; 2]],
+    period_s: f64,
+    last: bool,
+) -> Result<FrameViews> {
     let (window, fusion) = (frame.front_end.window(), frame.fusion);
-    Ok(FrameViews {
-        index,
-        pignistic: pignistic_image(window, fusion.perception(), &five)?,
-        trace: trace_image(window, fusion.decisions(), fusion.trace(), &five)?,
-        decision: decision_image(window, fusion.decisions(), &five)?,
-    })
+    let truth = decision_image(window, frame.truth, &COLOURS)?;
+    let decision = decision_image(window, fusion.decisions(), &COLOURS)?;
+    let pignistic = pignistic_image(window, fusion.perception(), &COLOURS)?;
+    let trace = trace_image(window, fusion.decisions(), fusion.trace(), &COLOURS)?;
+    let overlay = Overlay {
+        gis: Some(frame.front_end.gis()),
+        path,
+    };
+    let name = VIEWS_OF.name();
+    let views = [
+        ("decision", &decision, DECISION_NOTE),
+        ("pignistic", &pignistic, PIGNISTIC_NOTE),
+        ("trace", &trace, TRACE_NOTE),
+    ];
+    let time = format!("{:.1} s", index as f64 * period_s);
+    let compose = |view: &str, cells: &RgbImage, note: &str, scale: u32| {
+        figure(
+            window,
+            &[
+                (&format!("truth, {time}"), &truth),
+                (&format!("{name}: {view}"), cells),
+            ],
+            &overlay,
+            &demo_legend(note),
+            scale,
+        )
+    };
+    let mut figures = Vec::with_capacity(6);
+    for (view, cells, note) in views {
+        let scale = if view == "decision" { FRAME_SCALE } else { 1 };
+        figures.push((
+            format!("frames/{view}-{index:06}.png"),
+            compose(view, cells, note, scale)?,
+            if view == "decision" {
+                Compression::Fast
+            } else {
+                Compression::Default
+            },
+        ));
+    }
+    if last {
+        let scale = readable_scale(window);
+        for (view, cells, note) in views {
+            figures.push((
+                format!("{view}.png"),
+                compose(view, cells, note, scale)?,
+                Compression::Default,
+            ));
+        }
+    }
+    // The GIF: both panels at one pixel a cell with a strip between them, no text (the page
+    // shows the legend beside it).
+    let (w, h) = truth.dimensions();
+    let mut gif = RgbImage::from_pixel(2 * w + GIF_GAP, h, image::Rgb([255, 255, 255]));
+    image::imageops::replace(&mut gif, &truth, 0, 0);
+    image::imageops::replace(&mut gif, &decision, i64::from(w + GIF_GAP), 0);
+    Ok(FrameViews { figures, gif })
 }
 
-/// Writes every frame's views as PNG into `frames_dir` and returns the decision view encoded as
-/// an animated GIF (built in memory, a few hundred kB: few colours, long runs; written atomically
-/// by the caller so that a write error is reported rather than lost in a drop).
-fn encode_views(
-    views: mpsc::Receiver<FrameViews>,
-    frames_dir: &Path,
-    delay_ms: u32,
-) -> Result<Vec<u8>> {
+/// White columns between truth and decision in the GIF.
+const GIF_GAP: u32 = 8;
+
+/// Writes every frame's figures as PNG under `out` and returns the GIF of truth beside
+/// decision (built in memory, a few hundred kB: few colours, long runs; written atomically by
+/// the caller so that a write error is reported rather than lost in a drop).
+fn encode_views(views: mpsc::Receiver<FrameViews>, out: &Path, delay_ms: u32) -> Result<Vec<u8>> {
     let mut gif_bytes = Vec::new();
     {
         // Speed 30: the decision view has a handful of colours, so the quantiser has nothing to
@@ -208,16 +308,14 @@ fn encode_views(
         let mut gif = GifEncoder::new_with_speed(&mut gif_bytes, 30);
         gif.set_repeat(Repeat::Infinite)?;
         for v in views {
-            let k = v.index;
-            // The three PNGs are independent: encode them side by side.
-            let pngs = [
-                (&v.pignistic, format!("pignistic-{k:06}.png")),
-                (&v.trace, format!("trace-{k:06}.png")),
-                (&v.decision, format!("decision-{k:06}.png")),
-            ];
-            pngs.par_iter()
-                .try_for_each(|(image, name)| write_png(image, &frames_dir.join(name)))?;
-            gif.encode_frame(gif_frame(v.decision, delay_ms))?;
+            // The figures are independent: encode them side by side.
+            v.figures
+                .par_iter()
+                .try_for_each(|(name, image, compression)| match compression {
+                    Compression::Fast => write_png_fast(image, &out.join(name)),
+                    Compression::Default => write_png(image, &out.join(name)),
+                })?;
+            gif.encode_frame(gif_frame(v.gif, delay_ms))?;
         }
         // Dropping the encoder writes the GIF trailer.
     }

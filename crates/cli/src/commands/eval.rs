@@ -306,7 +306,7 @@ fn report_markdown(
     s.push_str(
         "- `confusion-<variant>.png`: confusion matrix over the cells in view. \
          Rows: truth F, I, U, S, M (top to bottom). Columns: prediction F, I, U, S, M, O \
-         (occupied, static, class not resolved), ? (no decision), left to right. Each cell shows \
+         (occupied, static, class not resolved), unknown (no decision), left to right. Each cell shows \
          its share of the row in per cent and is shaded from white (0 %) to dark blue (100 %); a \
          grey row has no truth cell.\n",
     );
@@ -335,8 +335,8 @@ fn report_markdown(
         );
     }
     s.push_str(
-        ". Axis 0–1 with grid lines every 0.25; a grey stub under the axis marks an undefined \
-         IoU (class absent from truth and prediction).\n",
+        ". Axis 0–1 with grid lines every 0.25, each bar's value above it; a grey stub under \
+         the axis, marked n/a, is an undefined IoU (class absent from truth and prediction).\n",
     );
     let _ = writeln!(
         s,

@@ -25,8 +25,7 @@ use evigrid::ego_path::{
 use evigrid::{FrameStats, Pipeline};
 use odometry::OdometryParams;
 use output::{
-    ClassColours, OccupancyGridExport, count_decisions, decision_image, pignistic_image,
-    trace_image, write_masses, write_png,
+    ClassColours, OccupancyGridExport, count_decisions, decision_image, write_masses, write_png,
 };
 use serde::Serialize;
 
@@ -124,8 +123,10 @@ Matching poses to scans:
 
 Outputs (in --out):
   frames/decision-NNNNNN.png   decision map per frame (north up, one pixel per cell)
-  decision.png                 final decision map, I, U, S in three shades of blue
+  decision.png                 final decision map for people: enlarged (>= 800 px), Okabe-Ito
+                               colours, legend, scale bar, north arrow, map outlines, ego path
   pignistic.png                final betP colour mix;  trace.png  moving objects over the drive
+                               (both drawn as decision.png)
   occupancy.json               final decided grid, ROS nav_msgs/OccupancyGrid layout
   masses.json, masses.bin      final masses, one float32 field per focal set (foxglove.Grid layout)
   frames.jsonl                 one JSON object per frame, written as the run goes: timing, counts,
@@ -491,6 +492,8 @@ pub fn run(args: RunArgs) -> Result<()> {
         .collect();
     // Why the run stopped early, and the error to return once what was done is written.
     let mut stopped: Option<(String, anyhow::Error)> = early_stop;
+    // Scans reached (processed or skipped): the ego's path so far, for the final figures.
+    let mut reached = 0;
     for (k, ((path, pose), &time_s)) in scans.paths.iter().zip(&poses).zip(&times).enumerate() {
         if interrupt.requested() {
             stopped = Some((
@@ -499,6 +502,7 @@ pub fn run(args: RunArgs) -> Result<()> {
             ));
             break;
         }
+        reached = k + 1;
         let t0 = Instant::now();
         // A bad scan or a refused pose is the input's fault: skipped (or, with --strict, the
         // end of the run); anything else stops the run.
@@ -607,7 +611,8 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     // The final pictures and grids are written even after an early stop (they are the last
     // processed frame's); a failure here is kept, and the summary is still attempted.
-    if let Err(error) = write_final_outputs(&pipeline, &args.out)
+    let driven = &positions[..reached.min(positions.len())];
+    if let Err(error) = write_final_outputs(&pipeline, &args.out, driven)
         && stopped.is_none()
     {
         stopped = Some((format!("writing the final outputs: {error}"), error));
@@ -742,26 +747,19 @@ pub fn run(args: RunArgs) -> Result<()> {
 }
 
 /// The final views and grids: decision, betP and trace pictures, the occupancy grid and masses.
-fn write_final_outputs(pipeline: &Pipeline, out: &Path) -> Result<()> {
+fn write_final_outputs(pipeline: &Pipeline, out: &Path, driven: &[[f64; 2]]) -> Result<()> {
     let window = pipeline.window();
-    let five = ClassColours::FIVE_CLASSES;
-    write_png(
-        &decision_image(window, pipeline.decisions(), &five)?,
-        &out.join("decision.png"),
-    )?;
-    write_png(
-        &pignistic_image(window, pipeline.perception(), &five)?,
-        &out.join("pignistic.png"),
-    )?;
-    write_png(
-        &trace_image(
-            window,
-            pipeline.decisions(),
-            pipeline.trace(),
-            &ClassColours::THREE_CLASSES,
-        )?,
-        &out.join("trace.png"),
-    )?;
+    // Figures for people: enlarged, legend, scale bar, north arrow, map outlines, the path so far.
+    let views = crate::figures::Views {
+        window,
+        perception: pipeline.perception(),
+        decisions: pipeline.decisions(),
+        trace: pipeline.trace(),
+    };
+    let gis = pipeline.has_map().then(|| pipeline.gis());
+    for (name, image) in crate::figures::final_figures(&views, gis, driven)? {
+        write_png(&image, &out.join(name))?;
+    }
     OccupancyGridExport::new(window, pipeline.decisions(), "map")?
         .write(&out.join("occupancy.json"))?;
     write_masses(

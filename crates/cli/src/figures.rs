@@ -1,0 +1,74 @@
+//! The figures `evigrid run` and `evigrid demo` write for people: the views of the paper's
+//! Fig. 2 enlarged, with the map's outlines, the ego's path, a legend, a scale bar and a north
+//! arrow (`output::figure`), in the colour-blind-safe Okabe–Ito class colours.
+
+use anyhow::Result;
+use evigrid::{GisGrid, Label, MovingTrace, PerceptionGrid, Window};
+use image::RgbImage;
+use output::{
+    ClassColours, Legend, Overlay, decision_image, figure, pignistic_image, readable_scale,
+    trace_image,
+};
+
+/// The class colours of every figure.
+pub(crate) const COLOURS: ClassColours = ClassColours::OKABE_ITO;
+
+/// How to read each view, under its legend.
+pub(crate) const DECISION_NOTE: &str = "colour: the class decided (SPEC §6)";
+pub(crate) const PIGNISTIC_NOTE: &str = "colour: class colours mixed by betP";
+pub(crate) const TRACE_NOTE: &str = "every cell ever decided moving: M";
+
+/// A window's final state, as the views need it.
+pub(crate) struct Views<'a> {
+    pub window: &'a Window,
+    pub perception: &'a PerceptionGrid,
+    pub decisions: &'a [Label],
+    pub trace: &'a MovingTrace,
+}
+
+/// The three final figures, named `decision.png`, `pignistic.png`, `trace.png`, each enlarged to
+/// [`readable_scale`] with `gis`'s outlines (when there is a map) and `path`.
+pub(crate) fn final_figures(
+    views: &Views<'_>,
+    gis: Option<&GisGrid>,
+    path: &[[f64; 2]],
+) -> Result<Vec<(&'static str, RgbImage)>> {
+    let window = views.window;
+    let overlay = Overlay { gis, path };
+    let scale = readable_scale(window);
+    let one = |title: &str, cells: RgbImage, note: &str| {
+        figure(
+            window,
+            &[(title, &cells)],
+            &overlay,
+            &Legend::classes(&COLOURS, false, note),
+            scale,
+        )
+    };
+    Ok(vec![
+        (
+            "decision.png",
+            one(
+                "decision",
+                decision_image(window, views.decisions, &COLOURS)?,
+                DECISION_NOTE,
+            )?,
+        ),
+        (
+            "pignistic.png",
+            one(
+                "pignistic probability betP",
+                pignistic_image(window, views.perception, &COLOURS)?,
+                PIGNISTIC_NOTE,
+            )?,
+        ),
+        (
+            "trace.png",
+            one(
+                "trace of moving objects",
+                trace_image(window, views.decisions, views.trace, &COLOURS)?,
+                TRACE_NOTE,
+            )?,
+        ),
+    ])
+}
