@@ -87,6 +87,10 @@ pub struct RunArgs {
     /// Print the summary as JSON on standard output (and no per-frame lines).
     #[arg(long)]
     json: bool,
+    /// The fusion: `evigrid` (the paper's method with motion evidence, docs/motion.md) or
+    /// `kurdej2013` (the paper's method exactly, SPEC §5).
+    #[arg(long, default_value = "evigrid", value_parser = ["evigrid", "kurdej2013"])]
+    method: String,
     /// Stop at the first unreadable scan or refused pose instead of skipping it.
     #[arg(long)]
     strict: bool,
@@ -197,6 +201,8 @@ struct Summary {
     skipped_scans: Vec<SkippedScan>,
     /// The map, or `null` for a run without one.
     map: Option<String>,
+    /// The fusion: `evigrid` (with motion evidence) or `kurdej2013` (SPEC §5 exactly).
+    method: String,
     /// `map`, or `vacuous (no map)`: what the GISGrid held.
     prior: &'static str,
     map_stats: Option<geodata::MapStats>,
@@ -473,7 +479,12 @@ pub fn run(args: RunArgs) -> Result<()> {
     let frames_dir = args.out.join("frames");
     fs::create_dir_all(&frames_dir)
         .with_context(|| format!("cannot create {}", frames_dir.display()))?;
-    let mut pipeline = Pipeline::new(params.clone(), raster)
+    let method = if args.method == "kurdej2013" {
+        evigrid::Method::Kurdej2013
+    } else {
+        evigrid::Method::Evigrid
+    };
+    let mut pipeline = Pipeline::with_method(params.clone(), raster, method)
         .map_err(|e| BadInput::new(format!("{}: {e}", config_name(&args))))?;
 
     let progress = crate::progress::bar(scans.paths.len() as u64, "run");
@@ -624,6 +635,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         stopped: stopped.as_ref().map(|(why, _)| why.clone()),
         skipped_scans: skipped,
         map: args.map.as_ref().map(|m| m.display().to_string()),
+        method: args.method.clone(),
         prior: if loaded.is_some() {
             "map"
         } else {
