@@ -95,7 +95,7 @@ pub enum SimError {
         width_m: f64,
         /// North–south extent, metres.
         height_m: f64,
-        /// [`drive::MAX_MAP_SPAN_M`](crate::drive::MAX_MAP_SPAN_M).
+        /// [`drive::MAX_MAP_SPAN_M`].
         max_m: f64,
     },
     /// The ego route cannot reach a waypoint along the roads.
