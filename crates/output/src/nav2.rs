@@ -68,7 +68,7 @@ pub fn write_nav2_map(
     let (x0, y0) = (window.first_col() as f64 * s, window.first_row() as f64 * s);
     // The image name is quoted: a YAML scalar may not be read back as written otherwise.
     let yaml = format!(
-        "image: {image:?}\nmode: trinary\nresolution: {s}\norigin: [{x0}, {y0}, 0.0]\n\
+        "image: {image:?}\nmode: trinary\nresolution: {s:?}\norigin: [{x0:?}, {y0:?}, 0.0]\n\
          negate: 0\noccupied_thresh: {OCCUPIED_THRESH}\nfree_thresh: {FREE_THRESH}\n"
     );
     write_atomic(yaml_path, |file| file.write_all(yaml.as_bytes()))
@@ -114,6 +114,6 @@ mod tests {
         );
         let text = std::fs::read_to_string(&yaml).unwrap();
         assert!(text.contains("image: \"map.pgm\"\n"), "{text}");
-        assert!(text.contains("origin: [5, -0.5, 0.0]"), "{text}");
+        assert!(text.contains("origin: [5.0, -0.5, 0.0]"), "{text}");
     }
 }

@@ -27,7 +27,11 @@ use eval::{EvalConfig, FusionFrame, Progress, Variant};
 use evigrid::Params;
 use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, DynamicImage, RgbImage};
-use output::{ClassColours, decision_image, pignistic_image, trace_image, write_atomic, write_png};
+use output::mcap::{McapFrame, McapRecorder};
+use output::{
+    ClassColours, GridExports, decision_image, pignistic_image, trace_image, write_atomic,
+    write_grid_exports, write_png,
+};
 use rayon::prelude::*;
 use sim::Scenario;
 
@@ -60,6 +64,9 @@ pub struct DemoArgs {
     /// Print the evaluation report as JSON on standard output instead of the table.
     #[arg(long)]
     json: bool,
+    /// Do not write the Foxglove recording `run.mcap` (written by default).
+    #[arg(long)]
+    no_mcap: bool,
 }
 
 const OUTPUTS_HELP: &str = "\
@@ -74,6 +81,10 @@ Outputs (in --out):
   report.md                    its tables (cells in view first), parameters and the command line
   confusion-<variant>.png      row-normalised confusion matrix per variant, cells in view
   per-class-iou.png            IoU of F, I, U, S, M per variant, cells in view
+  run.mcap                     Foxglove recording of `kurdej2013`: per frame the decision grid, the
+                               pose, the scan; the map's outlines (not with --no-mcap)
+  occupancy.json, classes.json, masses.json/.bin, map.pgm/.yaml, decision-map.png/.pgw/.prj
+                               the final grid of `kurdej2013`, as `evigrid run` writes them
 Map data © OpenStreetMap contributors, ODbL.";
 
 /// Runs `evigrid demo`.
@@ -112,6 +123,16 @@ pub fn run(args: DemoArgs) -> Result<()> {
     // short queue (memory stays bounded), while the pipelines go on with the next frames.
     let bar = crate::progress::bar(frames as u64, "demo");
     let (views_tx, views_rx) = mpsc::sync_channel::<FrameViews>(QUEUED_FRAMES);
+    let mut recorder = if args.no_mcap {
+        None
+    } else {
+        Some(McapRecorder::create(
+            &args.out.join("run.mcap"),
+            Some(&loaded.map),
+        )?)
+    };
+    // The MCAP frames and the final exports, written from the observer.
+    let mut recorded: Result<()> = Ok(());
     let (report, rendered, encoded) = std::thread::scope(|scope| {
         let frames_dir = &frames_dir;
         let encoder = scope.spawn(move || encode_views(views_rx, frames_dir, delay_ms));
@@ -131,6 +152,9 @@ pub fn run(args: DemoArgs) -> Result<()> {
                     // A closed queue means the encoder failed; its error is reported below.
                     let _ = views_tx.send(views);
                 });
+                if recorded.is_ok() {
+                    recorded = record_frame(&f, recorder.as_mut(), frames, &args.out, &loaded);
+                }
             },
         );
         // Closing the queue ends the encoder.
@@ -142,6 +166,10 @@ pub fn run(args: DemoArgs) -> Result<()> {
     });
     let report = report.context("evaluating the demo drive")?;
     rendered?;
+    recorded?;
+    if let Some(recorder) = recorder {
+        recorder.finish()?;
+    }
     let gif_bytes = encoded?;
     bar.finish_and_clear();
     write_atomic(&args.out.join("decision.gif"), |f| f.write_all(&gif_bytes))?;
@@ -161,6 +189,41 @@ pub fn run(args: DemoArgs) -> Result<()> {
             args.out.display()
         );
         println!("{OSM_ATTRIBUTION}");
+    }
+    Ok(())
+}
+
+/// Adds the frame to the recording and, after the last frame, writes the final grid's exports.
+fn record_frame(
+    f: &FusionFrame<'_>,
+    recorder: Option<&mut McapRecorder>,
+    frames: usize,
+    out: &Path,
+    loaded: &geodata::LoadedMap,
+) -> Result<()> {
+    let (window, fusion) = (f.front_end.window(), f.fusion);
+    if let Some(recorder) = recorder {
+        recorder.write_frame(&McapFrame {
+            time_s: f.time_s,
+            window,
+            decisions: fusion.decisions(),
+            perception: fusion.perception(),
+            world_from_sensor: f.world_from_sensor,
+            points_in_sensor: f.points_in_sensor,
+            fix: None,
+        })?;
+    }
+    if f.frame + 1 == frames {
+        write_grid_exports(
+            out,
+            &GridExports {
+                window,
+                decisions: fusion.decisions(),
+                perception: fusion.perception(),
+                time_s: f.time_s,
+                projection: Some(&loaded.projection),
+            },
+        )?;
     }
     Ok(())
 }

@@ -23,9 +23,10 @@ use evigrid::ego_path::{
 };
 use evigrid::{FrameStats, Pipeline};
 use odometry::OdometryParams;
+use output::mcap::{GnssFix, McapFrame, McapRecorder};
 use output::{
-    ClassColours, OccupancyGridExport, count_decisions, decision_image, pignistic_image,
-    trace_image, write_masses, write_png,
+    ClassColours, GridExports, count_decisions, decision_image, pignistic_image, trace_image,
+    write_grid_exports, write_png,
 };
 use serde::Serialize;
 
@@ -87,6 +88,9 @@ pub struct RunArgs {
     /// Print the summary as JSON on standard output (and no per-frame lines).
     #[arg(long)]
     json: bool,
+    /// Do not write the Foxglove recording `run.mcap` (written by default).
+    #[arg(long)]
+    no_mcap: bool,
 }
 
 const POSES_HELP: &str = "\
@@ -119,8 +123,14 @@ Outputs (in --out):
   frames/decision-NNNNNN.png   decision map per frame (north up, one pixel per cell)
   decision.png                 final decision map, I, U, S in three shades of blue
   pignistic.png                final betP colour mix;  trace.png  moving objects over the drive
-  occupancy.json               final decided grid, ROS nav_msgs/OccupancyGrid layout
-  masses.json, masses.bin      final masses, one float32 field per focal set (foxglove.Grid layout)
+  run.mcap                     Foxglove recording: per frame the decision grid, the pose, the scan,
+                               the GNSS fix (KITTI raw); the map's outlines (not with --no-mcap)
+  occupancy.json               final decided grid, ROS 2 nav_msgs/OccupancyGrid as JSON
+  classes.json                 final decided class per cell (0 unknown, 1 F, 2 I, 3 U, 4 S, 5 M)
+  masses.json, masses.bin      final masses, one little-endian float32 field per focal set
+                               (foxglove.Grid JSON layout)
+  map.pgm, map.yaml            final decided grid for nav2's map_server (trinary)
+  decision-map.png, .pgw, .prj final decision map georeferenced for QGIS (with a local frame)
   summary.json                 parameters, per-frame timing, counts, ground and obstacle shares and
                                the ego-path check, totals over the drive";
 
@@ -368,6 +378,14 @@ pub fn run(args: RunArgs) -> Result<()> {
     let mut pipeline = Pipeline::new(params.clone(), raster)
         .map_err(|e| BadInput::new(format!("{}: {e}", config_name(&args))))?;
 
+    let mut recorder = if args.no_mcap {
+        None
+    } else {
+        Some(McapRecorder::create(
+            &args.out.join("run.mcap"),
+            loaded.as_ref().map(|l| &l.map),
+        )?)
+    };
     let progress = crate::progress::bar(scans.paths.len() as u64, "run");
     let mut per_frame = Vec::with_capacity(scans.paths.len());
     for (k, ((path, pose), &time_s)) in scans.paths.iter().zip(&poses).zip(&times).enumerate() {
@@ -383,6 +401,26 @@ pub fn run(args: RunArgs) -> Result<()> {
                 ))
             })?;
         let t2 = Instant::now();
+        if let Some(recorder) = &mut recorder {
+            let fix = scans.kitti.as_ref().and_then(|d| {
+                let (packet, &time_s) = d.oxts().get(k).zip(d.oxts_times().get(k))?;
+                Some(GnssFix {
+                    time_s,
+                    lat_deg: packet.lat_deg,
+                    lon_deg: packet.lon_deg,
+                    alt_m: packet.alt_m,
+                })
+            });
+            recorder.write_frame(&McapFrame {
+                time_s,
+                window: pipeline.window(),
+                decisions: pipeline.decisions(),
+                perception: pipeline.perception(),
+                world_from_sensor: pose,
+                points_in_sensor: &scan.points_in_sensor,
+                fix,
+            })?;
+        }
         let path_cells = cells_near_path(
             pipeline.window(),
             &path_ahead(&positions, k, EGO_PATH_LENGTH_M),
@@ -448,13 +486,18 @@ pub fn run(args: RunArgs) -> Result<()> {
         )?,
         &args.out.join("trace.png"),
     )?;
-    OccupancyGridExport::new(window, pipeline.decisions(), "map")?
-        .write(&args.out.join("occupancy.json"))?;
-    write_masses(
-        window,
-        pipeline.perception(),
-        "map",
-        &args.out.join("masses.json"),
+    if let Some(recorder) = recorder {
+        recorder.finish()?;
+    }
+    write_grid_exports(
+        &args.out,
+        &GridExports {
+            window,
+            decisions: pipeline.decisions(),
+            perception: pipeline.perception(),
+            time_s: times.last().copied().unwrap_or(0.0),
+            projection: projection.as_ref(),
+        },
     )?;
 
     let sum = |f: fn(&FrameRecord) -> usize| per_frame.iter().map(f).sum::<usize>();
