@@ -50,7 +50,7 @@ pub fn base64(bytes: &[u8]) -> String {
 pub fn nanoseconds(time_s: f64) -> Option<u64> {
     // Split first: at 1.3·10⁹ s an f64 of nanoseconds is only good to 256 ns.
     let sec = time_s.floor();
-    if !(sec.is_finite() && sec >= 0.0 && sec < 1.8e10) {
+    if !(0.0..1.8e10).contains(&sec) {
         return None;
     }
     let nsec = ((time_s - sec) * 1e9).round() as u64;

@@ -104,7 +104,7 @@ pub struct McapRecorder {
     path: PathBuf,
     channels: Channels,
     /// Outlines of the map's buildings and roads, sent with the first frame.
-    map_outlines: Option<(Vec<Vec<[f64; 2]>>, Vec<Vec<[f64; 2]>>)>,
+    map_outlines: Option<(Vec<Outline>, Vec<Outline>)>,
     counts: McapCounts,
     sequence: u32,
 }
@@ -118,9 +118,12 @@ impl std::fmt::Debug for McapRecorder {
     }
 }
 
+/// A closed outline, local metres.
+type Outline = Vec<[f64; 2]>;
+
 /// Exterior rings of polygons as closed outlines (the repeated last point dropped: LINE_LOOP
 /// closes them).
-fn outlines(polygons: &[geo::Polygon<f64>]) -> Vec<Vec<[f64; 2]>> {
+fn outlines(polygons: &[geo::Polygon<f64>]) -> Vec<Outline> {
     polygons
         .iter()
         .map(|p| {
