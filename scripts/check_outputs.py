@@ -16,6 +16,7 @@ Pillow, PyYAML and (optionally) pyproj:
   docs/schemas/occupancy.schema.json; classes.json and masses.json against theirs;
 - map.pgm + map.yaml: loaded with nav2 map_server's rules (written here) equal occupancy.json;
 - decision-map.png + .pgw + .prj: corners equal the grid's extent, the .prj's origin is ORIGIN;
+- decision-map.tif (tifffile): pixels, tie point, pixel scale and GeoKeys;
   with pyproj, the .prj turns local metres into WGS84 agreeing with the KITTI OXTS fixes or the
   demo map's GeoJSON vertices.
 
@@ -32,6 +33,7 @@ from pathlib import Path
 
 try:
     import numpy as np
+    import tifffile
     import yaml
     from jsonschema import Draft202012Validator
     from mcap.reader import make_reader
@@ -190,11 +192,55 @@ def check_georeference(out, occ, classes, origin):
     )
     aux = (out / "decision-map.png.aux.xml").read_text()
     check("Transverse_Mercator" in aux, "GDAL .aux.xml holds the SRS")
+    proj = check_geotiff(out, occ, classes, origin)
     if pyproj is None:
         print("note: pyproj missing, the .prj is not checked against WGS84 positions")
         return None
+    # The GeoTIFF's CRS (its PROJ string) and the .prj's WKT agree on a point 1 km out.
+    from_tiff = pyproj.Transformer.from_crs(pyproj.CRS.from_proj4(proj), "EPSG:4326", always_xy=True)
+    from_prj = pyproj.Transformer.from_crs(pyproj.CRS.from_wkt(prj), "EPSG:4326", always_xy=True)
+    a, b = from_tiff.transform(700.0, -700.0), from_prj.transform(700.0, -700.0)
+    check(metres_between(*a, *b) < 1e-3, f"GeoTIFF and .prj CRS agree ({a} vs {b})")
     to_wgs84 = pyproj.Transformer.from_crs(pyproj.CRS.from_wkt(prj), "EPSG:4326", always_xy=True)
     return to_wgs84
+
+
+def check_geotiff(out, occ, classes, origin):
+    """The GeoTIFF read by tifffile: pixels, tie point, pixel scale and GeoKeys."""
+    info = occ["info"]
+    with tifffile.TiffFile(out / "decision-map.tif") as tif:
+        page = tif.pages[0]
+        pixels = page.asarray()
+        tags = {tag.code: tag.value for tag in page.tags}
+        geo = tif.geotiff_metadata
+    check(pixels.shape == (info["height"], info["width"]), "GeoTIFF size")
+    check(
+        np.array_equal(pixels[::-1].reshape(-1), np.array(classes["data"])),
+        "GeoTIFF pixels (north up) = classes.json",
+    )
+    s = info["resolution"]
+    x0, y0 = info["origin"]["position"]["x"], info["origin"]["position"]["y"]
+    tie = tags[33922]
+    check(tuple(tags[33550])[:2] == (s, s), "GeoTIFF ModelPixelScale = resolution")
+    check(
+        tuple(tie[:3]) == (0, 0, 0)
+        and math.isclose(tie[3], x0)
+        and math.isclose(tie[4], y0 + s * info["height"]),
+        "GeoTIFF tie point = north-west corner",
+    )
+    check(int(geo["ProjCoordTransGeoKey"]) == 1, "GeoTIFF CT_TransverseMercator")
+    check(int(geo["ProjectedCSTypeGeoKey"]) == 32767, "GeoTIFF user-defined projected CRS")
+    check(int(geo["GeographicTypeGeoKey"]) == 4326, "GeoTIFF on WGS 84")
+    check(
+        math.isclose(geo["ProjNatOriginLatGeoKey"], origin[0], abs_tol=1e-9)
+        and math.isclose(geo["ProjNatOriginLongGeoKey"], origin[1], abs_tol=1e-9),
+        "GeoTIFF natural origin = origin",
+    )
+    check(geo["ProjScaleAtNatOriginGeoKey"] == 1.0, "GeoTIFF scale 1")
+    citation = geo["PCSCitationGeoKey"]
+    check(citation.startswith("+proj=tmerc"), f"GeoTIFF PCSCitation {citation}")
+    check(tags.get(42113) == "0", "GeoTIFF no-data is 0 (unknown)")
+    return citation
 
 
 def metres_between(lon1, lat1, lon2, lat2):

@@ -425,11 +425,13 @@ pub mod file_names {
     pub const NAV2_YAML: &str = "map.yaml";
     /// Georeferenced decision map (`.pgw`, `.prj`, `.png.aux.xml` beside it).
     pub const GEO_PNG: &str = "decision-map.png";
+    /// The same map as a GeoTIFF of class codes.
+    pub const GEOTIFF: &str = "decision-map.tif";
 }
 
 /// Writes the exports of the final grid into `out`: `occupancy.json`, `classes.json`,
 /// `masses.json` + `masses.bin`, `map.pgm` + `map.yaml`, and with a projection the georeferenced
-/// `decision-map.png` and its side files. Returns the files written.
+/// `decision-map.png` and its side files and `decision-map.tif`. Returns the files written.
 ///
 /// # Errors
 ///
@@ -473,6 +475,9 @@ pub fn write_grid_exports(
             projection,
             &out.join(file_names::GEO_PNG),
         )?);
+        let tiff = out.join(file_names::GEOTIFF);
+        crate::geotiff::write_geotiff(window, decisions, projection, &tiff)?;
+        written.push(tiff);
     }
     Ok(written)
 }

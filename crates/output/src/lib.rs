@@ -35,6 +35,7 @@ mod atomic;
 mod error;
 mod export;
 pub mod georef;
+pub mod geotiff;
 pub mod mcap;
 pub mod nav2;
 #[cfg(test)]
