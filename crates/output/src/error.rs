@@ -41,7 +41,7 @@ pub enum OutputError {
         /// The MCAP writer's error.
         source: ::mcap::McapError,
     },
-    /// A time cannot be recorded (negative, not finite, or past the year 2500).
+    /// A time cannot be recorded (negative, not finite, or from the year 2540 on).
     #[error("{path}: time {time_s} s cannot be recorded")]
     Time {
         /// The file.

@@ -45,8 +45,8 @@ pub fn base64(bytes: &[u8]) -> String {
     out
 }
 
-/// A time in nanoseconds since the epoch, from seconds; `None` if negative, not finite or past
-/// u64 nanoseconds (year 2554).
+/// A time in nanoseconds since the epoch, from seconds; `None` if negative, not finite or from
+/// 1.8·10¹⁰ s on (the year 2540: u64 nanoseconds end in 2554).
 pub fn nanoseconds(time_s: f64) -> Option<u64> {
     // Split first: at 1.3·10⁹ s an f64 of nanoseconds is only good to 256 ns.
     let sec = time_s.floor();

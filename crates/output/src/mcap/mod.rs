@@ -48,6 +48,8 @@ pub const TOPIC_GNSS: &str = "/gnss";
 pub const FRAME_MAP: &str = "map";
 /// The scanner's frame.
 pub const FRAME_SENSOR: &str = "sensor";
+/// The GNSS receiver's frame (no transform is published for it: a fix is a WGS84 position).
+pub const FRAME_GNSS: &str = "gnss";
 
 /// A GNSS fix, WGS84.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -258,7 +260,7 @@ impl McapRecorder {
         let scan = messages::point_cloud(ns, FRAME_SENSOR, frame.points_in_sensor);
         self.send(self.channels.scan, TOPIC_SCAN, ns, &scan)?;
         if let (Some(fix), Some(fix_ns)) = (frame.fix, fix_ns) {
-            let message = messages::location_fix(fix_ns, FRAME_SENSOR, &fix);
+            let message = messages::location_fix(fix_ns, FRAME_GNSS, &fix);
             self.send(self.channels.gnss, TOPIC_GNSS, fix_ns, &message)?;
         }
         Ok(())
