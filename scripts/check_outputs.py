@@ -6,10 +6,11 @@
 
 OUT is an `evigrid run` or `evigrid demo` output folder of N frames whose local frame is the
 transverse Mercator around ORIGIN. Read with the Python `mcap` reader, `jsonschema`, numpy,
-Pillow, PyYAML and (optionally) pyproj:
+Pillow, PyYAML, tifffile, foxglove-schemas-protobuf and (optionally) pyproj:
 
 - run.mcap: channels, schema names and encodings, message counts, every first message valid
-  against its channel's JSON Schema, times on the scans' timeline (with --kitti-drive: equal to
+  against its channel's JSON Schema and parsed into Foxglove's own protobuf type
+  (foxglove-schemas-protobuf: no unknown field, every type right), times on the scans' timeline (with --kitti-drive: equal to
   the drive's velodyne timestamps.txt), and the last decision grid decoded equal to
   occupancy.json and classes.json;
 - occupancy.json: exactly the fields of ROS 2 nav_msgs/OccupancyGrid, valid against
@@ -32,11 +33,15 @@ import sys
 from pathlib import Path
 
 try:
+    import importlib
+
+    import foxglove_schemas_protobuf  # noqa: F401  (its modules are imported by name below)
     import numpy as np
     import tifffile
     import yaml
     from jsonschema import Draft202012Validator
     from mcap.reader import make_reader
+    from google.protobuf import json_format
     from PIL import Image
 except ImportError as error:  # pragma: no cover - the skip path
     print(f"check_outputs: missing Python package: {error.name}", file=sys.stderr)
@@ -251,6 +256,58 @@ def metres_between(lon1, lat1, lon2, lat2):
 # MCAP.
 
 
+def to_protobuf_json(value):
+    """Foxglove's JSON (times as {sec, nsec}) → protobuf's JSON mapping (RFC 3339 strings,
+    durations as "Ns"); bytes are base64 in both."""
+    if isinstance(value, dict):
+        if set(value) == {"sec", "nsec"}:
+            return {"seconds": value["sec"], "nanos": value["nsec"]}
+        return {k: to_protobuf_json(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [to_protobuf_json(v) for v in value]
+    return value
+
+
+def check_against_foxglove(schema_name, value):
+    """Parses a message into the official foxglove.* protobuf type (foxglove-schemas-protobuf):
+    any field that is not in Foxglove's definition, or of the wrong type, fails."""
+    name = schema_name.split(".")[1]
+    module = importlib.import_module(f"foxglove_schemas_protobuf.{name}_pb2")
+    message = getattr(module, name)()
+    converted = to_protobuf_json(value)
+    # Timestamp/Duration as objects: protobuf's JSON wants strings; build them from the parts.
+    def fix_times(descriptor, data):
+        for field in descriptor.fields:
+            if field.name not in data or field.message_type is None:
+                continue
+            kind = field.message_type.full_name
+            repeated = isinstance(data[field.name], list)
+            items = data[field.name] if repeated else [data[field.name]]
+            for k, item in enumerate(items):
+                if kind in ("google.protobuf.Timestamp", "google.protobuf.Duration"):
+                    total = f"{item['seconds']}.{item['nanos']:09d}"
+                    if kind == "google.protobuf.Duration":
+                        text = f"{total}s"
+                    else:
+                        from datetime import datetime, timezone
+
+                        day = datetime.fromtimestamp(item["seconds"], tz=timezone.utc)
+                        text = day.strftime("%Y-%m-%dT%H:%M:%S") + f".{item['nanos']:09d}Z"
+                    if repeated:
+                        data[field.name][k] = text
+                    else:
+                        data[field.name] = text
+                else:
+                    fix_times(field.message_type, item)
+
+    fix_times(message.DESCRIPTOR, converted)
+    try:
+        json_format.ParseDict(converted, message)
+        check(True, schema_name)
+    except json_format.ParseError as error:
+        check(False, f"{schema_name} against Foxglove's definition: {error}")
+
+
 def check_mcap(out, frames, occ, classes, kitti_drive, with_map):
     counts, times, first = {}, {}, {}
     last_grid, last_tf, map_points = None, None, []
@@ -277,6 +334,7 @@ def check_mcap(out, frames, occ, classes, kitti_drive, with_map):
             if topic not in first:
                 first[topic] = True
                 validate(value, json.loads(schema.data), f"{topic} first message vs its schema")
+                check_against_foxglove(schema.name, value)
             if topic == "/evigrid/decision":
                 last_grid = value
             elif topic == "/tf":
