@@ -167,6 +167,12 @@ pub struct FusionFrame<'a> {
     pub truth: &'a [evigrid::Label],
     /// The sensor's position (x east, y north, metres) as the method was given it this frame.
     pub ego_position: [f64; 2],
+    /// The frame's scan, sensor frame.
+    pub points_in_sensor: &'a [[f32; 3]],
+    /// The (estimated) sensor pose the scan went in with.
+    pub world_from_sensor: &'a evigrid::Isometry3,
+    /// The scan's time, seconds.
+    pub time_s: f64,
 }
 
 /// A variant's method: evigrid's fusion is kept by type so that observers can see its grids.
@@ -395,7 +401,8 @@ fn run_drive(
         let points = scan.points_xyz_f32();
 
         // The shared front end: window, map prior, SensorGrid, once for every variant.
-        let stats = front_end.process(&points, &scan.estimated_isometry(), scan.time_s)?;
+        let pose = scan.estimated_isometry();
+        let stats = front_end.process(&points, &pose, scan.time_s)?;
         let window = front_end.window();
         for span in front_end.new_cell_spans() {
             observed[span].fill(false);
@@ -441,6 +448,9 @@ fn run_drive(
                         scan.world_from_sensor_estimated.position_m.x,
                         scan.world_from_sensor_estimated.position_m.y,
                     ],
+                    points_in_sensor: &points,
+                    world_from_sensor: &pose,
+                    time_s: scan.time_s,
                 });
             }
             for span in front_end.new_cell_spans() {

@@ -48,6 +48,77 @@ pub fn write_atomic(
     result.map_err(io)
 }
 
+/// The streaming form of [`write_atomic`], for a file written over a whole run (the MCAP
+/// recording): the same hidden temporary beside the target, renamed by [`AtomicFile::commit`];
+/// dropped without a commit (an error, a panic) it removes the temporary and leaves `path` as it
+/// was.
+#[derive(Debug)]
+pub struct AtomicFile {
+    temporary: PathBuf,
+    target: PathBuf,
+    committed: bool,
+}
+
+impl AtomicFile {
+    /// Creates the temporary for `path` and returns it open for writing.
+    ///
+    /// # Errors
+    ///
+    /// [`OutputError::Io`] naming `path`, as [`write_atomic`].
+    pub fn create(path: &Path) -> Result<(Self, fs::File), OutputError> {
+        let io = |source| OutputError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let temporary = temporary_path(path).ok_or_else(|| {
+            io(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "not a file name",
+            ))
+        })?;
+        let file = fs::File::create(&temporary).map_err(io)?;
+        Ok((
+            Self {
+                temporary,
+                target: path.to_path_buf(),
+                committed: false,
+            },
+            file,
+        ))
+    }
+
+    /// Renames the temporary onto the target. `file`, the handle [`AtomicFile::create`] gave,
+    /// is flushed to disk and closed first.
+    ///
+    /// # Errors
+    ///
+    /// [`OutputError::Io`] naming the target; the temporary is then removed.
+    pub fn commit(mut self, file: fs::File) -> Result<(), OutputError> {
+        let result = file
+            .sync_all()
+            .and_then(|()| {
+                drop(file);
+                fs::rename(&self.temporary, &self.target)
+            })
+            .map_err(|source| OutputError::Io {
+                path: self.target.clone(),
+                source,
+            });
+        // On success there is nothing left to remove; on failure Drop removes the temporary.
+        self.committed = result.is_ok();
+        result
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if !self.committed {
+            // Best effort: the error that led here is the one to report.
+            let _ = fs::remove_file(&self.temporary);
+        }
+    }
+}
+
 /// The hidden temporary beside `path`, or `None` if `path` does not end in a file name.
 fn temporary_path(path: &Path) -> Option<PathBuf> {
     let mut name = std::ffi::OsString::from(".");
@@ -150,6 +221,24 @@ mod tests {
         let error = write_atomic(&path, |f| f.write_all(b"data")).unwrap_err();
         assert!(matches!(error, OutputError::Io { .. }), "{error}");
         assert_eq!(names(dir.path()), ["taken"]);
+    }
+
+    #[test]
+    fn a_streamed_file_appears_only_on_commit() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.mcap");
+        let (atomic, mut file) = AtomicFile::create(&path).unwrap();
+        file.write_all(b"frames").unwrap();
+        assert!(!path.exists());
+        atomic.commit(file).unwrap();
+        assert_eq!(fs::read(&path).unwrap(), b"frames");
+        assert_eq!(names(dir.path()), ["run.mcap"]);
+        // Dropped without a commit: no file, no temporary.
+        let other = dir.path().join("other.mcap");
+        let (atomic, mut file) = AtomicFile::create(&other).unwrap();
+        file.write_all(b"half").unwrap();
+        drop(atomic);
+        assert_eq!(names(dir.path()), ["run.mcap"]);
     }
 
     #[test]

@@ -41,6 +41,22 @@ pub enum OutputError {
         /// Height it would have, pixels.
         height: u64,
     },
+    /// Writing the MCAP recording failed.
+    #[error("{path}: {source}")]
+    Mcap {
+        /// The file.
+        path: PathBuf,
+        /// The MCAP writer's error.
+        source: ::mcap::McapError,
+    },
+    /// A time cannot be recorded (negative, not finite, or from the year 2540 on).
+    #[error("{path}: time {time_s} s cannot be recorded")]
+    Time {
+        /// The file.
+        path: PathBuf,
+        /// The time, seconds.
+        time_s: f64,
+    },
     /// A buffer does not have one entry per window cell.
     #[error("{what} holds {len} cells, the window {expected}")]
     Size {

@@ -13,21 +13,24 @@
 //! - Figures for people ([`figure`]): those pictures enlarged ([`readable_scale`]), side by side,
 //!   with map outlines and the ego's path ([`Overlay`]), a [`Legend`], a scale bar and a north
 //!   arrow; text in an embedded DejaVu Sans ([`text`]).
-//! - Exports: [`OccupancyGridExport`] after ROS `nav_msgs/OccupancyGrid` (0 free, 100 occupied,
-//!   −1 unknown, plus each cell's [`Label`](evigrid::Label) code), and [`write_masses`],
-//!   every focal set's mass as one `f32` field per cell after `foxglove.Grid`.
+//! - Exports ([`write_grid_exports`]): [`OccupancyGridExport`], ROS 2 `nav_msgs/OccupancyGrid`
+//!   exactly (0 free, 100 occupied, −1 unknown), each cell's [`Label`](evigrid::Label) code in
+//!   [`ClassesExport`], [`write_masses`] (every focal set's mass as one little-endian `f32` field
+//!   per cell, `foxglove.Grid`'s JSON layout), the nav2 `map_server` pair ([`nav2`]) and the
+//!   decision map georeferenced for GIS ([`georef`]).
+//! - The run as a Foxglove-ready MCAP recording ([`mcap::McapRecorder`]).
 //!
 //! ```
 //! use evigrid::{Label, Window};
-//! use output::{ClassColours, OccupancyGridExport, decision_image};
+//! use output::{ClassColours, OccupancyGridExport, RosTime, decision_image};
 //!
 //! let window = Window::new(2, 1, 0.5)?;
 //! let decisions = [Label::F, Label::M];
 //! let image = decision_image(&window, &decisions, &ClassColours::THREE_CLASSES)?;
 //! assert_eq!(image.get_pixel(1, 0).0, [230, 0, 0]); // moving: red
-//! let export = OccupancyGridExport::new(&window, &decisions, "map")?;
+//! let export = OccupancyGridExport::new(&window, &decisions, "map", RosTime { sec: 0, nanosec: 0 })?;
 //! assert_eq!(export.data, [0, 100]);
-//! assert_eq!(export.classes, [1, 5]);
+//! assert_eq!(output::ClassesExport::new(&window, &decisions)?.data, [1, 5]);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 #![deny(missing_docs)]
@@ -36,17 +39,22 @@ mod atomic;
 mod error;
 mod export;
 mod figure;
+pub mod georef;
+pub mod geotiff;
+pub mod mcap;
+pub mod nav2;
 pub mod palette;
 #[cfg(test)]
 mod testing;
 pub mod text;
 mod views;
 
-pub use atomic::{write_atomic, write_png, write_png_fast};
+pub use atomic::{AtomicFile, write_atomic, write_png, write_png_fast};
 pub use error::{MAX_FIGURE_PIXELS, OutputError};
 pub use export::{
-    GridField, GridInfo, GridOrigin, MassesDescription, OccupancyGridExport, count_decisions,
-    focal_set_name, write_masses,
+    CLASS_CODES, ClassesExport, FoxgloveTime, GridExports, GridField, GridInfo, MassesDescription,
+    OccupancyGridExport, Point, Pose, Quaternion, RosHeader, RosTime, Vector2, count_decisions,
+    file_names, focal_set_name, write_grid_exports, write_masses,
 };
 pub use figure::{
     Legend, OUTLINE, Overlay, PATH, READABLE_SIDE_PX, class_name, figure, readable_scale,

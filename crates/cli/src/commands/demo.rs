@@ -28,9 +28,10 @@ use evigrid::Label;
 use evigrid::Params;
 use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, DynamicImage, RgbImage};
+use output::mcap::{McapFrame, McapRecorder};
 use output::{
-    Legend, Overlay, class_name, decision_image, figure, pignistic_image, readable_scale,
-    trace_image, write_atomic, write_png, write_png_fast,
+    GridExports, Legend, Overlay, class_name, decision_image, figure, pignistic_image,
+    readable_scale, trace_image, write_atomic, write_grid_exports, write_png, write_png_fast,
 };
 use rayon::prelude::*;
 use sim::Scenario;
@@ -68,6 +69,9 @@ pub struct DemoArgs {
     /// Print the evaluation report as JSON on standard output instead of the table.
     #[arg(long)]
     json: bool,
+    /// Do not write the Foxglove recording `run.mcap` (written by default).
+    #[arg(long)]
+    no_mcap: bool,
 }
 
 const OUTPUTS_HELP: &str = "\
@@ -89,6 +93,10 @@ Outputs (in --out):
   report.md                    its tables (cells in view first), parameters and the command line
   confusion-<variant>.png      row-normalised confusion matrix per variant, cells in view
   per-class-iou.png            IoU of F, I, U, S, M per variant, cells in view
+  run.mcap                     Foxglove recording of `kurdej2013`: per frame the decision grid, the
+                               pose, the scan; the map's outlines (not with --no-mcap)
+  occupancy.json, classes.json, masses.json/.bin, map.pgm/.yaml, decision-map.png/.pgw/.prj
+                               the final grid of `kurdej2013`, as `evigrid run` writes them
 Map data © OpenStreetMap contributors, ODbL.";
 
 /// Runs `evigrid demo`.
@@ -128,6 +136,16 @@ pub fn run(args: DemoArgs) -> Result<()> {
     // short queue (memory stays bounded), while the pipelines go on with the next frames.
     let bar = crate::progress::bar(frames as u64, "demo");
     let (views_tx, views_rx) = mpsc::sync_channel::<FrameViews>(QUEUED_FRAMES);
+    let mut recorder = if args.no_mcap {
+        None
+    } else {
+        Some(McapRecorder::create(
+            &args.out.join("run.mcap"),
+            Some(&loaded.map),
+        )?)
+    };
+    // The MCAP frames and the final exports, written from the observer.
+    let mut recorded: Result<()> = Ok(());
     let (report, rendered, encoded) = std::thread::scope(|scope| {
         let out = &args.out;
         let encoder = scope.spawn(move || encode_views(views_rx, out, delay_ms));
@@ -152,6 +170,9 @@ pub fn run(args: DemoArgs) -> Result<()> {
                     // A closed queue means the encoder failed; its error is reported below.
                     let _ = views_tx.send(views);
                 });
+                if recorded.is_ok() {
+                    recorded = record_frame(&f, recorder.as_mut(), frames, &args.out, &loaded);
+                }
             },
         );
         // Closing the queue ends the encoder.
@@ -163,6 +184,10 @@ pub fn run(args: DemoArgs) -> Result<()> {
     });
     let report = report.context("evaluating the demo drive")?;
     rendered?;
+    recorded?;
+    if let Some(recorder) = recorder {
+        recorder.finish()?;
+    }
     let gif_bytes = encoded?;
     bar.finish_and_clear();
     write_atomic(&args.out.join("decision.gif"), |f| f.write_all(&gif_bytes))?;
@@ -188,6 +213,42 @@ pub fn run(args: DemoArgs) -> Result<()> {
     Ok(())
 }
 
+/// Adds the frame to the recording and, after the last frame, writes the final grid's exports.
+fn record_frame(
+    f: &FusionFrame<'_>,
+    recorder: Option<&mut McapRecorder>,
+    frames: usize,
+    out: &Path,
+    loaded: &geodata::LoadedMap,
+) -> Result<()> {
+    let (window, fusion) = (f.front_end.window(), f.fusion);
+    if let Some(recorder) = recorder {
+        recorder.write_frame(&McapFrame {
+            time_s: f.time_s,
+            window,
+            decisions: fusion.decisions(),
+            perception: fusion.perception(),
+            world_from_sensor: f.world_from_sensor,
+            points_in_sensor: f.points_in_sensor,
+            fix: None,
+        })?;
+    }
+    if f.frame + 1 == frames {
+        write_grid_exports(
+            out,
+            &GridExports {
+                window,
+                decisions: fusion.decisions(),
+                perception: fusion.perception(),
+                time_s: f.time_s,
+                projection: Some(&loaded.projection),
+            },
+        )?;
+    }
+    Ok(())
+}
+
+/// Frames rendered ahead of the encoder at most (three 320 × 320 RGB images each, 300 kB).
 /// Frames rendered ahead of the encoder at most (figures of about 2 Mpx and a GIF frame each,
 /// some 7 MB).
 const QUEUED_FRAMES: usize = 8;

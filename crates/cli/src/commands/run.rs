@@ -24,8 +24,9 @@ use evigrid::ego_path::{
 };
 use evigrid::{FrameStats, Pipeline};
 use odometry::OdometryParams;
+use output::mcap::{GnssFix, McapFrame, McapRecorder};
 use output::{
-    ClassColours, OccupancyGridExport, count_decisions, decision_image, write_masses, write_png,
+    ClassColours, GridExports, count_decisions, decision_image, write_grid_exports, write_png,
 };
 use serde::Serialize;
 
@@ -97,6 +98,9 @@ pub struct RunArgs {
     /// Write into an existing --out folder that is not an evigrid output folder.
     #[arg(long)]
     force: bool,
+    /// Do not write the Foxglove recording `run.mcap` (written by default).
+    #[arg(long)]
+    no_mcap: bool,
 }
 
 const POSES_HELP: &str = "\
@@ -131,8 +135,14 @@ Outputs (in --out):
                                colours, legend, scale bar, north arrow, map outlines, ego path
   pignistic.png                final betP colour mix;  trace.png  moving objects over the drive
                                (both drawn as decision.png)
-  occupancy.json               final decided grid, ROS nav_msgs/OccupancyGrid layout
-  masses.json, masses.bin      final masses, one float32 field per focal set (foxglove.Grid layout)
+  run.mcap                     Foxglove recording: per frame the decision grid, the pose, the scan,
+                               the GNSS fix (KITTI raw); the map's outlines (not with --no-mcap)
+  occupancy.json               final decided grid, ROS 2 nav_msgs/OccupancyGrid as JSON
+  classes.json                 final decided class per cell (0 unknown, 1 F, 2 I, 3 U, 4 S, 5 M)
+  masses.json, masses.bin      final masses, one little-endian float32 field per focal set
+                               (foxglove.Grid JSON layout)
+  map.pgm, map.yaml            final decided grid for nav2's map_server (trinary)
+  decision-map.png, .pgw, .prj final decision map georeferenced for QGIS (with a local frame)
   frames.jsonl                 one JSON object per frame, written as the run goes: timing, counts,
                                ground and obstacle shares, the ego-path check
   summary.json                 parameters, totals over the drive (complete: false and stopped: why
@@ -487,6 +497,14 @@ pub fn run(args: RunArgs) -> Result<()> {
     let mut pipeline = Pipeline::with_method(params.clone(), raster, method)
         .map_err(|e| BadInput::new(format!("{}: {e}", config_name(&args))))?;
 
+    let mut recorder = if args.no_mcap {
+        None
+    } else {
+        Some(McapRecorder::create(
+            &args.out.join("run.mcap"),
+            loaded.as_ref().map(|l| &l.map),
+        )?)
+    };
     let progress = crate::progress::bar(scans.paths.len() as u64, "run");
     let mut totals = RunningTotals::default();
     let frames_path = args.out.join(FRAMES_FILE);
@@ -521,10 +539,10 @@ pub fn run(args: RunArgs) -> Result<()> {
             let t1 = Instant::now();
             pipeline
                 .process(&scan.points_in_sensor, pose, time_s)
-                .map(|stats| (stats, t1))
+                .map(|stats| (stats, t1, scan))
                 .map_err(|e| format!("{poses_name}: pose of scan {}: {e}", path.display()))
         });
-        let (stats, t1) = match frame {
+        let (stats, t1, scan) = match frame {
             Ok(frame) => frame,
             Err(error) => {
                 if args.strict {
@@ -541,6 +559,30 @@ pub fn run(args: RunArgs) -> Result<()> {
             }
         };
         let t2 = Instant::now();
+        if let Some(recorder) = &mut recorder {
+            let fix = scans.kitti.as_ref().and_then(|d| {
+                let (packet, &time_s) = d.oxts().get(k).zip(d.oxts_times().get(k))?;
+                Some(GnssFix {
+                    time_s,
+                    lat_deg: packet.lat_deg,
+                    lon_deg: packet.lon_deg,
+                    alt_m: packet.alt_m,
+                })
+            });
+            let recorded = recorder.write_frame(&McapFrame {
+                time_s,
+                window: pipeline.window(),
+                decisions: pipeline.decisions(),
+                perception: pipeline.perception(),
+                world_from_sensor: pose,
+                points_in_sensor: &scan.points_in_sensor,
+                fix,
+            });
+            if let Err(error) = recorded {
+                stopped = Some((format!("recording frame {k}: {error}"), error.into()));
+                break;
+            }
+        }
         let path_cells = cells_near_path(
             pipeline.window(),
             &path_ahead(&positions, k, EGO_PATH_LENGTH_M),
@@ -622,9 +664,25 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     // The final pictures and grids are written even after an early stop (they are the last
     // processed frame's); a failure here is kept, and the summary is still attempted.
-    let driven = &positions[..reached.min(positions.len())];
-    if let Err(error) = write_final_outputs(&pipeline, &args.out, driven)
+    // The recording is closed even after an early stop: what it holds stays readable.
+    if let Some(recorder) = recorder.take()
+        && let Err(error) = recorder.finish()
         && stopped.is_none()
+    {
+        stopped = Some((format!("closing run.mcap: {error}"), error.into()));
+    }
+    let driven = &positions[..reached.min(positions.len())];
+    let exports_time_s = times[..reached.min(times.len())]
+        .last()
+        .copied()
+        .unwrap_or(0.0);
+    if let Err(error) = write_final_outputs(
+        &pipeline,
+        &args.out,
+        driven,
+        exports_time_s,
+        projection.as_ref(),
+    ) && stopped.is_none()
     {
         stopped = Some((format!("writing the final outputs: {error}"), error));
     }
@@ -759,7 +817,13 @@ pub fn run(args: RunArgs) -> Result<()> {
 }
 
 /// The final views and grids: decision, betP and trace pictures, the occupancy grid and masses.
-fn write_final_outputs(pipeline: &Pipeline, out: &Path, driven: &[[f64; 2]]) -> Result<()> {
+fn write_final_outputs(
+    pipeline: &Pipeline,
+    out: &Path,
+    driven: &[[f64; 2]],
+    time_s: f64,
+    projection: Option<&geodata::TransverseMercator>,
+) -> Result<()> {
     let window = pipeline.window();
     // Figures for people: enlarged, legend, scale bar, north arrow, map outlines, the path so far.
     let views = crate::figures::Views {
@@ -772,13 +836,16 @@ fn write_final_outputs(pipeline: &Pipeline, out: &Path, driven: &[[f64; 2]]) -> 
     for (name, image) in crate::figures::final_figures(&views, gis, driven)? {
         write_png(&image, &out.join(name))?;
     }
-    OccupancyGridExport::new(window, pipeline.decisions(), "map")?
-        .write(&out.join("occupancy.json"))?;
-    write_masses(
-        window,
-        pipeline.perception(),
-        "map",
-        &out.join("masses.json"),
+    // For the tools of the field: ROS OccupancyGrid, classes, masses, nav2, georeferenced map.
+    write_grid_exports(
+        out,
+        &GridExports {
+            window,
+            decisions: pipeline.decisions(),
+            perception: pipeline.perception(),
+            time_s,
+            projection,
+        },
     )?;
     Ok(())
 }

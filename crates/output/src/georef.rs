@@ -1,0 +1,170 @@
+//! The decision map georeferenced for GIS: a PNG of one pixel per cell, north up, with its world
+//! file (`.pgw`), the local frame's WKT (`.prj`) and a GDAL side file (`.png.aux.xml`, the same
+//! WKT: GDAL, and so QGIS, reads a PNG's CRS from it), so that QGIS lays it on OpenStreetMap.
+//!
+//! The local frame is [`geodata::TransverseMercator`]: WGS84, central meridian and latitude of
+//! origin through the origin, scale 1, no false easting or northing, i.e. the PROJ string
+//! `+proj=tmerc +lat_0=LAT +lon_0=LON +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs`.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use evigrid::{Label, Window};
+use geodata::TransverseMercator;
+use image::RgbaImage;
+
+use crate::atomic::write_atomic;
+use crate::error::{OutputError, check_len};
+
+/// Colours of the classes (Okabe–Ito, told apart with any colour vision); unknown cells are
+/// transparent so the base map shows through.
+pub const GIS_COLOURS: [(Label, [u8; 4]); 8] = [
+    (Label::Unknown, [0, 0, 0, 0]),
+    (Label::F, [0, 158, 115, 160]),
+    (Label::I, [0, 114, 178, 255]),
+    (Label::U, [230, 159, 0, 255]),
+    (Label::S, [204, 121, 167, 255]),
+    (Label::M, [213, 94, 0, 255]),
+    (Label::O, [80, 80, 80, 255]),
+    (Label::Edge, [80, 80, 80, 255]),
+];
+
+fn colour(label: Label) -> [u8; 4] {
+    GIS_COLOURS
+        .iter()
+        .find(|(l, _)| *l == label)
+        .map_or([0, 0, 0, 0], |(_, c)| *c)
+}
+
+/// The PROJ string of the local frame.
+pub fn proj_string(projection: &TransverseMercator) -> String {
+    let (lat, lon) = projection.origin();
+    format!(
+        "+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs"
+    )
+}
+
+/// The local frame as OGC WKT 1 (the form `.prj` files and GDAL read).
+pub fn wkt(projection: &TransverseMercator) -> String {
+    let (lat, lon) = projection.origin();
+    format!(
+        "PROJCS[\"evigrid local transverse Mercator\",GEOGCS[\"WGS 84\",DATUM[\"WGS_1984\",\
+         SPHEROID[\"WGS 84\",6378137,298.257223563]],PRIMEM[\"Greenwich\",0],\
+         UNIT[\"degree\",0.0174532925199433]],PROJECTION[\"Transverse_Mercator\"],\
+         PARAMETER[\"latitude_of_origin\",{lat}],PARAMETER[\"central_meridian\",{lon}],\
+         PARAMETER[\"scale_factor\",1],PARAMETER[\"false_easting\",0],\
+         PARAMETER[\"false_northing\",0],UNIT[\"metre\",1],AXIS[\"Easting\",EAST],\
+         AXIS[\"Northing\",NORTH]]"
+    )
+}
+
+/// The six lines of an ESRI world file for the window's image: pixel size in x, two rotation
+/// terms, pixel size in y (negative: rows go south), and the centre of the top-left pixel.
+pub fn world_file(window: &Window) -> String {
+    let s = window.cell_size_m();
+    let west = window.first_col() as f64 * s;
+    let north = (window.first_row() + window.height() as i64) as f64 * s;
+    format!(
+        "{s}\n0\n0\n{}\n{}\n{}\n",
+        -s,
+        west + 0.5 * s,
+        north - 0.5 * s
+    )
+}
+
+/// Writes `png_path` and, beside it, the world file (`.pgw`), the `.prj` and the
+/// `.png.aux.xml`. Returns the files written.
+///
+/// # Errors
+///
+/// [`OutputError::Size`] if `decisions` does not have the window's size; [`OutputError::Image`]
+/// or [`OutputError::Io`] naming the file.
+pub fn write_georeferenced_png(
+    window: &Window,
+    decisions: &[Label],
+    projection: &TransverseMercator,
+    png_path: &Path,
+) -> Result<Vec<PathBuf>, OutputError> {
+    check_len("decisions", decisions.len(), window)?;
+    let (width, height) = (window.width(), window.height());
+    let size = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+    let mut image = RgbaImage::new(size(width), size(height));
+    // A row may come as two spans (the window's storage wraps), so count cells, not spans.
+    let cells = window.world_order_spans().flat_map(|span| &decisions[span]);
+    for (k, &label) in cells.enumerate() {
+        let (row, col) = (k / width, k % width);
+        image.put_pixel(
+            size(col),
+            size(height - 1 - row),
+            image::Rgba(colour(label)),
+        );
+    }
+    let mut encoded = Vec::new();
+    image
+        .write_to(
+            &mut std::io::Cursor::new(&mut encoded),
+            image::ImageFormat::Png,
+        )
+        .map_err(|source| OutputError::Image {
+            path: png_path.to_path_buf(),
+            source,
+        })?;
+    write_atomic(png_path, |f| f.write_all(&encoded))?;
+    let wkt = wkt(projection);
+    let pgw = png_path.with_extension("pgw");
+    let prj = png_path.with_extension("prj");
+    let mut aux_name = png_path.as_os_str().to_owned();
+    aux_name.push(".aux.xml");
+    let aux = PathBuf::from(aux_name);
+    write_atomic(&pgw, |f| f.write_all(world_file(window).as_bytes()))?;
+    write_atomic(&prj, |f| f.write_all(wkt.as_bytes()))?;
+    let xml = format!(
+        "<PAMDataset>\n  <SRS>{}</SRS>\n</PAMDataset>\n",
+        wkt.replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;")
+            .replace('"', "&quot;")
+    );
+    write_atomic(&aux, |f| f.write_all(xml.as_bytes()))?;
+    Ok(vec![png_path.to_path_buf(), pgw, prj, aux])
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use crate::testing::{decisions, window};
+
+    #[test]
+    fn the_world_file_puts_the_top_left_pixel_centre_at_the_north_west_cell() {
+        // Cells (10..13, -1..1) of 0.5 m: x 5.0..6.5, y -0.5..0.5.
+        let w = window();
+        let lines: Vec<f64> = world_file(&w).lines().map(|l| l.parse().unwrap()).collect();
+        assert_eq!(lines, [0.5, 0.0, 0.0, -0.5, 5.25, 0.25]);
+    }
+
+    #[test]
+    fn the_png_is_north_up_with_sidecars() {
+        let w = window();
+        let d = decisions(&w, |col, row| match (col, row) {
+            (10, -1) => Label::F,
+            (12, 0) => Label::M,
+            _ => Label::Unknown,
+        });
+        let projection = TransverseMercator::new(60.17, 24.94).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let files =
+            write_georeferenced_png(&w, &d, &projection, &dir.path().join("d.png")).unwrap();
+        assert_eq!(files.len(), 4);
+        let image = image::open(dir.path().join("d.png")).unwrap().to_rgba8();
+        assert_eq!(image.get_pixel(2, 0).0, colour(Label::M));
+        assert_eq!(image.get_pixel(0, 1).0, colour(Label::F));
+        assert_eq!(image.get_pixel(0, 0).0[3], 0);
+        let prj = std::fs::read_to_string(dir.path().join("d.prj")).unwrap();
+        assert!(
+            prj.contains("PARAMETER[\"central_meridian\",24.94]"),
+            "{prj}"
+        );
+        assert!(proj_string(&projection).contains("+lat_0=60.17 +lon_0=24.94"));
+    }
+}

@@ -1,0 +1,303 @@
+//! The JSON messages of the recording: `foxglove.*` values built from evigrid's grids, poses
+//! and scans, with the two encodings JSON needs for them (base64 bytes, `{sec, nsec}` times).
+
+use evigrid::{Isometry3, Label, PerceptionGrid, Window, betp};
+use serde_json::{Value, json};
+
+/// `foxglove.NumericType` codes used here.
+pub(crate) const UINT8: u8 = 1;
+pub(crate) const INT8: u8 = 2;
+pub(crate) const FLOAT32: u8 = 7;
+
+/// The cell fields of the decision grid, in byte order: the decided class ([`Label`] code,
+/// 0 unknown … 5 M), the ROS occupancy (−1, 0, 100), then betP of F, I, U, S, M scaled to
+/// 0–255 (`round(255·betP)`).
+pub const GRID_FIELDS: [(&str, u8); 7] = [
+    ("class", UINT8),
+    ("occupancy", INT8),
+    ("betp_F", UINT8),
+    ("betp_I", UINT8),
+    ("betp_U", UINT8),
+    ("betp_S", UINT8),
+    ("betp_M", UINT8),
+];
+
+const BASE64: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+
+/// Standard base64 with padding (RFC 4648 §4), as JSON carries `bytes` fields.
+pub fn base64(bytes: &[u8]) -> String {
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(char::from(BASE64[((n >> (18 - 6 * k)) & 63) as usize]));
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// A time in nanoseconds since the epoch, from seconds; `None` if negative, not finite or from
+/// 1.8·10¹⁰ s on (the year 2540: u64 nanoseconds end in 2554).
+pub fn nanoseconds(time_s: f64) -> Option<u64> {
+    // Split first: at 1.3·10⁹ s an f64 of nanoseconds is only good to 256 ns.
+    let sec = time_s.floor();
+    if !(0.0..1.8e10).contains(&sec) {
+        return None;
+    }
+    let nsec = ((time_s - sec) * 1e9).round() as u64;
+    (sec as u64).checked_mul(1_000_000_000)?.checked_add(nsec)
+}
+
+/// `{sec, nsec}` of a time in nanoseconds.
+pub(crate) fn stamp(ns: u64) -> Value {
+    json!({"sec": ns / 1_000_000_000, "nsec": ns % 1_000_000_000})
+}
+
+/// The unit quaternion `[x, y, z, w]` of a rotation matrix (Shepperd's method: the largest of
+/// the four squared components is computed first, so no division by a small number).
+pub fn quaternion(r: &[[f64; 3]; 3]) -> [f64; 4] {
+    let trace = r[0][0] + r[1][1] + r[2][2];
+    let q = if trace > 0.0 {
+        let s = 2.0 * (1.0 + trace).sqrt();
+        [
+            (r[2][1] - r[1][2]) / s,
+            (r[0][2] - r[2][0]) / s,
+            (r[1][0] - r[0][1]) / s,
+            0.25 * s,
+        ]
+    } else if r[0][0] > r[1][1] && r[0][0] > r[2][2] {
+        let s = 2.0 * (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt();
+        [
+            0.25 * s,
+            (r[0][1] + r[1][0]) / s,
+            (r[0][2] + r[2][0]) / s,
+            (r[2][1] - r[1][2]) / s,
+        ]
+    } else if r[1][1] > r[2][2] {
+        let s = 2.0 * (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt();
+        [
+            (r[0][1] + r[1][0]) / s,
+            0.25 * s,
+            (r[1][2] + r[2][1]) / s,
+            (r[0][2] - r[2][0]) / s,
+        ]
+    } else {
+        let s = 2.0 * (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt();
+        [
+            (r[0][2] + r[2][0]) / s,
+            (r[1][2] + r[2][1]) / s,
+            0.25 * s,
+            (r[1][0] - r[0][1]) / s,
+        ]
+    };
+    let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+    q.map(|c| c / norm)
+}
+
+fn identity_pose(x: f64, y: f64) -> Value {
+    json!({
+        "position": {"x": x, "y": y, "z": 0.0},
+        "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+    })
+}
+
+/// The ROS occupancy of a decision: 0 free, 100 occupied, −1 unknown.
+pub fn occupancy(label: Label) -> i8 {
+    match label {
+        Label::Unknown => -1,
+        Label::F => 0,
+        // Edge is truth only (a building's boundary band): static and occupied in part.
+        Label::I | Label::U | Label::S | Label::M | Label::O | Label::Edge => 100,
+    }
+}
+
+/// The decision grid after a frame as a `foxglove.Grid` in `frame_id`, cells in
+/// [`GRID_FIELDS`] layout, row-major from the south-west cell (as `nav_msgs/OccupancyGrid`).
+/// `decisions` and `grid` have the window's size (checked by the caller).
+pub(crate) fn grid(
+    ns: u64,
+    frame_id: &str,
+    window: &Window,
+    decisions: &[Label],
+    grid: &PerceptionGrid,
+) -> Value {
+    let s = window.cell_size_m();
+    let stride = GRID_FIELDS.len();
+    let mut data = Vec::with_capacity(stride * window.len());
+    for span in window.world_order_spans() {
+        for idx in span {
+            let label = decisions[idx];
+            data.push(label as u8);
+            data.push(occupancy(label).to_le_bytes()[0]);
+            for p in betp(&grid.cell_masses(idx)) {
+                data.push((255.0 * p.clamp(0.0, 1.0)).round() as u8);
+            }
+        }
+    }
+    let fields: Vec<Value> = GRID_FIELDS
+        .iter()
+        .enumerate()
+        .map(|(offset, (name, kind))| json!({"name": name, "offset": offset, "type": kind}))
+        .collect();
+    json!({
+        "timestamp": stamp(ns),
+        "frame_id": frame_id,
+        "pose": identity_pose(window.first_col() as f64 * s, window.first_row() as f64 * s),
+        "column_count": window.width(),
+        "cell_size": {"x": s, "y": s},
+        "row_stride": stride * window.width(),
+        "cell_stride": stride,
+        "fields": fields,
+        "data": base64(&data),
+    })
+}
+
+/// A scan as a `foxglove.PointCloud` of `x, y, z` FLOAT32 little-endian in the sensor's frame;
+/// non-finite points are left out (a viewer would place them at infinity).
+pub(crate) fn point_cloud(ns: u64, frame_id: &str, points: &[[f32; 3]]) -> Value {
+    let mut data = Vec::with_capacity(12 * points.len());
+    for p in points.iter().filter(|p| p.iter().all(|c| c.is_finite())) {
+        for c in p {
+            data.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    json!({
+        "timestamp": stamp(ns),
+        "frame_id": frame_id,
+        "pose": identity_pose(0.0, 0.0),
+        "point_stride": 12,
+        "fields": [
+            {"name": "x", "offset": 0, "type": FLOAT32},
+            {"name": "y", "offset": 4, "type": FLOAT32},
+            {"name": "z", "offset": 8, "type": FLOAT32},
+        ],
+        "data": base64(&data),
+    })
+}
+
+/// The pose of `child` in `parent` as a `foxglove.FrameTransform`.
+pub(crate) fn frame_transform(ns: u64, parent: &str, child: &str, pose: &Isometry3) -> Value {
+    let [x, y, z] = pose.translation;
+    let [qx, qy, qz, qw] = quaternion(&pose.rotation);
+    json!({
+        "timestamp": stamp(ns),
+        "parent_frame_id": parent,
+        "child_frame_id": child,
+        "translation": {"x": x, "y": y, "z": z},
+        "rotation": {"x": qx, "y": qy, "z": qz, "w": qw},
+    })
+}
+
+/// A GNSS fix as a `foxglove.LocationFix` (covariance unknown).
+pub(crate) fn location_fix(ns: u64, frame_id: &str, fix: &super::GnssFix) -> Value {
+    json!({
+        "timestamp": stamp(ns),
+        "frame_id": frame_id,
+        "latitude": fix.lat_deg,
+        "longitude": fix.lon_deg,
+        "altitude": fix.alt_m,
+        "position_covariance": ([0.0f64; 9]),
+        "position_covariance_type": 0,
+    })
+}
+
+/// One `foxglove.SceneEntity` of closed outlines (LINE_LOOP), in `frame_id`, forever.
+pub(crate) fn outline_entity(
+    ns: u64,
+    frame_id: &str,
+    id: &str,
+    outlines: &[Vec<[f64; 2]>],
+    rgba: [f64; 4],
+) -> Value {
+    let lines: Vec<Value> = outlines
+        .iter()
+        .map(|ring| {
+            let points: Vec<Value> = ring
+                .iter()
+                .map(|[x, y]| json!({"x": x, "y": y, "z": 0.0}))
+                .collect();
+            json!({
+                "type": 1,
+                "pose": identity_pose(0.0, 0.0),
+                "thickness": 2.0,
+                "scale_invariant": true,
+                "points": points,
+                "color": {"r": rgba[0], "g": rgba[1], "b": rgba[2], "a": rgba[3]},
+                "colors": [],
+                "indices": [],
+            })
+        })
+        .collect();
+    json!({
+        "timestamp": stamp(ns),
+        "frame_id": frame_id,
+        "id": id,
+        "lifetime": {"sec": 0, "nsec": 0},
+        "frame_locked": false,
+        "metadata": [],
+        "arrows": [],
+        "cubes": [],
+        "spheres": [],
+        "cylinders": [],
+        "lines": lines,
+        "triangles": [],
+        "texts": [],
+        "models": [],
+    })
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_matches_rfc_4648_vectors() {
+        // RFC 4648 §10.
+        for (plain, coded) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(base64(plain.as_bytes()), coded);
+        }
+    }
+
+    #[test]
+    fn quaternion_of_a_yaw_and_of_a_half_turn() {
+        let yaw = 0.7_f64;
+        let (c, s) = (yaw.cos(), yaw.sin());
+        let q = quaternion(&[[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]);
+        let expected = [0.0, 0.0, (yaw / 2.0).sin(), (yaw / 2.0).cos()];
+        for (a, b) in q.iter().zip(expected) {
+            assert!((a - b).abs() < 1e-12, "{q:?}");
+        }
+        // Half turn about x: trace −1, the branch that avoids dividing by w ≈ 0.
+        let q = quaternion(&[[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]);
+        assert!((q[0].abs() - 1.0).abs() < 1e-12, "{q:?}");
+    }
+
+    #[test]
+    fn times_are_split_into_seconds_and_nanoseconds() {
+        let ns = nanoseconds(1_317_380_000.25).unwrap();
+        assert_eq!(
+            stamp(ns),
+            json!({"sec": 1_317_380_000u64, "nsec": 250_000_000u64})
+        );
+        assert_eq!(nanoseconds(-1.0), None);
+        assert_eq!(nanoseconds(f64::NAN), None);
+    }
+}

@@ -1,0 +1,385 @@
+//! The run as an MCAP recording that Foxglove opens as it is: one `run.mcap` per run, written
+//! frame by frame (memory stays flat over the drive) through [`AtomicFile`].
+//!
+//! Every channel is JSON with a `jsonschema` schema named after the `foxglove.*` message it
+//! holds ([`schemas`]): no protobuf descriptor set to carry, any MCAP reader decodes it, and
+//! Foxglove's panels recognise the schema names. Topics (frames: `map` the map's local frame,
+//! x east, y north; `sensor` the scanner):
+//!
+//! | topic | schema | when |
+//! |---|---|---|
+//! | `/evigrid/decision` | `foxglove.Grid` in `map`, fields [`GRID_FIELDS`] | every frame |
+//! | `/tf` | `foxglove.FrameTransform` `map` → `sensor` | every frame |
+//! | `/scan` | `foxglove.PointCloud` in `sensor` | every frame |
+//! | `/map` | `foxglove.SceneUpdate`, buildings and roads as line loops in `map` | once, first frame |
+//! | `/gnss` | `foxglove.LocationFix` | every frame with a fix (KITTI OXTS) |
+//!
+//! Log and publish times are the scan's time (a fix: its own time), so Foxglove's timeline is the
+//! drive's.
+
+mod messages;
+pub mod schemas;
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use ::mcap::records::MessageHeader;
+use evigrid::{Isometry3, Label, PerceptionGrid, Window};
+use geodata::LocalMap;
+
+pub use messages::{GRID_FIELDS, base64, nanoseconds, occupancy, quaternion};
+
+use crate::atomic::AtomicFile;
+use crate::error::{OutputError, check_len};
+
+/// Topic of the decision grid.
+pub const TOPIC_DECISION: &str = "/evigrid/decision";
+/// Topic of the sensor's pose.
+pub const TOPIC_TF: &str = "/tf";
+/// Topic of the scan.
+pub const TOPIC_SCAN: &str = "/scan";
+/// Topic of the map's outlines.
+pub const TOPIC_MAP: &str = "/map";
+/// Topic of the GNSS fixes.
+pub const TOPIC_GNSS: &str = "/gnss";
+/// The map's local frame.
+pub const FRAME_MAP: &str = "map";
+/// The scanner's frame.
+pub const FRAME_SENSOR: &str = "sensor";
+/// The GNSS receiver's frame (no transform is published for it: a fix is a WGS84 position).
+pub const FRAME_GNSS: &str = "gnss";
+
+/// A GNSS fix, WGS84.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GnssFix {
+    /// Time of the fix, seconds (same clock as the scans).
+    pub time_s: f64,
+    /// Latitude, degrees.
+    pub lat_deg: f64,
+    /// Longitude, degrees.
+    pub lon_deg: f64,
+    /// Altitude, metres.
+    pub alt_m: f64,
+}
+
+/// What one frame adds to the recording.
+#[derive(Clone, Copy, Debug)]
+pub struct McapFrame<'a> {
+    /// The scan's time, seconds since the epoch (or since the drive's start).
+    pub time_s: f64,
+    /// The grid's window after the frame.
+    pub window: &'a Window,
+    /// Decisions after the frame, storage order.
+    pub decisions: &'a [Label],
+    /// Masses after the frame.
+    pub perception: &'a PerceptionGrid,
+    /// The scanner's pose in the map frame.
+    pub world_from_sensor: &'a Isometry3,
+    /// The scan, sensor frame.
+    pub points_in_sensor: &'a [[f32; 3]],
+    /// The GNSS fix taken with the scan, if any.
+    pub fix: Option<GnssFix>,
+}
+
+/// Messages written per topic.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct McapCounts {
+    /// Per topic, in topic order.
+    pub messages: BTreeMap<String, u64>,
+}
+
+struct Channels {
+    decision: u16,
+    tf: u16,
+    scan: u16,
+    map: u16,
+    gnss: u16,
+}
+
+/// The recording being written: [`McapRecorder::create`], one [`McapRecorder::write_frame`] per
+/// frame, then [`McapRecorder::finish`]; dropped before `finish`, nothing is left on disk.
+pub struct McapRecorder {
+    writer: ::mcap::Writer<BufWriter<File>>,
+    atomic: AtomicFile,
+    path: PathBuf,
+    channels: Channels,
+    /// Outlines of the map's buildings and roads, sent with the first frame.
+    map_outlines: Option<(Vec<Outline>, Vec<Outline>)>,
+    counts: McapCounts,
+    sequence: u32,
+}
+
+impl std::fmt::Debug for McapRecorder {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("McapRecorder")
+            .field("path", &self.path)
+            .field("counts", &self.counts)
+            .finish_non_exhaustive()
+    }
+}
+
+/// A closed outline, local metres.
+type Outline = Vec<[f64; 2]>;
+
+/// Exterior rings of polygons as closed outlines (the repeated last point dropped: LINE_LOOP
+/// closes them).
+fn outlines(polygons: &[geo::Polygon<f64>]) -> Vec<Outline> {
+    polygons
+        .iter()
+        .map(|p| {
+            let mut ring: Vec<[f64; 2]> = p.exterior().coords().map(|c| [c.x, c.y]).collect();
+            if ring.len() > 1 && ring.first() == ring.last() {
+                ring.pop();
+            }
+            ring
+        })
+        .filter(|ring| ring.len() >= 2)
+        .collect()
+}
+
+impl McapRecorder {
+    /// Starts the recording at `path` (the file appears on [`finish`](Self::finish)). With a
+    /// map, its buildings and roads go out once, with the first frame.
+    ///
+    /// # Errors
+    ///
+    /// [`OutputError::Io`] or [`OutputError::Mcap`] naming `path`.
+    pub fn create(path: &Path, map: Option<&LocalMap>) -> Result<Self, OutputError> {
+        let (atomic, file) = AtomicFile::create(path)?;
+        let mcap_error = |source| OutputError::Mcap {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut writer = ::mcap::WriteOptions::new()
+            .profile("")
+            .library(concat!("evigrid-output ", env!("CARGO_PKG_VERSION")))
+            .create(BufWriter::new(file))
+            .map_err(mcap_error)?;
+        let mut channel = |topic: &str, name: &str, schema: serde_json::Value| {
+            let text = schema.to_string();
+            let schema_id = writer.add_schema(name, schemas::SCHEMA_ENCODING, text.as_bytes())?;
+            writer.add_channel(
+                schema_id,
+                topic,
+                schemas::MESSAGE_ENCODING,
+                &BTreeMap::new(),
+            )
+        };
+        let channels = (|| {
+            Ok::<_, ::mcap::McapError>(Channels {
+                decision: channel(TOPIC_DECISION, "foxglove.Grid", schemas::grid())?,
+                tf: channel(
+                    TOPIC_TF,
+                    "foxglove.FrameTransform",
+                    schemas::frame_transform(),
+                )?,
+                scan: channel(TOPIC_SCAN, "foxglove.PointCloud", schemas::point_cloud())?,
+                map: channel(TOPIC_MAP, "foxglove.SceneUpdate", schemas::scene_update())?,
+                gnss: channel(TOPIC_GNSS, "foxglove.LocationFix", schemas::location_fix())?,
+            })
+        })()
+        .map_err(mcap_error)?;
+        Ok(Self {
+            writer,
+            atomic,
+            path: path.to_path_buf(),
+            channels,
+            map_outlines: map.map(|m| (outlines(&m.buildings), outlines(&m.roads))),
+            counts: McapCounts::default(),
+            sequence: 0,
+        })
+    }
+
+    fn send(
+        &mut self,
+        channel: u16,
+        topic: &str,
+        ns: u64,
+        message: &serde_json::Value,
+    ) -> Result<(), OutputError> {
+        let data = message.to_string();
+        self.sequence = self.sequence.wrapping_add(1);
+        let header = MessageHeader {
+            channel_id: channel,
+            sequence: self.sequence,
+            log_time: ns,
+            publish_time: ns,
+        };
+        self.writer
+            .write_to_known_channel(&header, data.as_bytes())
+            .map_err(|source| OutputError::Mcap {
+                path: self.path.clone(),
+                source,
+            })?;
+        *self.counts.messages.entry(topic.to_string()).or_default() += 1;
+        Ok(())
+    }
+
+    /// Appends one frame: grid, pose, scan, the fix if any, and the map with the first frame.
+    ///
+    /// # Errors
+    ///
+    /// [`OutputError::Size`] if the decisions or the grid do not have the window's size,
+    /// [`OutputError::Time`] if a time is negative or not finite, [`OutputError::Mcap`] if
+    /// writing fails.
+    pub fn write_frame(&mut self, frame: &McapFrame<'_>) -> Result<(), OutputError> {
+        check_len("decisions", frame.decisions.len(), frame.window)?;
+        check_len("perception grid", frame.perception.len(), frame.window)?;
+        let time = |time_s: f64| {
+            nanoseconds(time_s).ok_or_else(|| OutputError::Time {
+                path: self.path.clone(),
+                time_s,
+            })
+        };
+        let ns = time(frame.time_s)?;
+        let fix_ns = frame.fix.map(|f| time(f.time_s)).transpose()?;
+        if let Some((buildings, roads)) = self.map_outlines.take() {
+            let update = serde_json::json!({
+                "deletions": [],
+                "entities": [
+                    messages::outline_entity(ns, FRAME_MAP, "buildings", &buildings,
+                        [0.55, 0.55, 0.6, 1.0]),
+                    messages::outline_entity(ns, FRAME_MAP, "roads", &roads,
+                        [0.95, 0.75, 0.2, 1.0]),
+                ],
+            });
+            self.send(self.channels.map, TOPIC_MAP, ns, &update)?;
+        }
+        let tf = messages::frame_transform(ns, FRAME_MAP, FRAME_SENSOR, frame.world_from_sensor);
+        self.send(self.channels.tf, TOPIC_TF, ns, &tf)?;
+        let grid = messages::grid(
+            ns,
+            FRAME_MAP,
+            frame.window,
+            frame.decisions,
+            frame.perception,
+        );
+        self.send(self.channels.decision, TOPIC_DECISION, ns, &grid)?;
+        let scan = messages::point_cloud(ns, FRAME_SENSOR, frame.points_in_sensor);
+        self.send(self.channels.scan, TOPIC_SCAN, ns, &scan)?;
+        if let (Some(fix), Some(fix_ns)) = (frame.fix, fix_ns) {
+            let message = messages::location_fix(fix_ns, FRAME_GNSS, &fix);
+            self.send(self.channels.gnss, TOPIC_GNSS, fix_ns, &message)?;
+        }
+        Ok(())
+    }
+
+    /// Writes the summary and index, and moves the recording into place.
+    ///
+    /// # Errors
+    ///
+    /// [`OutputError::Mcap`] or [`OutputError::Io`] naming the file.
+    pub fn finish(mut self) -> Result<McapCounts, OutputError> {
+        let mcap_error = |source| OutputError::Mcap {
+            path: self.path.clone(),
+            source,
+        };
+        self.writer.finish().map_err(mcap_error)?;
+        let file = self
+            .writer
+            .into_inner()
+            .into_inner()
+            .map_err(|e| OutputError::Io {
+                path: self.path.clone(),
+                source: e.into_error(),
+            })?;
+        self.atomic.commit(file)?;
+        Ok(self.counts)
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use crate::testing::{decisions, window};
+    use geo::{coord, polygon};
+
+    #[test]
+    fn a_recording_holds_every_topic_and_decodes() {
+        let w = window();
+        let d = decisions(&w, |col, _| if col == 10 { Label::F } else { Label::S });
+        let pg = PerceptionGrid::new(w.width(), w.height());
+        let house =
+            polygon![(x: 0.0, y: 0.0), (x: 4.0, y: 0.0), (x: 4.0, y: 3.0), (x: 0.0, y: 0.0)];
+        let extent = geo::Rect::new(coord! { x: -9.0, y: -9.0 }, coord! { x: 9.0, y: 9.0 });
+        let map = LocalMap::new(vec![house], vec![], extent);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.mcap");
+        let mut recorder = McapRecorder::create(&path, Some(&map)).unwrap();
+        let pose = Isometry3::IDENTITY;
+        for k in 0..3 {
+            recorder
+                .write_frame(&McapFrame {
+                    time_s: 100.0 + 0.1 * k as f64,
+                    window: &w,
+                    decisions: &d,
+                    perception: &pg,
+                    world_from_sensor: &pose,
+                    points_in_sensor: &[[1.0, 2.0, 3.0], [f32::NAN, 0.0, 0.0]],
+                    fix: (k == 1).then_some(GnssFix {
+                        time_s: 100.1,
+                        lat_deg: 60.0,
+                        lon_deg: 25.0,
+                        alt_m: 5.0,
+                    }),
+                })
+                .unwrap();
+        }
+        assert!(!path.exists(), "the file appears on finish only");
+        let counts = recorder.finish().unwrap();
+        assert_eq!(counts.messages[TOPIC_DECISION], 3);
+        assert_eq!(counts.messages[TOPIC_MAP], 1);
+        assert_eq!(counts.messages[TOPIC_GNSS], 1);
+        let bytes = std::fs::read(&path).unwrap();
+        let mut per_topic: BTreeMap<String, u64> = BTreeMap::new();
+        let mut times = Vec::new();
+        for message in ::mcap::MessageStream::new(&bytes).unwrap() {
+            let message = message.unwrap();
+            *per_topic.entry(message.channel.topic.clone()).or_default() += 1;
+            let schema = message.channel.schema.as_ref().unwrap();
+            assert_eq!(schema.encoding, "jsonschema");
+            let value: serde_json::Value = serde_json::from_slice(&message.data).unwrap();
+            if message.channel.topic == TOPIC_DECISION {
+                times.push(message.log_time);
+                assert_eq!(value["column_count"], 3);
+                assert_eq!(value["cell_stride"], 7);
+                // First cell (10, -1): F, occupancy 0; second: S, 100.
+                let data = value["data"].as_str().unwrap();
+                assert!(data.starts_with(&base64(&[1, 0])[..2]), "{data}");
+            }
+            if message.channel.topic == TOPIC_SCAN {
+                // The NaN point is left out: 12 bytes, 16 base64 characters.
+                assert_eq!(value["data"].as_str().unwrap().len(), 16);
+            }
+        }
+        assert_eq!(per_topic, counts.messages);
+        assert_eq!(times, [100_000_000_000, 100_100_000_000, 100_200_000_000]);
+    }
+
+    #[test]
+    fn a_negative_time_is_refused_and_leaves_no_file() {
+        let w = window();
+        let d = decisions(&w, |_, _| Label::Unknown);
+        let pg = PerceptionGrid::new(w.width(), w.height());
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.mcap");
+        let mut recorder = McapRecorder::create(&path, None).unwrap();
+        let error = recorder
+            .write_frame(&McapFrame {
+                time_s: -1.0,
+                window: &w,
+                decisions: &d,
+                perception: &pg,
+                world_from_sensor: &Isometry3::IDENTITY,
+                points_in_sensor: &[],
+                fix: None,
+            })
+            .unwrap_err();
+        assert!(matches!(error, OutputError::Time { .. }), "{error}");
+        drop(recorder);
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+}
