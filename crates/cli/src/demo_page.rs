@@ -56,7 +56,8 @@ fn page(report: &EvalReport, colours: &ClassColours, markdown: &str) -> String {
         h,
         "<h1>evigrid demo</h1>\n<p>A simulated drive of {frames} frames ({seconds:.0} s) with \
          traffic over a real map of central Helsinki. Left: the simulator's truth; right: what \
-         the method <code>kurdej2013</code> (evidential grid fused with the map) decided. Files: \
+         the method <code>evigrid</code> (the paper's evidential grid fused with the map, with \
+         motion evidence) decided. Files: \
          <a href=\"report.md\">report.md</a>, <a href=\"metrics.json\">metrics.json</a>, \
          per-frame figures in <a href=\"frames/\">frames/</a>.</p>"
     );

@@ -27,6 +27,7 @@ fn demo_writes_every_view_per_frame_the_gif_and_the_report() {
         "stderr: {}",
         String::from_utf8_lossy(&output.stderr)
     );
+    assert!(stdout.contains("evigrid"), "{stdout}");
     assert!(stdout.contains("kurdej2013"), "{stdout}");
     assert!(stdout.contains("no-map"), "{stdout}");
     assert!(stdout.contains("OpenStreetMap contributors"), "{stdout}");
@@ -56,12 +57,13 @@ fn demo_writes_every_view_per_frame_the_gif_and_the_report() {
         .iter()
         .map(|v| v["variant"].as_str().unwrap())
         .collect();
-    assert_eq!(names, ["kurdej2013", "no-map"]);
+    assert_eq!(names, ["evigrid", "kurdej2013", "no-map"]);
     assert_eq!(metrics["frames_per_seed"], FRAMES);
     let report = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(report.starts_with("# evigrid demo"), "{report}");
     assert!(report.contains("OpenStreetMap contributors, ODbL"));
     for png in [
+        "confusion-evigrid.png",
         "confusion-kurdej2013.png",
         "confusion-no-map.png",
         "per-class-iou.png",
@@ -117,7 +119,7 @@ fn demo_json_prints_the_metrics() {
     let output = run_demo(&tmp.path().join("demo"), &["--json"]);
     assert!(output.status.success());
     let json: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
-    assert_eq!(json["variants"].as_array().unwrap().len(), 2);
+    assert_eq!(json["variants"].as_array().unwrap().len(), 3);
 }
 
 #[test]

@@ -46,10 +46,10 @@ const SCENARIO_TOML: &str = include_str!("../../assets/demo-scenario.toml");
 /// Origin (lat, lon) of the full Helsinki extract's local frame, in which the scenario's
 /// waypoints are given; the crop is loaded with it so that both share one frame.
 const FULL_MAP_ORIGIN: (f64, f64) = (60.171_634_0, 24.944_295_4);
-/// The variants scored, in table order.
-const VARIANTS: [Variant; 2] = [Variant::Kurdej2013, Variant::NoMap];
-/// The variant whose views are rendered.
-const VIEWS_OF: Variant = Variant::Kurdej2013;
+/// The variants scored, in table order: the default method, the paper's, and no map.
+const VARIANTS: [Variant; 3] = [Variant::Evigrid, Variant::Kurdej2013, Variant::NoMap];
+/// The variant whose views are rendered: the default method of `evigrid run`.
+const VIEWS_OF: Variant = Variant::Evigrid;
 /// Attribution the map's licence requires wherever the map is shown.
 pub(crate) const OSM_ATTRIBUTION: &str = "Map data © OpenStreetMap contributors, ODbL";
 
@@ -78,7 +78,7 @@ const OUTPUTS_HELP: &str = "\
 Outputs (in --out):
   index.html                   open this: the animation, legend, final views, tables and plots
                                (self-contained, relative links only)
-  frames/decision-NNNNNN.png   per frame: the simulator's truth beside `kurdej2013`'s decision,
+  frames/decision-NNNNNN.png   per frame: the simulator's truth beside `evigrid`'s decision,   
                                2 px per 0.5 m cell, Okabe-Ito colours (F bluish green, I blue,
                                U sky blue, S yellow, M vermillion, black = unknown), map outlines
                                in white, the ego's path, legend, scale bar, north arrow
@@ -89,14 +89,14 @@ Outputs (in --out):
                                the same after the last frame, enlarged to >= 800 px a panel
   decision.gif                 truth beside decision over the whole drive, 1 px per cell,
                                10 frames per second
-  metrics.json                 evaluation of kurdej2013 and no-map against the simulator's truth
+  metrics.json                 evaluation of evigrid, kurdej2013 and no-map against the truth
   report.md                    its tables (cells in view first), parameters and the command line
   confusion-<variant>.png      row-normalised confusion matrix per variant, cells in view
   per-class-iou.png            IoU of F, I, U, S, M per variant, cells in view
-  run.mcap                     Foxglove recording of `kurdej2013`: per frame the decision grid, the
+  run.mcap                     Foxglove recording of `evigrid`: per frame the decision grid, the
                                pose, the scan; the map's outlines (not with --no-mcap)
   occupancy.json, classes.json, masses.json/.bin, map.pgm/.yaml, decision-map.png/.pgw/.prj
-                               the final grid of `kurdej2013`, as `evigrid run` writes them
+                               the final grid of `evigrid`, as `evigrid run` writes them
 Map data © OpenStreetMap contributors, ODbL.";
 
 /// Runs `evigrid demo`.
