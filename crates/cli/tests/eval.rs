@@ -75,7 +75,10 @@ fn writes_metrics_report_and_plots_for_every_variant() {
     assert_eq!(report.seeds, vec![4, 5]);
     assert_eq!(report.frames_per_seed, 10);
     let names: Vec<&str> = report.variants.iter().map(|v| v.variant.name()).collect();
-    assert_eq!(names, ["kurdej2013", "no-map", "moras2011", "log-odds"]);
+    assert_eq!(
+        names,
+        ["evigrid", "kurdej2013", "no-map", "moras2011", "log-odds"]
+    );
     for v in &report.variants {
         assert!(
             v.confusion.total() > 0,

@@ -66,9 +66,9 @@ pub enum Variant {
 impl Variant {
     /// All variants, in report order.
     pub const ALL: [Variant; 5] = [
+        Variant::Evigrid,
         Variant::Kurdej2013,
         Variant::NoMap,
-        Variant::Evigrid,
         Variant::Moras2011,
         Variant::LogOdds,
     ];

@@ -366,7 +366,7 @@ fn seeds_params() -> Vec<Vec<u8>> {
         .unwrap_or_default();
     vec![
         defaults.into_bytes(),
-        b"[window]\nwidth_cells = 64\nheight_cells = 48\ncell_size_m = 0.5\n".to_vec(),
+        b"[grid]\ncell_size_m = 0.5\n[window]\nwidth_cells = 64\nheight_cells = 48\n".to_vec(),
         b"[sensor]\nground_model = \"local\"\n[sensor.ground]\n".to_vec(),
     ]
 }
