@@ -10,6 +10,9 @@ use output::{
     trace_image,
 };
 
+/// Attribution the map's licence requires wherever the map is shown.
+pub(crate) const OSM_ATTRIBUTION: &str = "Map data © OpenStreetMap contributors, ODbL";
+
 /// The class colours of every figure.
 pub(crate) const COLOURS: ClassColours = ClassColours::OKABE_ITO;
 

@@ -40,6 +40,7 @@ pub mod plots;
 pub mod report;
 pub mod runner;
 pub mod tune;
+pub mod variant;
 
 pub use method::GridMethod;
 pub use plots::{confusion_heatmap, per_class_iou_chart};

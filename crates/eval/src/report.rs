@@ -4,7 +4,7 @@
 //! (`scores_all`) follow as secondary tables (see [`crate::metrics`]).
 
 use crate::metrics::{ConfusionMatrix, DurationSummary, Scores, TRUTH_NAMES};
-use crate::runner::Variant;
+use crate::variant::Variant;
 use serde::{Deserialize, Serialize};
 use sim::Scenario;
 

@@ -37,7 +37,7 @@ use rayon::prelude::*;
 use sim::Scenario;
 
 use crate::exit::BadInput;
-use crate::figures::{COLOURS, DECISION_NOTE, PIGNISTIC_NOTE, TRACE_NOTE};
+use crate::figures::{COLOURS, DECISION_NOTE, OSM_ATTRIBUTION, PIGNISTIC_NOTE, TRACE_NOTE};
 
 /// The embedded map: buildings, roads and car parks around the demo route, GeoJSON.
 const MAP_GEOJSON: &[u8] = include_bytes!("../../assets/helsinki-demo.geojson");
@@ -50,8 +50,6 @@ const FULL_MAP_ORIGIN: (f64, f64) = (60.171_634_0, 24.944_295_4);
 const VARIANTS: [Variant; 3] = [Variant::Evigrid, Variant::Kurdej2013, Variant::NoMap];
 /// The variant whose views are rendered: the default method of `evigrid run`.
 const VIEWS_OF: Variant = Variant::Evigrid;
-/// Attribution the map's licence requires wherever the map is shown.
-pub(crate) const OSM_ATTRIBUTION: &str = "Map data © OpenStreetMap contributors, ODbL";
 
 /// Arguments of `evigrid demo`.
 #[derive(Debug, Args)]
