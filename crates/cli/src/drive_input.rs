@@ -343,6 +343,117 @@ pub fn poses_from_odometry(
     })
 }
 
+/// Opens a ROS 2 recording as a drive.
+pub fn open_bag(
+    path: &Path,
+    cloud_topic: Option<String>,
+    pose_source: Option<&str>,
+) -> Result<drive::bag::BagDrive> {
+    let pose_source = match pose_source {
+        Some(text) => text
+            .parse()
+            .map_err(|e: String| BadInput::new(format!("--pose-source: {e}")))?,
+        None => drive::bag::PoseSource::Auto,
+    };
+    let options = drive::bag::BagOptions {
+        cloud_topic,
+        pose_source,
+    };
+    drive::bag::BagDrive::open(path, &options).map_err(|e| BadInput::new(e.to_string()))
+}
+
+/// The scans of a recording as a [`ScanSet`]: one name per PointCloud2 message (`<bag>#k`, for
+/// messages and the summary) and the header stamps as times; the points are read by the run
+/// from the recording itself, in order.
+pub fn bag_scan_set(bag: Option<&drive::bag::BagDrive>, path: &Option<PathBuf>) -> Result<ScanSet> {
+    let (Some(bag), Some(path)) = (bag, path) else {
+        return Err(anyhow::anyhow!("internal: bag_scan_set without a bag"));
+    };
+    let times = bag.scan_times().to_vec();
+    let stem = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let paths = (0..times.len())
+        .map(|k| PathBuf::from(format!("{stem}#{k:06}")))
+        .collect();
+    Ok(ScanSet {
+        paths,
+        times: Some(times),
+        times_source: Some(path.clone()),
+        kitti: None,
+        dir: path.clone(),
+    })
+}
+
+/// The poses of a recording (tf, odometry or NavSatFix) at its scans' times. `projection`
+/// places NavSatFix fixes; only the first `required` scans must lie in the poses' span.
+pub fn poses_from_bag(
+    bag: &drive::bag::BagDrive,
+    projection: Option<&dyn Fn(f64, f64) -> (f64, f64)>,
+    required: usize,
+) -> Result<ScanPoses> {
+    let bad = |e: String| BadInput::new(format!("{}: {e}", bag.path().display()));
+    let unplaced = |_: f64, _: f64| (f64::NAN, f64::NAN);
+    let track = match (bag.poses(), projection) {
+        (drive::bag::BagPoses::Wgs84(_), None) => {
+            return Err(bad(format!(
+                "poses from NavSatFix ({}) need --map or --origin",
+                bag.pose_source()
+            )));
+        }
+        (poses, Some(projection)) => poses.track(projection),
+        (poses, None) => poses.track(&unplaced),
+    }
+    .map_err(|e| bad(e.to_string()))?
+    .ok_or_else(|| bad("the recording has no poses".into()))?;
+    let times: Vec<f64> = bag.scan_times().iter().copied().take(required).collect();
+    let world_from_sensor = times
+        .iter()
+        .enumerate()
+        .map(|(k, &t)| {
+            track
+                .at(t)
+                .map_err(|e| bad(format!("scan {k} (time {t:.6} s): {e}")))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(ScanPoses {
+        times,
+        world_from_sensor,
+    })
+}
+
+/// Poses of a recording's first `count` scans from the lidar odometry (a first pass over the
+/// recording). A message that cannot be read ends the pass: the poses would lose their
+/// correspondence with the messages.
+pub fn poses_from_bag_odometry(
+    bag: &drive::bag::BagDrive,
+    params: OdometryParams,
+    count: usize,
+    stop_requested: &dyn Fn() -> bool,
+    mut tick: impl FnMut(&Odometry),
+) -> Result<ScanPoses> {
+    let bad = |e: String| BadInput::new(format!("{}: {e}", bag.path().display()));
+    let mut odometry = Odometry::new(params).map_err(|e| BadInput::new(e.to_string()))?;
+    let (mut times, mut poses) = (Vec::new(), Vec::new());
+    for scan in bag.scans().map_err(|e| bad(e.to_string()))?.take(count) {
+        if stop_requested() {
+            return Err(crate::interrupt::Interrupted.into());
+        }
+        let scan = scan.map_err(|e| bad(e.to_string()))?;
+        let pose = odometry
+            .register(&scan.scan.points_in_sensor, scan.time_s)
+            .map_err(|e| bad(format!("scan {}: {e}", scan.index)))?;
+        times.push(scan.time_s);
+        poses.push(pose);
+        tick(&odometry);
+    }
+    Ok(ScanPoses {
+        times,
+        world_from_sensor: poses,
+    })
+}
+
 /// The pose as the pipeline takes it.
 pub fn to_pipeline(pose: &Isometry3<f64>) -> evigrid::Isometry3 {
     let r = pose.rotation.to_rotation_matrix();

@@ -54,3 +54,76 @@ fn a_file_that_is_not_mcap_is_bad_input() -> Result<(), Box<dyn std::error::Erro
     assert!(stderr.contains("x.mcap"), "{stderr}");
     Ok(())
 }
+
+/// `evigrid run --bag`: the recording's scans at the poses of tf or the odometry topic (the same
+/// trajectory, so the same positions), or of the lidar odometry when asked for none.
+#[test]
+fn run_reads_a_recording_with_each_pose_source() -> Result<(), Box<dyn std::error::Error>> {
+    let path = fixture();
+    let path = path.to_str().ok_or("path")?;
+    let tmp = tempfile::tempdir()?;
+    let run = |source: &str| -> Result<
+        (serde_json::Value, Vec<serde_json::Value>),
+        Box<dyn std::error::Error>,
+    > {
+        let out = tmp.path().join(source);
+        let out_str = out.to_str().ok_or("out")?;
+        let output = evigrid(&[
+            "run",
+            "--json",
+            "--no-mcap",
+            "--bag",
+            path,
+            "--pose-source",
+            source,
+            "--out",
+            out_str,
+        ])?;
+        assert!(
+            output.status.success(),
+            "{source}: {}",
+            text(&output.stderr)
+        );
+        let summary: serde_json::Value = serde_json::from_slice(&output.stdout)?;
+        let frames = std::fs::read_to_string(out.join("frames.jsonl"))?
+            .lines()
+            .map(serde_json::from_str)
+            .collect::<Result<Vec<serde_json::Value>, _>>()?;
+        Ok((summary, frames))
+    };
+    let (tf, tf_frames) = run("tf")?;
+    assert_eq!(tf["frames"], 4);
+    assert_eq!(tf["pose_matching"], "time");
+    assert!(
+        tf["poses"].as_str().ok_or("poses")?.starts_with("tf "),
+        "{}",
+        tf["poses"]
+    );
+    let (odom, odom_frames) = run("odom")?;
+    for (a, b) in tf_frames.iter().zip(&odom_frames) {
+        for axis in 0..3 {
+            let (p, q) = (
+                a["position"][axis].as_f64().ok_or("x")?,
+                b["position"][axis].as_f64().ok_or("x")?,
+            );
+            assert!((p - q).abs() < 1e-3, "tf {p} vs odom {q}");
+        }
+    }
+    assert_eq!(odom["frames"], 4);
+    let (none, _) = run("none")?;
+    assert_eq!(none["poses"], "lidar odometry");
+    assert_eq!(none["frames"], 4);
+    // NavSatFix poses need a local frame to be placed in.
+    let output = evigrid(&[
+        "run",
+        "--bag",
+        path,
+        "--pose-source",
+        "navsat",
+        "--out",
+        "x",
+    ])?;
+    assert_eq!(output.status.code(), Some(2));
+    assert!(text(&output.stderr).contains("need --map or --origin"));
+    Ok(())
+}

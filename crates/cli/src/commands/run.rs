@@ -47,12 +47,27 @@ pub struct RunArgs {
     map: Option<PathBuf>,
     /// Directory of scans: PCD v0.7 (ascii or binary) or KITTI `.bin`, processed in file-name
     /// order (a folder holding a KITTI raw drive is read as --drive).
-    #[arg(long, required_unless_present = "drive", conflicts_with = "drive")]
+    #[arg(
+        long,
+        required_unless_present_any = ["drive", "bag"],
+        conflicts_with_all = ["drive", "bag"]
+    )]
     scans: Option<PathBuf>,
     /// A KITTI raw drive: its `<date>_drive_<NNNN>_sync` folder, or the date folder holding one.
     /// Scans, their timestamps, the OXTS poses and `calib_imu_to_velo.txt` are read from it.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "bag")]
     drive: Option<PathBuf>,
+    /// A ROS 2 recording (MCAP): `sensor_msgs/PointCloud2` scans with poses from tf, an
+    /// Odometry or a NavSatFix topic (see --pose-source), or from the lidar odometry.
+    #[arg(long, conflicts_with_all = ["poses", "times", "calib", "mounting"])]
+    bag: Option<PathBuf>,
+    /// The bag's PointCloud2 topic (default: the only one).
+    #[arg(long, requires = "bag", value_name = "TOPIC")]
+    cloud_topic: Option<String>,
+    /// Where a bag's poses come from: auto (tf, else odometry, else NavSatFix, else the lidar
+    /// odometry), none (the lidar odometry), tf[:FIXED_FRAME], odom[:TOPIC], navsat[:TOPIC].
+    #[arg(long, requires = "bag", value_name = "SOURCE")]
+    pose_source: Option<String>,
     /// Pose file: evigrid (7 columns), TUM (8) or KITTI odometry (12), matched to scans by time
     /// (see below). Without it, a KITTI raw drive's OXTS poses, or else the lidar odometry.
     #[arg(long)]
@@ -320,7 +335,16 @@ pub fn run(args: RunArgs) -> Result<()> {
     if args.max_frames == Some(0) {
         return Err(BadInput::new("--max-frames must be at least 1"));
     }
+    let bag = match &args.bag {
+        Some(path) => Some(crate::drive_input::open_bag(
+            path,
+            args.cloud_topic.clone(),
+            args.pose_source.as_deref(),
+        )?),
+        None => None,
+    };
     let mut scans = match (&args.drive, &args.scans) {
+        _ if bag.is_some() => crate::drive_input::bag_scan_set(bag.as_ref(), &args.bag)?,
         (Some(dir), _) => {
             if args.times.is_some() {
                 return Err(BadInput::new(
@@ -330,12 +354,13 @@ pub fn run(args: RunArgs) -> Result<()> {
             open_kitti_raw(dir)?
         }
         (None, Some(dir)) => open_scans(dir, args.times.as_deref())?,
-        (None, None) => return Err(BadInput::new("give --scans or --drive")),
+        (None, None) => return Err(BadInput::new("give --scans, --drive or --bag")),
     };
     let scans_name = args
         .drive
         .as_ref()
         .or(args.scans.as_ref())
+        .or(args.bag.as_ref())
         .map(|p| p.display().to_string())
         .unwrap_or_default();
 
@@ -407,6 +432,24 @@ pub fn run(args: RunArgs) -> Result<()> {
             )?;
             (poses, path.display().to_string(), matching)
         }
+        None if bag
+            .as_ref()
+            .is_some_and(|b| !matches!(b.poses(), drive::bag::BagPoses::None)) =>
+        {
+            let bag = bag
+                .as_ref()
+                .ok_or_else(|| anyhow::anyhow!("internal: no bag"))?;
+            let poses = crate::drive_input::poses_from_bag(
+                bag,
+                projection.is_some().then_some(project_dyn),
+                args.max_frames.unwrap_or(usize::MAX),
+            )?;
+            (
+                poses,
+                format!("{} of {}", bag.pose_source(), bag.path().display()),
+                "time",
+            )
+        }
         None => match &scans.kitti {
             Some(drive) => (
                 poses_from_oxts(drive, project_dyn)?,
@@ -426,14 +469,24 @@ pub fn run(args: RunArgs) -> Result<()> {
                 }
                 let bar = crate::progress::bar(scans.paths.len() as u64, "odometry");
                 let t0 = Instant::now();
-                let poses = match poses_from_odometry(
-                    &mut scans,
-                    OdometryParams::default(),
-                    args.strict,
-                    &mut odometry_skipped,
-                    &|| interrupt.requested(),
-                    |_| bar.inc(1),
-                ) {
+                let registered = match &bag {
+                    Some(bag) => crate::drive_input::poses_from_bag_odometry(
+                        bag,
+                        OdometryParams::default(),
+                        scans.paths.len(),
+                        &|| interrupt.requested(),
+                        |_| bar.inc(1),
+                    ),
+                    None => poses_from_odometry(
+                        &mut scans,
+                        OdometryParams::default(),
+                        args.strict,
+                        &mut odometry_skipped,
+                        &|| interrupt.requested(),
+                        |_| bar.inc(1),
+                    ),
+                };
+                let poses = match registered {
                     Ok(poses) => poses,
                     // Stopped in the first pass (a signal, or a bad scan with --strict): no
                     // frame is run, and the summary still says so.
@@ -523,6 +576,11 @@ pub fn run(args: RunArgs) -> Result<()> {
     let mut stopped: Option<(String, anyhow::Error)> = early_stop;
     // Scans reached (processed or skipped): the ego's path so far, for the final figures.
     let mut reached = 0;
+    // A bag's scans are read in order as the loop goes (memory does not grow with the bag).
+    let mut bag_scans = match &bag {
+        Some(bag) => Some(bag.scans().map_err(|e| BadInput::new(e.to_string()))?),
+        None => None,
+    };
     for (k, ((path, pose), &time_s)) in scans.paths.iter().zip(&poses).zip(&times).enumerate() {
         if interrupt.requested() {
             stopped = Some((
@@ -535,7 +593,14 @@ pub fn run(args: RunArgs) -> Result<()> {
         let t0 = Instant::now();
         // A bad scan or a refused pose is the input's fault: skipped (or, with --strict, the
         // end of the run); anything else stops the run.
-        let frame = read_scan(path).map_err(|e| e.to_string()).and_then(|scan| {
+        let read = match &mut bag_scans {
+            Some(bag_scans) => match bag_scans.next() {
+                Some(scan) => scan.map(|s| s.scan).map_err(|e| e.to_string()),
+                None => Err(format!("{}: the recording ended early", path.display())),
+            },
+            None => read_scan(path).map_err(|e| e.to_string()),
+        };
+        let frame = read.and_then(|scan| {
             let t1 = Instant::now();
             pipeline
                 .process(&scan.points_in_sensor, pose, time_s)
