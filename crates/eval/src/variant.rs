@@ -15,7 +15,7 @@ pub enum Variant {
     /// evigrid without a map.
     #[serde(rename = "no-map")]
     NoMap,
-    /// evigrid with the map prior and the motion stage ([`FusionMethod::Evigrid`]).
+    /// evigrid with the map prior and the motion stage ([`evigrid::Method::Evigrid`]).
     #[serde(rename = "evigrid")]
     Evigrid,
     /// Moras et al. 2011 two-class evidential grid.
