@@ -925,12 +925,13 @@ fn file_name(path: &Path) -> String {
 /// One frame's numbers on one line.
 fn frame_line(k: usize, f: &FrameRecord) -> String {
     format!(
-        "frame {k:>4} {}: points {:.1} % ground, {:.1} % obstacle; cells {:.1} % occupied; ego \
-         path {}/{} observed cells occupied or moving ({})",
+        "frame {k:>4} {}: points {:.1} % ground, {:.1} % obstacle; cells {:.1} % occupied; {} \
+         cells decided moving; ego path {}/{} observed cells occupied or moving ({})",
         f.scan,
         100.0 * f.ground_share,
         100.0 * f.obstacle_share,
         100.0 * f.obstacle_cell_share,
+        f.classes[5],
         f.ego_path.decided_occupied_or_moving(),
         f.ego_path.observed_cells,
         percent(f.ego_path_share)
