@@ -6,6 +6,7 @@
 use crate::exit::BadInput;
 use anyhow::Context as _;
 use clap::{Args, ValueEnum};
+use evigrid::motion::{MotionMass, combine};
 use evigrid::{GisGrid, N_SETS, Params, PerceptionGrid, SensorGrid, betp, class, decide};
 use geodata::MapContext;
 use serde::Serialize;
@@ -32,7 +33,9 @@ pub struct CellArgs {
     )]
     dt: f64,
     /// Observations, comma-separated: `free` (m(F) = μ_F), `occupied` (m(O) = μ_O), `none`
-    /// (vacuous), an explicit `mF/mO` pair such as `0.6/0.1`; `X*N` repeats X N times.
+    /// (vacuous), an explicit `mF/mO` pair such as `0.6/0.1`; `X+moving` or `X+static` adds the
+    /// motion stage's evidence (m({M}) = motion.mu_moving, or m(Ω∖{M}) = motion.mu_static, as
+    /// the `evigrid` method combines it after the step); `X*N` repeats X N times.
     #[arg(long, required = true, value_name = "LIST", allow_hyphen_values = true)]
     observe: String,
     /// Print a JSON array, one object per step, instead of a table.
@@ -64,11 +67,24 @@ impl From<ContextArg> for MapContext {
     }
 }
 
-/// One observation: the SensorGrid masses m(F), m(O) of the cell.
+/// One observation: the SensorGrid masses m(F), m(O) of the cell, and the motion evidence the
+/// cell's cluster gave it, if any.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 struct Observation {
     free: f64,
     occupied: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    motion: Option<Motion>,
+}
+
+/// The motion stage's verdict on the cell's cluster (`docs/motion.md`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+enum Motion {
+    /// A moving track: m({M}) = `motion.mu_moving` (at full confidence).
+    Moving,
+    /// A static track: m(Ω∖{M}) = `motion.mu_static`.
+    Static,
 }
 
 /// What one step left in the cell.
@@ -143,18 +159,27 @@ fn parse_observations(list: &str, params: &Params) -> anyhow::Result<Vec<Observa
             }
             None => (item, 1),
         };
+        let (token, motion) = match token.rsplit_once('+') {
+            Some((t, "moving")) => (t.trim(), Some(Motion::Moving)),
+            Some((t, "static")) => (t.trim(), Some(Motion::Static)),
+            Some(_) => return Err(bad("the motion after `+` must be `moving` or `static`")),
+            None => (token, None),
+        };
         let observation = match token {
             "free" => Observation {
                 free: params.sensor.mu_free,
                 occupied: 0.0,
+                motion,
             },
             "occupied" => Observation {
                 free: 0.0,
                 occupied: params.sensor.mu_occupied,
+                motion,
             },
             "none" => Observation {
                 free: 0.0,
                 occupied: 0.0,
+                motion,
             },
             pair => {
                 let Some((f, o)) = pair.split_once('/') else {
@@ -172,7 +197,11 @@ fn parse_observations(list: &str, params: &Params) -> anyhow::Result<Vec<Observa
                 if free + occupied > 1.0 + 1e-9 {
                     return Err(bad("mF + mO must not exceed 1"));
                 }
-                Observation { free, occupied }
+                Observation {
+                    free,
+                    occupied,
+                    motion,
+                }
             }
         };
         if repeat > MAX_OBSERVATIONS - observations.len() {
@@ -201,6 +230,17 @@ fn simulate(
         sg.m_free_mut()[0] = observation.free as f32;
         sg.m_occupied_mut()[0] = observation.occupied as f32;
         evigrid::step(&mut pg, &sg, &gg, params, dt_s);
+        if let Some(motion) = observation.motion {
+            // As the `evigrid` method does after the step: the motion belief combined
+            // conjunctively, its conflict following the residual policy.
+            let evidence = match motion {
+                Motion::Moving => MotionMass::Moving(params.motion.mu_moving as f32),
+                Motion::Static => MotionMass::Static(params.motion.mu_static as f32),
+            };
+            let mut masses = pg.cell_masses(0);
+            combine(&mut masses, evidence, params.fusion.residual);
+            pg.set_cell_masses(0, &masses);
+        }
         let masses = pg.cell_masses(0);
         let p = betp(&masses);
         let seen = pg.seen()[0] != 0;
@@ -252,7 +292,15 @@ fn table(records: &[StepRecord]) -> String {
         "step", "observed", "betP F", "I", "U", "S", "M", "ζ", "∅FO", "∅OF", "decision", "masses"
     );
     for r in records {
-        let observed = format!("{:.2}/{:.2}", r.observation.free, r.observation.occupied);
+        let motion = match r.observation.motion {
+            Some(Motion::Moving) => "+M",
+            Some(Motion::Static) => "+¬M",
+            None => "",
+        };
+        let observed = format!(
+            "{:.2}/{:.2}{motion}",
+            r.observation.free, r.observation.occupied
+        );
         let masses: Vec<String> = r
             .mass
             .iter()
@@ -300,28 +348,32 @@ mod tests {
             obs[1],
             Observation {
                 free: 0.7,
-                occupied: 0.0
+                occupied: 0.0,
+                motion: None,
             }
         );
         assert_eq!(
             obs[2],
             Observation {
                 free: 0.0,
-                occupied: 0.8
+                occupied: 0.8,
+                motion: None,
             }
         );
         assert_eq!(
             obs[3],
             Observation {
                 free: 0.0,
-                occupied: 0.0
+                occupied: 0.0,
+                motion: None,
             }
         );
         assert_eq!(
             obs[4],
             Observation {
                 free: 0.6,
-                occupied: 0.1
+                occupied: 0.1,
+                motion: None,
             }
         );
         Ok(())
@@ -350,5 +402,22 @@ mod tests {
     fn set_letters_follow_bit_order() {
         assert_eq!(set_letters(0b10101), ["F", "U", "M"]);
         assert!(set_letters(0).is_empty());
+    }
+
+    #[test]
+    fn motion_evidence_is_combined_after_the_step() -> anyhow::Result<()> {
+        let p = Params::default();
+        let obs = parse_observations("free*5,occupied,occupied+moving,occupied+static", &p)?;
+        assert_eq!(obs[6].motion, Some(Motion::Moving));
+        assert_eq!(obs[7].motion, Some(Motion::Static));
+        let records = simulate(&obs, MapContext::Road, &p, 0.1);
+        // The car appeared on a road seen free: M by the paper's conflict rule, more M with the
+        // motion stage's evidence, and not M once a static track says so.
+        let m = |k: usize| records[k].betp.M;
+        assert_eq!(records[5].decision, "M");
+        assert!(m(6) > m(5), "{} vs {}", m(6), m(5));
+        assert!(m(7) < 0.5 * m(6), "{} vs {}", m(7), m(6));
+        assert_ne!(records[7].decision, "M");
+        Ok(())
     }
 }
