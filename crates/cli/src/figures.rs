@@ -27,6 +27,44 @@ pub(crate) struct Views<'a> {
     pub perception: &'a PerceptionGrid,
     pub decisions: &'a [Label],
     pub trace: &'a MovingTrace,
+    /// The motion stage of the `evigrid` method, whose cell velocities are drawn as arrows.
+    pub motion: Option<&'a evigrid::motion::MotionStage>,
+}
+
+/// Cells slower than this draw no arrow, m/s.
+const MIN_ARROW_SPEED_MPS: f32 = 0.5;
+/// One arrow per block of this many cells a side, so that a car shows one or two arrows.
+const ARROW_BLOCK_CELLS: usize = 6;
+
+/// The velocity arrows of a motion stage: one per block of [`ARROW_BLOCK_CELLS`]² cells, at the
+/// first moving cell of the block (world order), `(position, velocity)` in metres and m/s.
+pub(crate) fn velocity_arrows(
+    window: &Window,
+    motion: Option<&evigrid::motion::MotionStage>,
+) -> Vec<([f64; 2], [f64; 2])> {
+    let Some(motion) = motion else {
+        return Vec::new();
+    };
+    let (east, north) = (motion.velocity_east(), motion.velocity_north());
+    let (width, s) = (window.width(), window.cell_size_m());
+    let mut taken = std::collections::HashSet::new();
+    let mut arrows = Vec::new();
+    for (k, storage) in window.world_order_spans().flatten().enumerate() {
+        let (Some(&vx), Some(&vy)) = (east.get(storage), north.get(storage)) else {
+            continue;
+        };
+        if vx.hypot(vy) < MIN_ARROW_SPEED_MPS {
+            continue;
+        }
+        let (row, col) = (k / width, k % width);
+        if !taken.insert((row / ARROW_BLOCK_CELLS, col / ARROW_BLOCK_CELLS)) {
+            continue;
+        }
+        let x = (window.first_col() as f64 + col as f64 + 0.5) * s;
+        let y = (window.first_row() as f64 + row as f64 + 0.5) * s;
+        arrows.push(([x, y], [f64::from(vx), f64::from(vy)]));
+    }
+    arrows
 }
 
 /// The three final figures, named `decision.png`, `pignistic.png`, `trace.png`, each enlarged to
@@ -37,7 +75,12 @@ pub(crate) fn final_figures(
     path: &[[f64; 2]],
 ) -> Result<Vec<(&'static str, RgbImage)>> {
     let window = views.window;
-    let overlay = Overlay { gis, path };
+    let arrows = velocity_arrows(window, views.motion);
+    let overlay = Overlay {
+        gis,
+        path,
+        velocities: &arrows,
+    };
     let scale = readable_scale(window);
     let one = |title: &str, cells: RgbImage, note: &str| {
         figure(

@@ -47,6 +47,9 @@ pub struct Overlay<'a> {
     pub gis: Option<&'a GisGrid>,
     /// The ego's positions so far, oldest first, world metres (x east, y north).
     pub path: &'a [[f64; 2]],
+    /// Estimated velocities to draw as arrows: `(position, velocity)`, world metres and metres
+    /// per second; each arrow shows one second of travel.
+    pub velocities: &'a [([f64; 2], [f64; 2])],
 }
 
 /// The legend of a figure: class colours and what they mean.
@@ -179,6 +182,7 @@ pub fn figure(
             draw_outlines(&mut canvas, (left, top), (w, h), scale, context);
         }
         draw_path(&mut canvas, window, (left, top), scale, overlay.path);
+        draw_velocities(&mut canvas, window, (left, top), scale, overlay.velocities);
     }
 
     // Legend: swatches, the overlay's lines, the note, then the north arrow.
@@ -230,6 +234,23 @@ pub fn figure(
             i64::from(lx + swatch + 8),
             i64::from(y),
             "ego path",
+            LABEL_PX,
+            INK,
+        );
+        y += label_h + 6;
+    }
+    if !overlay.velocities.is_empty() {
+        let mid = f64::from(y + swatch / 2);
+        let (x0, x1) = (f64::from(lx + 2), f64::from(lx + swatch - 2));
+        let all = [0, 0, i64::from(width), i64::from(height)];
+        stroke(&mut canvas, [x0, mid], [x1, mid], 1, INK, all);
+        stroke(&mut canvas, [x1 - 4.0, mid - 4.0], [x1, mid], 1, INK, all);
+        stroke(&mut canvas, [x1 - 4.0, mid + 4.0], [x1, mid], 1, INK, all);
+        draw_text(
+            &mut canvas,
+            i64::from(lx + swatch + 8),
+            i64::from(y),
+            "velocity (1 s of travel)",
             LABEL_PX,
             INK,
         );
@@ -440,6 +461,59 @@ fn draw_path(
     }
 }
 
+/// Velocity arrows over a panel: from each position, one second of travel, with a head.
+fn draw_velocities(
+    canvas: &mut RgbImage,
+    window: &Window,
+    (left, top): (u32, u32),
+    scale: u32,
+    arrows: &[([f64; 2], [f64; 2])],
+) {
+    let s = window.cell_size_m();
+    let (w, h) = (window.width() as f64, window.height() as f64);
+    let (first_col, first_row) = (window.first_col() as f64, window.first_row() as f64);
+    let scale_f = f64::from(scale);
+    let to_px = |p: [f64; 2]| {
+        [
+            f64::from(left) + (p[0] / s - first_col) * scale_f,
+            f64::from(top) + (first_row + h - p[1] / s) * scale_f,
+        ]
+    };
+    let rect = [
+        i64::from(left),
+        i64::from(top),
+        i64::from(left) + (w * scale_f) as i64,
+        i64::from(top) + (h * scale_f) as i64,
+    ];
+    for &(p, v) in arrows {
+        let finite = p.iter().chain(&v).all(|x| x.is_finite());
+        // At most 100 m/s: a larger value is an estimate gone wrong, not worth a long line.
+        if !finite || v[0].hypot(v[1]) > 100.0 {
+            continue;
+        }
+        let (a, b) = (to_px(p), to_px([p[0] + v[0], p[1] + v[1]]));
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let length = dx.hypot(dy);
+        if length < 1.0 {
+            continue;
+        }
+        // The head: two strokes back from the tip at ±30°, 6 px long.
+        let (ux, uy) = (dx / length, dy / length);
+        let head = |turn: f64| {
+            let (c, sn) = (turn.cos(), turn.sin());
+            [
+                b[0] - 6.0 * (ux * c - uy * sn),
+                b[1] - 6.0 * (ux * sn + uy * c),
+            ]
+        };
+        for (radius, colour) in [(2, PAPER), (1, INK)] {
+            stroke(canvas, a, b, radius, colour, rect);
+            stroke(canvas, head(0.5), b, radius, colour, rect);
+            stroke(canvas, head(-0.5), b, radius, colour, rect);
+        }
+    }
+}
+
 /// A line of half-width `radius` pixels from `a` to `b`: discs stamped every half pixel, kept
 /// inside `rect` (x0, y0, x1, y1; ends excluded).
 fn stroke(
@@ -549,6 +623,7 @@ mod tests {
         let overlay = Overlay {
             gis: Some(&gis),
             path: &path,
+            velocities: &[],
         };
         let legend = Legend::classes(&colours, false, "");
         let scale = 8;
@@ -593,6 +668,7 @@ mod tests {
         let bad = Overlay {
             gis: Some(&bad_gis),
             path: &path,
+            velocities: &[],
         };
         assert!(figure(&w, &[("x", &cells)], &bad, &legend, 2).is_err());
         // An enlargement past any memory: an error, not an overflow or an abort.
@@ -610,9 +686,43 @@ mod tests {
         let overlay = Overlay {
             gis: None,
             path: &path,
+            velocities: &[],
         };
         let legend = Legend::classes(&ClassColours::OKABE_ITO, true, "note");
         let fig = figure(&w, &[("x", &cells)], &overlay, &legend, 1).unwrap();
         assert!(fig.width() > 20 && fig.height() > 10);
+    }
+
+    #[test]
+    fn a_velocity_is_an_arrow_of_one_second_of_travel() {
+        let (w, d, _) = setup();
+        let cells = decision_image(&w, &d, &ClassColours::OKABE_ITO).unwrap();
+        // At (52.25, 27.25) m moving east at 4 m/s: to x = 56.25 m, eight cells at 0.5 m.
+        // Hostile ones (non-finite, absurd speed) are skipped, not drawn.
+        let arrows = [
+            ([52.25, 27.25], [4.0, 0.0]),
+            ([f64::NAN, 27.0], [1.0, 0.0]),
+            ([55.0, 27.0], [1e9, 0.0]),
+        ];
+        let overlay = Overlay {
+            gis: None,
+            path: &[],
+            velocities: &arrows,
+        };
+        let legend = Legend::classes(&ClassColours::OKABE_ITO, false, "");
+        let scale = 4;
+        let fig = figure(&w, &[("a", &cells)], &overlay, &legend, scale).unwrap();
+        let top = MARGIN + line_height(TITLE_PX) + 8;
+        // Row from the north: (30 − 27.25) / 0.5 = 5.5 cells; columns 4.5 … 12.5 cells.
+        let y = top + (5.5 * 4.0) as u32;
+        let x = |col: f64| MARGIN + (col * 4.0) as u32;
+        for col in [5.5, 8.0, 11.5] {
+            assert_eq!(*fig.get_pixel(x(col), y), INK, "column {col}");
+        }
+        // Beyond the tip: the free colour again.
+        assert_eq!(
+            *fig.get_pixel(x(14.5), y),
+            Rgb(ClassColours::OKABE_ITO.classes[0])
+        );
     }
 }

@@ -298,9 +298,11 @@ fn render_views(
     let decision = decision_image(window, fusion.decisions(), &COLOURS)?;
     let pignistic = pignistic_image(window, fusion.perception(), &COLOURS)?;
     let trace = trace_image(window, fusion.decisions(), fusion.trace(), &COLOURS)?;
+    let arrows = crate::figures::velocity_arrows(window, fusion.motion());
     let overlay = Overlay {
         gis: Some(frame.front_end.gis()),
         path,
+        velocities: &arrows,
     };
     let name = VIEWS_OF.name();
     let views = [

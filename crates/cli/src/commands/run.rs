@@ -896,6 +896,7 @@ fn write_final_outputs(
         perception: pipeline.perception(),
         decisions: pipeline.decisions(),
         trace: pipeline.trace(),
+        motion: pipeline.fusion().motion(),
     };
     let gis = pipeline.has_map().then(|| pipeline.gis());
     for (name, image) in crate::figures::final_figures(&views, gis, driven)? {
