@@ -405,6 +405,53 @@ fn draw_outlines(
     }
 }
 
+/// Where world metres fall on a panel's canvas pixels.
+struct PanelPixels {
+    cell_size_m: f64,
+    first_col: f64,
+    /// Row index of the panel's north edge, in cells.
+    north_row: f64,
+    left: f64,
+    top: f64,
+    scale: f64,
+    width_px: f64,
+    height_px: f64,
+}
+
+impl PanelPixels {
+    fn new(window: &Window, (left, top): (u32, u32), scale: u32) -> Self {
+        let scale = f64::from(scale);
+        Self {
+            cell_size_m: window.cell_size_m(),
+            first_col: window.first_col() as f64,
+            north_row: window.first_row() as f64 + window.height() as f64,
+            left: f64::from(left),
+            top: f64::from(top),
+            scale,
+            width_px: window.width() as f64 * scale,
+            height_px: window.height() as f64 * scale,
+        }
+    }
+
+    /// World `(x east, y north)` metres to canvas `(x, y)` pixels (north up).
+    fn pixel(&self, p: [f64; 2]) -> [f64; 2] {
+        [
+            self.left + (p[0] / self.cell_size_m - self.first_col) * self.scale,
+            self.top + (self.north_row - p[1] / self.cell_size_m) * self.scale,
+        ]
+    }
+
+    /// The panel's pixels: `[x0, y0, x1, y1]`, ends excluded.
+    fn rect(&self) -> [i64; 4] {
+        [
+            self.left as i64,
+            self.top as i64,
+            (self.left + self.width_px) as i64,
+            (self.top + self.height_px) as i64,
+        ]
+    }
+}
+
 /// The ego's path over a panel, and a dot at its last pose.
 fn draw_path(
     canvas: &mut RgbImage,
@@ -413,36 +460,19 @@ fn draw_path(
     scale: u32,
     path: &[[f64; 2]],
 ) {
-    let s = window.cell_size_m();
-    let (w, h) = (window.width() as f64, window.height() as f64);
-    let (first_col, first_row) = (window.first_col() as f64, window.first_row() as f64);
-    let scale_f = f64::from(scale);
-    // World metres to canvas pixels; points outside the panel are clipped per pixel.
-    let to_px = |p: &[f64; 2]| {
-        let col = p[0] / s - first_col;
-        let row_from_north = first_row + h - p[1] / s;
-        [
-            f64::from(left) + col * scale_f,
-            f64::from(top) + row_from_north * scale_f,
-        ]
-    };
+    let panel = PanelPixels::new(window, (left, top), scale);
+    let (to_px, rect) = (|p: &[f64; 2]| panel.pixel(*p), panel.rect());
     let inside = |q: [f64; 2]| {
-        q[0] >= f64::from(left)
-            && q[1] >= f64::from(top)
-            && q[0] < f64::from(left) + w * scale_f
-            && q[1] < f64::from(top) + h * scale_f
+        q[0] >= rect[0] as f64
+            && q[1] >= rect[1] as f64
+            && q[0] < rect[2] as f64
+            && q[1] < rect[3] as f64
     };
     let points: Vec<[f64; 2]> = path
         .iter()
         .filter(|p| p[0].is_finite() && p[1].is_finite())
         .map(to_px)
         .collect();
-    let rect = [
-        i64::from(left),
-        i64::from(top),
-        i64::from(left) + (w * scale_f) as i64,
-        i64::from(top) + (h * scale_f) as i64,
-    ];
     let clip = |canvas: &mut RgbImage, a: [f64; 2], b: [f64; 2], r: i64, c: Rgb<u8>| {
         if inside(a) || inside(b) {
             stroke(canvas, a, b, r, c, rect);
@@ -469,22 +499,8 @@ fn draw_velocities(
     scale: u32,
     arrows: &[([f64; 2], [f64; 2])],
 ) {
-    let s = window.cell_size_m();
-    let (w, h) = (window.width() as f64, window.height() as f64);
-    let (first_col, first_row) = (window.first_col() as f64, window.first_row() as f64);
-    let scale_f = f64::from(scale);
-    let to_px = |p: [f64; 2]| {
-        [
-            f64::from(left) + (p[0] / s - first_col) * scale_f,
-            f64::from(top) + (first_row + h - p[1] / s) * scale_f,
-        ]
-    };
-    let rect = [
-        i64::from(left),
-        i64::from(top),
-        i64::from(left) + (w * scale_f) as i64,
-        i64::from(top) + (h * scale_f) as i64,
-    ];
+    let panel = PanelPixels::new(window, (left, top), scale);
+    let (to_px, rect) = (|p: [f64; 2]| panel.pixel(p), panel.rect());
     for &(p, v) in arrows {
         let finite = p.iter().chain(&v).all(|x| x.is_finite());
         // At most 100 m/s: a larger value is an estimate gone wrong, not worth a long line.
