@@ -365,25 +365,55 @@ pub fn open_bag(
 /// The scans of a recording as a [`ScanSet`]: one name per PointCloud2 message (`<bag>#k`, for
 /// messages and the summary) and the header stamps as times; the points are read by the run
 /// from the recording itself, in order.
-pub fn bag_scan_set(bag: Option<&drive::bag::BagDrive>, path: &Option<PathBuf>) -> Result<ScanSet> {
-    let (Some(bag), Some(path)) = (bag, path) else {
-        return Err(anyhow::anyhow!("internal: bag_scan_set without a bag"));
-    };
+pub fn bag_scan_set(bag: &drive::bag::BagDrive) -> ScanSet {
     let times = bag.scan_times().to_vec();
-    let stem = path
+    let stem = bag
+        .path()
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let paths = (0..times.len())
         .map(|k| PathBuf::from(format!("{stem}#{k:06}")))
         .collect();
-    Ok(ScanSet {
+    ScanSet {
         paths,
         times: Some(times),
-        times_source: Some(path.clone()),
+        times_source: Some(bag.path().to_path_buf()),
         kitti: None,
-        dir: path.clone(),
-    })
+        dir: bag.path().to_path_buf(),
+    }
+}
+
+/// Reads a run's scans in frame order: scan files by path, or a recording's PointCloud2
+/// messages as they come (memory does not grow with the recording).
+pub enum ScanReader {
+    /// PCD / KITTI `.bin` files.
+    Files,
+    /// The messages of a recording; the paths are only names.
+    Bag(Box<drive::bag::BagScans>),
+}
+
+impl ScanReader {
+    /// A reader of files, or of `bag`'s scans from its first.
+    pub fn new(bag: Option<&drive::bag::BagDrive>) -> Result<Self> {
+        Ok(match bag {
+            Some(bag) => Self::Bag(Box::new(
+                bag.scans().map_err(|e| BadInput::new(e.to_string()))?,
+            )),
+            None => Self::Files,
+        })
+    }
+
+    /// The next scan, named `path`; the error as the message a skipped scan records.
+    pub fn read(&mut self, path: &Path) -> std::result::Result<drive::Scan, String> {
+        match self {
+            Self::Files => read_scan(path).map_err(|e| e.to_string()),
+            Self::Bag(scans) => match scans.next() {
+                Some(scan) => scan.map(|s| s.scan).map_err(|e| e.to_string()),
+                None => Err(format!("{}: the recording ended early", path.display())),
+            },
+        }
+    }
 }
 
 /// The poses of a recording (tf, odometry or NavSatFix) at its scans' times. `projection`

@@ -1,7 +1,5 @@
 //! Reading what the user gave, and saying which input an error comes from.
 
-use std::fs;
-use std::io::Read;
 use std::path::Path;
 
 use anyhow::Result;
@@ -17,22 +15,12 @@ pub const MAX_TEXT_BYTES: u64 = 16 << 20;
 /// (checked before opening: opening a FIFO with no writer blocks forever), larger than
 /// [`MAX_TEXT_BYTES`] (bounded while reading: devices report no size) or not UTF-8.
 pub fn read_text(path: &Path) -> Result<String> {
-    let bad = |why: String| BadInput::new(format!("{}: {why}", path.display()));
-    let meta = fs::metadata(path).map_err(|e| bad(format!("cannot read: {e}")))?;
-    if !meta.is_file() {
-        return Err(bad("not a regular file".into()));
-    }
-    let mut bytes = Vec::new();
-    fs::File::open(path)
-        .and_then(|file| file.take(MAX_TEXT_BYTES + 1).read_to_end(&mut bytes))
-        .map_err(|e| bad(format!("cannot read: {e}")))?;
-    if bytes.len() as u64 > MAX_TEXT_BYTES {
-        return Err(bad(format!(
-            "larger than {} MiB; expected a small text file",
-            MAX_TEXT_BYTES >> 20
-        )));
-    }
-    String::from_utf8(bytes).map_err(|_| bad("not UTF-8 text".into()))
+    drive::read_text_limited(path, MAX_TEXT_BYTES).map_err(|e| match e {
+        drive::ReadError::Io { path, source } => {
+            BadInput::new(format!("{}: cannot read: {source}", path.display()))
+        }
+        other => BadInput::new(other.to_string()),
+    })
 }
 
 /// The parameters of `--config FILE` (SPEC §7 layout), or the defaults without one.

@@ -31,3 +31,4 @@ pub use error::ReadError;
 pub use kitti_raw::{KittiRawDrive, KittiRawError, KittiRawFrame};
 pub use poses::{PoseFormat, PoseTrack, TrackError};
 pub use scan::{Scan, ScanError, list_scans, read_scan};
+pub use text::read_text_limited;

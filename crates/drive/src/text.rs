@@ -7,6 +7,18 @@ use std::path::Path;
 /// Reads a whole text file, refusing more than [`MAX_TEXT_BYTES`] and non-UTF-8 content (with
 /// the line of the first bad byte).
 pub(crate) fn read_text(path: &Path) -> Result<String, ReadError> {
+    read_text_limited(path, MAX_TEXT_BYTES)
+}
+
+/// Reads a whole text file of at most `max_bytes`, refusing what is not a regular file (checked
+/// before opening), more bytes (bounded while reading too: devices report no size) and
+/// non-UTF-8 content (with the line of the first bad byte).
+///
+/// # Errors
+///
+/// [`ReadError::File`] for a special file, [`ReadError::Io`], [`ReadError::TooLarge`],
+/// [`ReadError::Line`] for bytes that are not UTF-8.
+pub fn read_text_limited(path: &Path, max_bytes: u64) -> Result<String, ReadError> {
     let io = |source| ReadError::Io {
         path: path.to_path_buf(),
         source,
@@ -24,20 +36,20 @@ pub(crate) fn read_text(path: &Path) -> Result<String, ReadError> {
     let too_large = |len| ReadError::TooLarge {
         path: path.to_path_buf(),
         len,
-        max: MAX_TEXT_BYTES,
+        max: max_bytes,
     };
     if let Ok(meta) = file.metadata()
-        && meta.len() > MAX_TEXT_BYTES
+        && meta.len() > max_bytes
     {
         return Err(too_large(meta.len()));
     }
     // `take` also bounds what is read from files whose metadata lies (devices, pipes, growing
     // files).
     let mut bytes = Vec::new();
-    file.take(MAX_TEXT_BYTES + 1)
+    file.take(max_bytes.saturating_add(1))
         .read_to_end(&mut bytes)
         .map_err(io)?;
-    if bytes.len() as u64 > MAX_TEXT_BYTES {
+    if bytes.len() as u64 > max_bytes {
         return Err(too_large(bytes.len() as u64));
     }
     String::from_utf8(bytes).map_err(|e| {

@@ -217,14 +217,14 @@ impl Params {
 
 /// Memory the grids of a window may take: the fusion's state of every cell must fit in RAM next
 /// to the scan, the map and the outputs, on the laptops and vehicle computers evigrid runs on.
-/// At [`WINDOW_BYTES_PER_CELL`] this allows about 10 million cells (3 200 × 3 200, 1.6 km at
+/// At [`WINDOW_BYTES_PER_CELL`] this allows about 8 million cells (2 837 × 2 837, 1.4 km at
 /// 0.5 m); the real-time target is 1 000 × 1 000.
 pub const MEMORY_BUDGET_BYTES: u64 = 1536 << 20;
 
 /// Bytes every window cell costs across the pipeline's grids: the PerceptionGrid's 32 mass
 /// planes, ζ and the two conflicts (f32), its seen flag, the SensorGrid's two masses, the
 /// GISGrid context, the decision and the moving trace, plus room for the motion stage's
-/// per-cell planes. A test holds it above what the pipeline allocates.
+/// per-cell buffers (15 bytes today). A test holds it above what the pipeline allocates.
 pub const WINDOW_BYTES_PER_CELL: u64 = 32 * 4 + 3 * 4 + 1 + 2 * 4 + 1 + 1 + 1 + 48;
 
 /// Checks that a `width × height` window fits [`MEMORY_BUDGET_BYTES`] (with checked arithmetic:

@@ -711,8 +711,15 @@ mod tests {
         let mut params = params();
         (params.window.width_cells, params.window.height_cells) = (128, 96);
         let cells = 128 * 96;
-        let pipeline = Pipeline::new(params, None)?;
-        let per_cell = (pipeline.perception().heap_bytes()
+        // The `evigrid` method: the paper's grids and the motion stage's.
+        let pipeline = Pipeline::with_method(params, None, Method::Evigrid)?;
+        let motion = pipeline
+            .fusion()
+            .motion()
+            .map_or(0, MotionStage::heap_bytes);
+        assert!(motion > 0);
+        let per_cell = (motion
+            + pipeline.perception().heap_bytes()
             + pipeline.sensor_grid().heap_bytes()
             + pipeline.gis().heap_bytes()
             + std::mem::size_of_val(pipeline.decisions())

@@ -1,23 +1,21 @@
 //! Input mutation: byte-level edits as libFuzzer does, plus edits that know text formats are made
 //! of numbers and words, which is where header counts and sizes hide.
 
-/// A small, fast, reproducible generator (SplitMix64): a run is replayed from its seed alone.
+use evigrid_bench::workload::SplitMix64;
+
+/// The mutation stream: the bench's SplitMix64, so that a run is replayed from its seed alone.
 #[derive(Clone, Debug)]
-pub struct Rng(u64);
+pub struct Rng(SplitMix64);
 
 impl Rng {
     /// A generator whose whole sequence follows from `seed`.
     pub fn new(seed: u64) -> Self {
-        Self(seed)
+        Self(SplitMix64::new(seed))
     }
 
     /// The next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     /// A uniform index below `n` (`n > 0`); the modulo bias is irrelevant here.

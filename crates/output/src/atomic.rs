@@ -23,29 +23,17 @@ pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut fs::File) -> std::io::Result<()>,
 ) -> Result<(), OutputError> {
-    let io = |source| OutputError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let temporary = temporary_path(path).ok_or_else(|| {
-        io(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            "not a file name",
-        ))
-    })?;
-    let result = (|| {
-        let mut file = fs::File::create(&temporary)?;
-        write(&mut file)?;
-        file.flush()?;
-        drop(file);
-        fs::rename(&temporary, path)
-    })();
-    if result.is_err() {
-        // Best effort: the temporary may never have been created; the first error is the one
-        // to report.
-        let _ = fs::remove_file(&temporary);
+    let (guard, mut file) = AtomicFile::create(path)?;
+    if let Err(source) = write(&mut file) {
+        // Dropping the guard removes the temporary.
+        return Err(OutputError::Io {
+            path: path.to_path_buf(),
+            source,
+        });
     }
-    result.map_err(io)
+    // Not synced: a run writes hundreds of these, and a crash before the rename leaves only a
+    // hidden temporary, never half a file under the target's name.
+    guard.finish(file, false)
 }
 
 /// The streaming form of [`write_atomic`], for a file written over a whole run (the MCAP
@@ -93,9 +81,16 @@ impl AtomicFile {
     /// # Errors
     ///
     /// [`OutputError::Io`] naming the target; the temporary is then removed.
-    pub fn commit(mut self, file: fs::File) -> Result<(), OutputError> {
+    pub fn commit(self, file: fs::File) -> Result<(), OutputError> {
+        self.finish(file, true)
+    }
+
+    /// Flushes `file` (and syncs it to disk if `sync`), closes it and renames the temporary onto
+    /// the target; on failure Drop removes the temporary.
+    fn finish(mut self, mut file: fs::File, sync: bool) -> Result<(), OutputError> {
         let result = file
-            .sync_all()
+            .flush()
+            .and_then(|()| if sync { file.sync_all() } else { Ok(()) })
             .and_then(|()| {
                 drop(file);
                 fs::rename(&self.temporary, &self.target)

@@ -198,14 +198,7 @@ pub fn figure(
             swatch - 2,
             Rgb(*colour),
         );
-        draw_text(
-            &mut canvas,
-            i64::from(lx + swatch + 8),
-            i64::from(y),
-            name,
-            LABEL_PX,
-            INK,
-        );
+        legend_label(&mut canvas, lx + swatch + 8, y, name);
         y += label_h + 6;
     }
     y += 6;
@@ -213,14 +206,7 @@ pub fn figure(
         fill(&mut canvas, lx, y, swatch, swatch, Rgb([90, 90, 90]));
         fill(&mut canvas, lx + 2, y + swatch / 2, swatch - 4, 1, OUTLINE);
         let text = "map outline (buildings, roads)";
-        draw_text(
-            &mut canvas,
-            i64::from(lx + swatch + 8),
-            i64::from(y),
-            text,
-            LABEL_PX,
-            INK,
-        );
+        legend_label(&mut canvas, lx + swatch + 8, y, text);
         y += label_h + 6;
     }
     if !overlay.path.is_empty() {
@@ -229,14 +215,7 @@ pub fn figure(
         let all = [0, 0, i64::from(width), i64::from(height)];
         stroke(&mut canvas, [x0, mid], [x1, mid], 2, INK, all);
         stroke(&mut canvas, [x0, mid], [x1, mid], 1, PATH, all);
-        draw_text(
-            &mut canvas,
-            i64::from(lx + swatch + 8),
-            i64::from(y),
-            "ego path",
-            LABEL_PX,
-            INK,
-        );
+        legend_label(&mut canvas, lx + swatch + 8, y, "ego path");
         y += label_h + 6;
     }
     if !overlay.velocities.is_empty() {
@@ -246,14 +225,7 @@ pub fn figure(
         stroke(&mut canvas, [x0, mid], [x1, mid], 1, INK, all);
         stroke(&mut canvas, [x1 - 4.0, mid - 4.0], [x1, mid], 1, INK, all);
         stroke(&mut canvas, [x1 - 4.0, mid + 4.0], [x1, mid], 1, INK, all);
-        draw_text(
-            &mut canvas,
-            i64::from(lx + swatch + 8),
-            i64::from(y),
-            "velocity (1 s of travel)",
-            LABEL_PX,
-            INK,
-        );
+        legend_label(&mut canvas, lx + swatch + 8, y, "velocity (1 s of travel)");
         y += label_h + 6;
     }
     if !legend.note.is_empty() {
@@ -489,6 +461,11 @@ fn draw_path(
         clip(canvas, last, last, 5, INK);
         clip(canvas, last, last, 4, PATH);
     }
+}
+
+/// One legend entry's text, right of its symbol.
+fn legend_label(canvas: &mut RgbImage, x: u32, y: u32, text: &str) {
+    draw_text(canvas, i64::from(x), i64::from(y), text, LABEL_PX, INK);
 }
 
 /// Velocity arrows over a panel: from each position, one second of travel, with a head.

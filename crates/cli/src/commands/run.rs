@@ -16,7 +16,6 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 use drive::poses::{Mounting, PoseFormat};
-use drive::read_scan;
 use evigrid::Params;
 use evigrid::ego_path::{
     EGO_PATH_LENGTH_M, EGO_PATH_RADIUS_M, EgoPathCheck, ShareSpread, ShareTracker, cells_near_path,
@@ -343,9 +342,9 @@ pub fn run(args: RunArgs) -> Result<()> {
         )?),
         None => None,
     };
-    let mut scans = match (&args.drive, &args.scans) {
-        _ if bag.is_some() => crate::drive_input::bag_scan_set(bag.as_ref(), &args.bag)?,
-        (Some(dir), _) => {
+    let mut scans = match (&bag, &args.drive, &args.scans) {
+        (Some(bag), _, _) => crate::drive_input::bag_scan_set(bag),
+        (None, Some(dir), _) => {
             if args.times.is_some() {
                 return Err(BadInput::new(
                     "--times: a KITTI raw --drive has its own scan timestamps",
@@ -353,8 +352,8 @@ pub fn run(args: RunArgs) -> Result<()> {
             }
             open_kitti_raw(dir)?
         }
-        (None, Some(dir)) => open_scans(dir, args.times.as_deref())?,
-        (None, None) => return Err(BadInput::new("give --scans, --drive or --bag")),
+        (None, None, Some(dir)) => open_scans(dir, args.times.as_deref())?,
+        (None, None, None) => return Err(BadInput::new("give --scans, --drive or --bag")),
     };
     let scans_name = args
         .drive
@@ -411,8 +410,8 @@ pub fn run(args: RunArgs) -> Result<()> {
     let mut odometry_seconds = 0.0;
     let mut odometry_skipped: Vec<(PathBuf, String)> = Vec::new();
     let mut early_stop: Option<(String, anyhow::Error)> = None;
-    let (poses, poses_name, pose_matching): (ScanPoses, String, &str) = match &args.poses {
-        Some(path) => {
+    let (poses, poses_name, pose_matching): (ScanPoses, String, &str) = match (&args.poses, &bag) {
+        (Some(path), _) => {
             let options = PoseFileOptions {
                 path,
                 format: pose_format,
@@ -432,13 +431,7 @@ pub fn run(args: RunArgs) -> Result<()> {
             )?;
             (poses, path.display().to_string(), matching)
         }
-        None if bag
-            .as_ref()
-            .is_some_and(|b| !matches!(b.poses(), drive::bag::BagPoses::None)) =>
-        {
-            let bag = bag
-                .as_ref()
-                .ok_or_else(|| anyhow::anyhow!("internal: no bag"))?;
+        (None, Some(bag)) if !matches!(bag.poses(), drive::bag::BagPoses::None) => {
             let poses = crate::drive_input::poses_from_bag(
                 bag,
                 projection.is_some().then_some(project_dyn),
@@ -450,7 +443,7 @@ pub fn run(args: RunArgs) -> Result<()> {
                 "time",
             )
         }
-        None => match &scans.kitti {
+        (None, _) => match &scans.kitti {
             Some(drive) => (
                 poses_from_oxts(drive, project_dyn)?,
                 format!("OXTS of {}", drive.drive_dir().display()),
@@ -576,11 +569,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     let mut stopped: Option<(String, anyhow::Error)> = early_stop;
     // Scans reached (processed or skipped): the ego's path so far, for the final figures.
     let mut reached = 0;
-    // A bag's scans are read in order as the loop goes (memory does not grow with the bag).
-    let mut bag_scans = match &bag {
-        Some(bag) => Some(bag.scans().map_err(|e| BadInput::new(e.to_string()))?),
-        None => None,
-    };
+    let mut reader = crate::drive_input::ScanReader::new(bag.as_ref())?;
     for (k, ((path, pose), &time_s)) in scans.paths.iter().zip(&poses).zip(&times).enumerate() {
         if interrupt.requested() {
             stopped = Some((
@@ -593,14 +582,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         let t0 = Instant::now();
         // A bad scan or a refused pose is the input's fault: skipped (or, with --strict, the
         // end of the run); anything else stops the run.
-        let read = match &mut bag_scans {
-            Some(bag_scans) => match bag_scans.next() {
-                Some(scan) => scan.map(|s| s.scan).map_err(|e| e.to_string()),
-                None => Err(format!("{}: the recording ended early", path.display())),
-            },
-            None => read_scan(path).map_err(|e| e.to_string()),
-        };
-        let frame = read.and_then(|scan| {
+        let frame = reader.read(path).and_then(|scan| {
             let t1 = Instant::now();
             pipeline
                 .process(&scan.points_in_sensor, pose, time_s)

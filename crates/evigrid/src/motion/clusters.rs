@@ -36,6 +36,11 @@ impl Clusters {
         }
     }
 
+    /// Bytes of the per-cell buffer (the cluster lists scale with a scan, not the window).
+    pub(crate) fn dense_bytes(&self) -> usize {
+        std::mem::size_of::<u32>() * self.marks.capacity()
+    }
+
     /// Labels the occupied storage cells `occupied` of `window` into 8-connected clusters.
     pub(crate) fn label(&mut self, window: &Window, occupied: &[u32]) {
         // The labels of the previous frame are cleared first (they are kept until now so that

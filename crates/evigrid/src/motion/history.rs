@@ -26,6 +26,11 @@ pub(crate) struct OccupancyHistory {
 }
 
 impl OccupancyHistory {
+    /// Bytes of the per-cell bit planes (the lists scale with the scans, not the window).
+    pub(crate) fn dense_bytes(&self) -> usize {
+        self.bits.capacity() + self.free_bits.capacity()
+    }
+
     pub(crate) fn new(len: usize) -> Self {
         Self {
             bits: vec![0; len],

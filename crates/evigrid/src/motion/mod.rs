@@ -150,6 +150,16 @@ impl MotionStage {
         &self.gis
     }
 
+    /// Bytes of the stage's per-cell buffers: cluster marks, the history's bit planes, the
+    /// boundary-aware context and the two velocity planes (what the memory budget counts; the
+    /// lists of a scan's cells and the tracks scale with the scene, not the window).
+    pub fn heap_bytes(&self) -> usize {
+        self.clusters.dense_bytes()
+            + self.history.dense_bytes()
+            + self.gis.heap_bytes()
+            + 4 * (self.velocity_east.capacity() + self.velocity_north.capacity())
+    }
+
     /// Estimated velocity east of every cell, m/s (0 where no moving track covers it).
     pub fn velocity_east(&self) -> &[f32] {
         &self.velocity_east
