@@ -23,6 +23,15 @@
 //! accuracy, and touches no other class's score. Its count and how often it is called M are
 //! reported ([`Scores::edge_cell_frames`], [`Scores::edge_predicted_moving`]).
 //!
+//! # The object outline band
+//! A cell a road user or a piece of street furniture overlaps only by a sliver, at none of the
+//! truth's samples ([`sim::truth::label_window_with_outline`]), holds part of the object and
+//! mostly free space: a ray ends on the sliver or crosses the cell beside it, and free or the
+//! object's class are both defensible at the grid's resolution. Such a cell is scored as no
+//! class (as PASCAL VOC leaves a "void" band along object boundaries out of its scores): its
+//! predictions are counted apart ([`ConfusionMatrix::outline`]) and reported
+//! ([`Scores::outline_cell_frames`], [`Scores::outline_predicted_moving`]).
+//!
 //! # Definitions (per class c, counts over scored cell-frames)
 //! TP = truth c and predicted c; FP = predicted c, truth not c; FN = truth c, predicted not c
 //! (unknown included: failing to decide is a miss). Precision TP/(TP+FP), recall TP/(TP+FN),
@@ -93,6 +102,10 @@ pub struct ConfusionMatrix {
     /// before the band existed: read as zeros.
     #[serde(default)]
     pub edge: [u64; 7],
+    /// Cells in the object outline band (truth F there, a sliver of an object), same columns:
+    /// counted, never scored. Absent in reports written before the band existed: read as zeros.
+    #[serde(default)]
+    pub outline: [u64; 7],
 }
 
 impl ConfusionMatrix {
@@ -116,6 +129,27 @@ impl ConfusionMatrix {
         }
     }
 
+    /// [`add_frame`](Self::add_frame), with the cells where `outline[k]` is true (the object
+    /// outline band) counted apart in [`outline`](Self::outline) instead of scored.
+    pub fn add_frame_with_outline(
+        &mut self,
+        truth: &[Label],
+        predicted: &[Label],
+        observed: &[bool],
+        outline: &[bool],
+    ) {
+        for (((&t, &p), &o), &band) in truth.iter().zip(predicted).zip(observed).zip(outline) {
+            if !o {
+                continue;
+            }
+            if band && t == Label::F {
+                self.outline[COLUMN[p as usize]] += 1;
+            } else {
+                self.add(t, p);
+            }
+        }
+    }
+
     /// Adds another matrix.
     pub fn merge(&mut self, other: &ConfusionMatrix) {
         for (a, b) in self.counts.iter_mut().zip(&other.counts) {
@@ -126,9 +160,12 @@ impl ConfusionMatrix {
         for (x, y) in self.edge.iter_mut().zip(&other.edge) {
             *x += y;
         }
+        for (x, y) in self.outline.iter_mut().zip(&other.outline) {
+            *x += y;
+        }
     }
 
-    /// Total scored cell-frames, the boundary band included.
+    /// Total scored cell-frames, the boundary band included (the outline band is not scored).
     pub fn total(&self) -> u64 {
         self.counts.iter().flatten().sum::<u64>() + self.edge.iter().sum::<u64>()
     }
@@ -143,6 +180,18 @@ impl ConfusionMatrix {
             *i += e;
         }
         out.edge = [0; 7];
+        out
+    }
+
+    /// This matrix with the object outline band scored as truth F, as the labelling rule
+    /// before the band did (an object claimed only the cells it covers at a sample). Used to
+    /// show what the band changes.
+    pub fn outline_as_free(&self) -> ConfusionMatrix {
+        let mut out = self.clone();
+        for (f, o) in out.counts[0].iter_mut().zip(&out.outline) {
+            *f += o;
+        }
+        out.outline = [0; 7];
         out
     }
 
@@ -214,6 +263,8 @@ impl ConfusionMatrix {
             occupied_static_accuracy: ratio(occupied_kept, occupied_total),
             edge_cell_frames: edge_total,
             edge_predicted_moving: edge_moving,
+            outline_cell_frames: self.outline.iter().sum(),
+            outline_predicted_moving: self.outline[M_COLUMN],
             static_accuracy: sa,
             dynamic_accuracy: da,
             harmonic_accuracy: ha,
@@ -294,6 +345,12 @@ pub struct Scores {
     /// Of those, predicted M.
     #[serde(default)]
     pub edge_predicted_moving: u64,
+    /// Cell-frames in the object outline band, not scored.
+    #[serde(default)]
+    pub outline_cell_frames: u64,
+    /// Of those, predicted M.
+    #[serde(default)]
+    pub outline_predicted_moving: u64,
     /// DynamicMap SA (truth F, I, U, S and edge).
     pub static_accuracy: Option<f64>,
     /// DynamicMap DA.

@@ -149,6 +149,23 @@ impl EvalReport {
                 fmt(old.occupied_static_accuracy)
             ));
         }
+        s.push_str("\nObject outline band (cells a road user or street furniture overlaps by a sliver, at none of the truth's samples; not scored), in view; the last three columns score the band as F instead, as the labelling rule before the band did:\n\n");
+        s.push_str("| variant | band cell-frames | predicted F | predicted M | moving IoU, band as F | M precision, band as F | dynamic acc, band as F |\n|---|---|---|---|---|---|---|\n");
+        for v in &self.variants {
+            let sc = &v.scores_visible;
+            let outline = &v.confusion_visible.outline;
+            let old = v.confusion_visible.outline_as_free().scores();
+            s.push_str(&format!(
+                "| {} | {} | {} | {} | {} | {} | {} |\n",
+                v.variant.name(),
+                sc.outline_cell_frames,
+                outline[0],
+                sc.outline_predicted_moving,
+                fmt(old.moving_iou),
+                fmt(old.moving_precision),
+                fmt(old.dynamic_accuracy)
+            ));
+        }
         s.push_str("\nIoU per class, cells in view (five-class view; O = I ∪ U ∪ S in the coarse view):\n\n");
         s.push_str("| variant | F | I | U | S | M | O (coarse) |\n|---|---|---|---|---|---|---|\n");
         for v in &self.variants {

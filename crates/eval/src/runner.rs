@@ -323,6 +323,8 @@ fn run_drive(
     let everywhere = vec![true; len];
     let mut truth_world = Vec::new();
     let mut truth_storage = vec![truth::IGNORED; len];
+    let mut outline_world = Vec::new();
+    let mut outline_storage = vec![false; len];
     let frames = drive.frame_count();
     loop {
         let started = Instant::now();
@@ -352,12 +354,17 @@ fn run_drive(
 
         // Truth over the window, rearranged into storage order.
         let started = Instant::now();
-        drive.truth(&window.as_cell_window(), &mut truth_world);
+        drive.truth_with_outline(
+            &window.as_cell_window(),
+            &mut truth_world,
+            &mut outline_world,
+        );
         simulation_s += started.elapsed().as_secs_f64();
         let mut k = 0;
         for span in window.world_order_spans() {
             for idx in span {
                 truth_storage[idx] = truth_world.get(k).copied().unwrap_or(truth::IGNORED);
+                outline_storage[idx] = outline_world.get(k).copied().unwrap_or(false);
                 k += 1;
             }
         }
@@ -391,11 +398,13 @@ fn run_drive(
                     r.remanence.reset(idx);
                 }
             }
+            let band = &outline_storage;
             r.confusion
-                .add_frame(&truth_storage, &r.predicted, &observed);
+                .add_frame_with_outline(&truth_storage, &r.predicted, &observed, band);
             r.visible
-                .add_frame(&truth_storage, &r.predicted, &observed_now);
-            r.all.add_frame(&truth_storage, &r.predicted, &everywhere);
+                .add_frame_with_outline(&truth_storage, &r.predicted, &observed_now, band);
+            r.all
+                .add_frame_with_outline(&truth_storage, &r.predicted, &everywhere, band);
             let frame_no = frame.index as u32;
             for idx in 0..len {
                 r.remanence.update(

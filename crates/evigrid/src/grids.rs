@@ -56,9 +56,9 @@ pub struct PerceptionGrid {
     /// block, so that a step neither reads nor writes it there: far from the sensor a cell holds
     /// mass on two or three of the 32 sets.
     nonzero: Vec<PlaneBits>,
-    /// Whether a mass may lie outside the 16 focal sets that a vacuous grid can reach when it is
+    /// Whether a mass may lie outside the 17 focal sets that a vacuous grid can reach when it is
     /// discounted to Ω (see `step`): false as long as only vacuous resets and such steps wrote
-    /// the masses, so that a step can leave the other 16 planes untouched.
+    /// the masses, so that a step can leave the other 15 planes untouched.
     may_leave_reachable: bool,
 }
 

@@ -29,16 +29,21 @@ use crate::window::{Entered, Window};
 
 /// Every map context, in the order of their discriminants: a table indexed by
 /// `context as usize` is built as `MAP_CONTEXTS.map(…)`.
-pub const MAP_CONTEXTS: [MapContext; 4] = [
+pub const MAP_CONTEXTS: [MapContext; 5] = [
     MapContext::Unknown,
     MapContext::Other,
     MapContext::Road,
     MapContext::Building,
+    MapContext::BuildingEdge,
 ];
 
 /// The focal set G on which the GISGrid of a map context puts its mass β (a bitmask of Ω_PG, as
 /// in [`class`]): {I} in a building, {F, S, M} on a road, {F, U, S, M} in the intermediate
 /// space, Ω where the map says nothing.
+///
+/// Beyond SPEC, {F, I} beside a building ([`MapContext::BuildingEdge`], only in the `evigrid`
+/// variant's boundary-aware prior, docs/motion.md): the cell holds the façade or free space, so
+/// a return there is the building and a ray through it is free space.
 ///
 /// # References
 /// SPEC §4; Kurdej et al. 2013, eq 34-38.
@@ -48,11 +53,13 @@ pub const fn prior_focal_set(context: MapContext) -> usize {
         MapContext::Other => class::F | class::U | class::S | class::M,
         MapContext::Road => class::F | class::S | class::M,
         MapContext::Building => class::I,
+        MapContext::BuildingEdge => class::F | class::I,
     }
 }
 
 /// β, the mass the GISGrid of a map context puts on [`prior_focal_set`] (the rest, 1 − β, is on
-/// Ω): the confidence in the map for that context, 0 where the map says nothing.
+/// Ω): the confidence in the map for that context, 0 where the map says nothing. Beside a
+/// building it is β_B, the confidence in the footprint.
 ///
 /// # References
 /// SPEC §4; Kurdej et al. 2013, eq 34-38.
@@ -61,7 +68,7 @@ pub fn prior_beta(context: MapContext, map: &MapParams) -> f64 {
         MapContext::Unknown => 0.0,
         MapContext::Other => map.beta_other,
         MapContext::Road => map.beta_road,
-        MapContext::Building => map.beta_building,
+        MapContext::Building | MapContext::BuildingEdge => map.beta_building,
     }
 }
 

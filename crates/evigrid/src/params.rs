@@ -726,8 +726,9 @@ pub struct MotionParams {
     /// Mass on Ω∖{M} given to a static track's cells, `[0, 1]`. By default 0.9.
     pub mu_static: f64,
     /// Cells of the intermediate space (context T) this close to a building cell, in cells
-    /// (4-neighbour steps, 0-2), take the building context: the map prior by the cell centre
-    /// misses building cells cut by a façade. By default 1.
+    /// (4-neighbour steps, 0-4), take the context "beside a building", prior {F, I}: the map
+    /// prior by the cell centre misses cells cut by a façade, and a footprint is drawn or
+    /// placed with an error of the order of a metre. By default 2 (1 m at the default cell).
     pub building_margin_cells: usize,
 }
 
@@ -748,7 +749,7 @@ impl Default for MotionParams {
             static_sigma_mps: 1.0,
             mu_moving: 0.8,
             mu_static: 0.9,
-            building_margin_cells: 1,
+            building_margin_cells: 2,
         }
     }
 }
@@ -776,7 +777,7 @@ impl MotionParams {
         at_most(
             "motion.building_margin_cells",
             self.building_margin_cells,
-            2,
+            4,
         )?;
         at_most(
             "motion.moving_after_measurements",
@@ -815,7 +816,7 @@ mod tests {
                 "motion.search_radius_cells",
             ),
             (
-                "[motion]\nbuilding_margin_cells = 3\n",
+                "[motion]\nbuilding_margin_cells = 5\n",
                 "motion.building_margin_cells",
             ),
             ("[motion]\nmu_moving = 1.5\n", "motion.mu_moving"),

@@ -68,6 +68,7 @@ pub fn map_prior(
     let (focal, beta) = match context {
         MapContext::Unknown => return Ok(Mass::vacuous(frame)),
         MapContext::Building => (class::I, map.beta_building),
+        MapContext::BuildingEdge => (class::F | class::I, map.beta_building),
         MapContext::Road => (class::F | class::S | class::M, map.beta_road),
         MapContext::Other => (class::F | class::U | class::S | class::M, map.beta_other),
     };

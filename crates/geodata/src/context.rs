@@ -1,6 +1,7 @@
 //! What a map says about one cell, and which cells a window covers.
 
-/// The map context of one grid cell, decided by its centre (SPEC §4, eq 34-38).
+/// The map context of one grid cell, decided by its centre (SPEC §4, eq 34-38), or derived
+/// from its neighbours ([`BuildingEdge`](Self::BuildingEdge)).
 ///
 /// The discriminants are fixed so that a context plane can be stored as bytes.
 #[repr(u8)]
@@ -14,16 +15,22 @@ pub enum MapContext {
     Road = 2,
     /// Building ℬ. Wins over road where both contain the centre (SPEC §4 decision).
     Building = 3,
+    /// Intermediate space beside a building: a cell a façade may cross although its centre is
+    /// outside the footprint. The centre rule above never gives it; evigrid's boundary-aware
+    /// prior derives it from the [`Building`](Self::Building) cells nearby.
+    BuildingEdge = 4,
 }
 
 impl MapContext {
-    /// Lower-case name used in JSON output and logs: `unknown`, `other`, `road`, `building`.
+    /// Lower-case name used in JSON output and logs: `unknown`, `other`, `road`, `building`,
+    /// `building-edge`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Unknown => "unknown",
             Self::Other => "other",
             Self::Road => "road",
             Self::Building => "building",
+            Self::BuildingEdge => "building-edge",
         }
     }
 }
@@ -137,6 +144,7 @@ mod tests {
         assert_eq!(MapContext::Other as u8, 1);
         assert_eq!(MapContext::Road as u8, 2);
         assert_eq!(MapContext::Building as u8, 3);
+        assert_eq!(MapContext::BuildingEdge as u8, 4);
     }
 
     #[test]

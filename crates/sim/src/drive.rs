@@ -222,6 +222,25 @@ impl Drive {
         );
     }
 
+    /// [`Drive::truth`], and the object outline band in `outline` (see
+    /// [`truth::label_window_with_outline`]).
+    pub fn truth_with_outline(
+        &self,
+        window: &CellWindow,
+        out: &mut Vec<Label>,
+        outline: &mut Vec<bool>,
+    ) {
+        truth::label_window_with_outline(
+            &self.world,
+            &self.actors,
+            Some(self.ego_id),
+            window,
+            truth::DEFAULT_SAMPLES_PER_AXIS,
+            out,
+            outline,
+        );
+    }
+
     fn advance(&mut self) {
         let dt = self.dt_s();
         let snapshot = actors::obstacles(&self.actors, &[] as &[Obstacle]);

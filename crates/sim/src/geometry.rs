@@ -140,6 +140,47 @@ impl Footprint {
         }
     }
 
+    /// Whether the footprint placed at `world_from_body` and the axis-aligned rectangle
+    /// `[min.x, max.x] × [min.y, max.y]` share an area (touching along an edge or at a corner
+    /// does not count). Exact: a disc against the rectangle's nearest point, a rectangle by
+    /// separating axes (the world's two and the footprint's two).
+    pub fn overlaps_rect(&self, world_from_body: &Pose2, min: Vec2, max: Vec2) -> bool {
+        let c = world_from_body.position_m;
+        match *self {
+            Footprint::Circle { radius_m } => {
+                let nearest = Vec2::new(c.x.clamp(min.x, max.x), c.y.clamp(min.y, max.y));
+                let d = c.minus(nearest);
+                d.dot(d) < radius_m * radius_m
+            }
+            Footprint::Rect {
+                half_length_m,
+                half_width_m,
+            } => {
+                let u = Vec2::from_angle(world_from_body.heading_rad);
+                let v = u.perp_left();
+                let (hl, hw) = (half_length_m, half_width_m);
+                // Half-extents of the footprint along the world axes.
+                let ex = hl * u.x.abs() + hw * v.x.abs();
+                let ey = hl * u.y.abs() + hw * v.y.abs();
+                let separated =
+                    |a_lo: f64, a_hi: f64, b_lo: f64, b_hi: f64| a_hi <= b_lo || b_hi <= a_lo;
+                if separated(c.x - ex, c.x + ex, min.x, max.x)
+                    || separated(c.y - ey, c.y + ey, min.y, max.y)
+                {
+                    return false;
+                }
+                // The rectangle's half-extent and centre along the footprint's own axes.
+                let centre = Vec2::new((min.x + max.x) / 2.0, (min.y + max.y) / 2.0).minus(c);
+                let (hx, hy) = ((max.x - min.x) / 2.0, (max.y - min.y) / 2.0);
+                [(u, hl), (v, hw)].into_iter().all(|(axis, half)| {
+                    let reach = hx * axis.x.abs() + hy * axis.y.abs();
+                    let at = centre.dot(axis);
+                    !separated(at - reach, at + reach, -half, half)
+                })
+            }
+        }
+    }
+
     /// Distance along a ray (unit `direction`) from `origin` to the first point of the footprint
     /// placed at `world_from_body`, if the ray hits it at `t > 0`. A ray starting inside reports
     /// no hit: a sensor inside an object sees nothing of that object.
@@ -373,6 +414,34 @@ impl Polyline {
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+
+    #[test]
+    fn footprints_overlap_rectangles_exactly() {
+        let v = Vec2::new;
+        let at_origin = Pose2::new(v(0.0, 0.0), 0.0);
+        let car = Footprint::Rect {
+            half_length_m: 2.0,
+            half_width_m: 1.0,
+        };
+        // A sliver 0.1 m deep overlaps; an edge shared along x = 2 does not.
+        assert!(car.overlaps_rect(&at_origin, v(1.9, 0.0), v(2.9, 1.0)));
+        assert!(!car.overlaps_rect(&at_origin, v(2.0, 0.0), v(3.0, 1.0)));
+        // Turned 45°, 2 × 0.2 m: a square on its diagonal overlaps; one off the diagonal, inside
+        // its bounding box (±0.78 m) but 0.42 m from its axis, does not.
+        let bar = Footprint::Rect {
+            half_length_m: 1.0,
+            half_width_m: 0.1,
+        };
+        let turned = Pose2::new(v(0.0, 0.0), std::f64::consts::FRAC_PI_4);
+        assert!(bar.overlaps_rect(&turned, v(0.6, 0.6), v(1.0, 1.0)));
+        assert!(!bar.overlaps_rect(&turned, v(0.3, -0.6), v(0.6, -0.3)));
+        // A disc of 0.3 m: the square's corner at 0.283 m is inside, at 0.354 m is not.
+        let disc = Footprint::Circle { radius_m: 0.3 };
+        assert!(disc.overlaps_rect(&at_origin, v(0.2, 0.2), v(1.0, 1.0)));
+        assert!(!disc.overlaps_rect(&at_origin, v(0.25, 0.25), v(1.0, 1.0)));
+        // A square holding the whole disc.
+        assert!(disc.overlaps_rect(&at_origin, v(-1.0, -1.0), v(1.0, 1.0)));
+    }
 
     #[test]
     fn ring_crossings_respect_holes_and_count_a_vertex_on_the_line_once() {

@@ -18,6 +18,11 @@
 //!   Why not the centre rule here: a scanner return lands in whichever cell the object's outline
 //!   crosses, and the outline cells of a car are the only ones a scanner sees, so a cell a moving
 //!   car covers in part is M.
+//! - **The object outline band.** A cell an actor overlaps (exactly, by any area) at none of its
+//!   samples holds a sliver of the object, under half a sample spacing deep (8 cm in 0.5 m
+//!   cells): the scanner may return from it or cross the cell beside it. Such a cell is F here
+//!   and flagged in the outline mask of [`label_window_with_outline`]; the evaluation scores
+//!   it as no class, as PASCAL VOC leaves its "void" band along object boundaries unscored.
 //!
 //! When several objects claim a cell the highest class wins in the order
 //! F < edge < I < U < S < M: a pedestrian standing against a wall is S, not I, and a car beside
@@ -80,9 +85,37 @@ pub fn label_window(
     samples_per_axis: usize,
     out: &mut Vec<Label>,
 ) {
+    let mut outline = Vec::new();
+    label_window_with_outline(
+        world,
+        actors,
+        ego_id,
+        window,
+        samples_per_axis,
+        out,
+        &mut outline,
+    );
+}
+
+/// [`label_window`], and in `outline` (same layout) the object outline band: cells an actor
+/// other than the ego overlaps, by any area, but at none of their samples, and that nothing
+/// else claims (they are F in `out`). There the object covers a sliver of the cell, less than
+/// half a sample spacing deep: a ray may end on it or cross the cell beside it, so free and the
+/// object's class are both defensible, and the evaluation scores neither (`eval::metrics`).
+pub fn label_window_with_outline(
+    world: &World,
+    actors: &[Actor],
+    ego_id: Option<u32>,
+    window: &CellWindow,
+    samples_per_axis: usize,
+    out: &mut Vec<Label>,
+    outline: &mut Vec<bool>,
+) {
     let (w, h) = (window.width, window.height);
     out.clear();
     out.resize(w * h, Label::F);
+    outline.clear();
+    outline.resize(w * h, false);
     if w == 0 || h == 0 || window.cell_size_m.is_nan() || window.cell_size_m <= 0.0 {
         return;
     }
@@ -168,6 +201,12 @@ pub fn label_window(
                 });
                 if covered {
                     claim(&mut out[row * w + col], code);
+                } else if code != IGNORED {
+                    let min = Vec2::new(cx, cy);
+                    let max = Vec2::new(cx + s, cy + s);
+                    if a.footprint.overlaps_rect(&a.pose, min, max) {
+                        outline[row * w + col] = true;
+                    }
                 }
             }
         }
@@ -176,6 +215,10 @@ pub fn label_window(
         if cc >= 0.0 && rc >= 0.0 && (cc as usize) < w && (rc as usize) < h {
             claim(&mut out[rc as usize * w + cc as usize], code);
         }
+    }
+    // A sliver of one object in a cell another object or a building claims is that claim's.
+    for (band, &label) in outline.iter_mut().zip(out.iter()) {
+        *band &= label == Label::F;
     }
 }
 
@@ -289,6 +332,28 @@ mod tests {
             rows(&out, 8),
             vec!["U.U.....", "......M.", "..SSSSSS", "..SSSSSS"]
         );
+    }
+
+    #[test]
+    fn a_sliver_of_an_object_is_in_the_outline_band_not_in_a_class() {
+        let world = World::new(vec![], vec![], (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)));
+        // A car 4.5 × 1.8 centred at (4.0, 1.85) heading east: x ∈ [1.75, 6.25], y ∈ [0.95,
+        // 2.75]. Row 0 (y ∈ [0, 1]) holds a 5 cm sliver, under its top samples at y 0.833.
+        let mut car = Actor::fixed(0, ActorKind::Car, Pose2::new(Vec2::new(4.0, 1.85), 0.0));
+        car.speed_mps = 5.0;
+        let (mut out, mut outline) = (Vec::new(), Vec::new());
+        let w = window();
+        label_window_with_outline(&world, &[car.clone()], None, &w, 3, &mut out, &mut outline);
+        assert_eq!(
+            rows(&out, 8),
+            vec!["........", ".MMMMMM.", ".MMMMMM.", "........"]
+        );
+        let band: Vec<usize> = (0..out.len()).filter(|&k| outline[k]).collect();
+        assert_eq!(band, vec![1, 2, 3, 4, 5, 6]);
+        // The ego's own sliver is no band: its cells are not scored at all.
+        label_window_with_outline(&world, &[car], Some(0), &w, 3, &mut out, &mut outline);
+        assert!(outline.iter().all(|&b| !b));
+        assert_eq!(out[8 + 1], IGNORED);
     }
 
     #[test]

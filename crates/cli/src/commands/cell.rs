@@ -52,6 +52,8 @@ enum ContextArg {
     Road,
     /// Mapped area outside buildings and roads: prior β_T on {F, U, S, M}.
     Other,
+    /// Beside a building (the `evigrid` method's boundary-aware prior): β_B on {F, I}.
+    BuildingEdge,
     /// No map: vacuous prior.
     None,
 }
@@ -62,6 +64,7 @@ impl From<ContextArg> for MapContext {
             ContextArg::Building => MapContext::Building,
             ContextArg::Road => MapContext::Road,
             ContextArg::Other => MapContext::Other,
+            ContextArg::BuildingEdge => MapContext::BuildingEdge,
             ContextArg::None => MapContext::Unknown,
         }
     }

@@ -96,6 +96,8 @@ fn context_colour(context: MapContext) -> [u8; 3] {
         MapContext::Other => [236, 232, 218],
         MapContext::Road => [96, 96, 104],
         MapContext::Building => [196, 84, 60],
+        // Never rasterised from a map; derived by the `evigrid` method's prior.
+        MapContext::BuildingEdge => [226, 170, 150],
     }
 }
 

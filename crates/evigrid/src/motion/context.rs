@@ -1,10 +1,14 @@
 //! The boundary-aware map prior of the `evigrid` variant: cells of the intermediate space T
-//! near a building cell take the building context.
+//! near a building cell take the context [`MapContext::BuildingEdge`], prior {F, I}.
 //!
 //! The SPEC §4 prior rasterises by the cell centre, so a cell that a façade cuts but whose
 //! centre is outside the footprint gets the context T although the scanner hits the wall in
-//! it. Here such cells, up to `building_margin_cells` 4-neighbour steps from a building cell,
-//! are building too. Road cells are left alone: a road beside a building carries traffic.
+//! it: as the ego moves, rays alternately cross it and end in it, and each switch is the
+//! free→occupied conflict of a moving object. Here such cells, up to `building_margin_cells`
+//! 4-neighbour steps from a building cell, hold "the façade or free space": a return there is
+//! the building, a ray through it is free space, and neither is a moving object. (Giving them
+//! the building's own prior {I} stopped the flicker too, but decided free space beside every
+//! wall as building.) Road cells are left alone: a road beside a building carries traffic.
 //! The grid is kept up to date where the window moved: the cells that entered and a margin
 //! around them (their neighbours may have gained a building neighbour).
 
@@ -59,7 +63,7 @@ fn refresh_rect(
                 })
             };
             out.context[idx] = if own == MapContext::Other && margin > 0 && near_building() {
-                MapContext::Building
+                MapContext::BuildingEdge
             } else {
                 own
             };
@@ -72,7 +76,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn other_cells_beside_a_building_become_building_roads_do_not() {
+    fn other_cells_beside_a_building_become_its_edge_roads_do_not() {
         // 5 × 3 window; a building cell at (2, 1), road on row 0.
         let window = Window::new(5, 3, 0.5).unwrap_or_else(|e| panic!("{e}"));
         let mut source = GisGrid::new(5, 3);
@@ -81,11 +85,11 @@ mod tests {
         source.context[7] = MapContext::Building;
         let mut out = GisGrid::new(5, 3);
         refresh(&mut out, &source, &window, None, 1);
-        let b = MapContext::Building;
+        let (b, e) = (MapContext::Building, MapContext::BuildingEdge);
         let (o, r) = (MapContext::Other, MapContext::Road);
         assert_eq!(
             out.context,
-            vec![r, r, r, r, r, o, b, b, b, o, o, o, b, o, o]
+            vec![r, r, r, r, r, o, e, b, e, o, o, o, e, o, o]
         );
         refresh(&mut out, &source, &window, None, 0);
         assert_eq!(out.context, source.context);
@@ -102,7 +106,11 @@ mod tests {
         let entered = window.move_to(1, 0);
         source.context[0] = MapContext::Building;
         refresh(&mut out, &source, &window, Some(&entered), 1);
-        let (o, b) = (MapContext::Other, MapContext::Building);
-        assert_eq!(out.context, vec![b, o, o, b]);
+        let (o, b, e) = (
+            MapContext::Other,
+            MapContext::Building,
+            MapContext::BuildingEdge,
+        );
+        assert_eq!(out.context, vec![b, o, o, e]);
     }
 }

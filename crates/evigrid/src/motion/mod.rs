@@ -40,6 +40,7 @@ use crate::label::Label;
 use crate::params::{MotionParams, ResidualPolicy};
 use crate::window::{Entered, Window};
 use clusters::Clusters;
+use geodata::MapContext;
 use history::OccupancyHistory;
 use register::{Now, Registrar};
 use tracks::{Observation, Tracks};
@@ -69,6 +70,8 @@ pub struct MotionStage {
     params: MotionParams,
     residual: ResidualPolicy,
     unknown_threshold: f64,
+    /// m(Ω∖{M}) given to an occupied cell beside a building: the map's β_B.
+    edge_not_moving: f32,
     history: OccupancyHistory,
     clusters: Clusters,
     registrar: Registrar,
@@ -97,6 +100,7 @@ impl MotionStage {
             params: params.motion.clone(),
             residual: params.fusion.residual,
             unknown_threshold: params.decision.unknown_threshold,
+            edge_not_moving: params.map.beta_building as f32,
             history: OccupancyHistory::new(len),
             clusters: Clusters::new(len),
             registrar: Registrar::default(),
@@ -298,6 +302,23 @@ impl MotionStage {
                 write_cell(perception, idx, &m);
                 decisions[idx] = decide(&m, perception.seen()[idx] != 0, self.unknown_threshold);
             }
+        }
+
+        // The map says a cell beside a building holds the façade or free space, not a mobile
+        // object. The SPEC §5 step puts a cell's free→occupied conflict on {M} whatever its
+        // prior, and there the conflict is the façade: rays cross the cell, then end in it, as
+        // the ego moves. The prior's "no mobile object" (β_B on Ω∖{M}) is applied to those
+        // cells after the step, to every cell that could have gained {M} (occupied now).
+        let edge = MotionMass::Static(self.edge_not_moving);
+        for &idx in &self.occupied {
+            let idx = idx as usize;
+            if self.gis.context.get(idx) != Some(&MapContext::BuildingEdge) {
+                continue;
+            }
+            let mut m = perception.cell_masses(idx);
+            combine(&mut m, edge, self.residual);
+            write_cell(perception, idx, &m);
+            decisions[idx] = decide(&m, perception.seen()[idx] != 0, self.unknown_threshold);
         }
 
         // 6. This frame joins the history.

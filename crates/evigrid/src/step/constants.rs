@@ -3,7 +3,7 @@
 //! and the evidence of a cell the scan did not reach (SPEC §4-5), the accumulator's thresholds
 //! (eq 24-27) and the specialisation's transfers.
 
-use super::evidence::{CellEvidence, ContextPrior};
+use super::evidence::{CellEvidence, ContextPrior, N_CONTEXTS};
 use super::passes::Restrictions;
 use crate::grids::{N_SETS, OMEGA, class};
 use crate::map_prior::{MAP_CONTEXTS, prior_beta, prior_focal_set};
@@ -14,14 +14,14 @@ use crate::params::{DiscountMode, Params, ResidualPolicy, SetRate, UnobservedCel
 pub(super) struct StepConstants {
     pub(super) discount: Discount,
     /// The map prior of each map context, indexed by `MapContext as usize`.
-    pub(super) context_priors: [ContextPrior; 4],
+    pub(super) context_priors: [ContextPrior; N_CONTEXTS],
     pub(super) residual: ResidualPolicy,
     pub(super) delta_inc: f32,
     pub(super) delta_dec: f32,
     pub(super) gamma_occupied: f32,
     pub(super) gamma_conflict: f32,
     /// SG' of a cell the scan did not reach, per map context.
-    pub(super) unobserved_evidence: [CellEvidence; 4],
+    pub(super) unobserved_evidence: [CellEvidence; N_CONTEXTS],
     /// SPEC §6: above this m(Ω) a cell is decided unknown.
     pub(super) unknown_threshold: f32,
     pub(super) unobserved: UnobservedCells,

@@ -5,7 +5,11 @@
 use super::lanes::any_lane;
 use super::passes::{BLOCK, Lanes, Restrictions};
 use crate::grids::{OMEGA, class};
+use crate::map_prior::MAP_CONTEXTS;
 use geodata::MapContext;
+
+/// The number of map contexts, each with its prior (`MapContext` discriminants 0 to 4).
+pub(super) const N_CONTEXTS: usize = MAP_CONTEXTS.len();
 
 /// The GISGrid mass function of one map context, β on the focal set G and 1 − β on Ω (SPEC §4,
 /// from [`prior_focal_set`](crate::map_prior::prior_focal_set) and
@@ -179,8 +183,8 @@ impl SensorEvidence {
         m_free: &Lanes,
         m_occupied: &Lanes,
         context: &[MapContext; BLOCK],
-        priors: &[ContextPrior; 4],
-        unobserved_evidence: &[CellEvidence; 4],
+        priors: &[ContextPrior; N_CONTEXTS],
+        unobserved_evidence: &[CellEvidence; N_CONTEXTS],
     ) {
         let e = self;
         let mut present = 0u8;
@@ -205,13 +209,13 @@ impl SensorEvidence {
         } else {
             // The map prior of each cell, selected the same way.
             // The map prior of each cell: a broadcast inside one context, else a lookup in the
-            // four contexts' values by the two bits of the context (three selects a value).
+            // contexts' values by the three bits of the context (seven selects a value).
             let table = |field: fn(&ContextPrior) -> f32| priors.map(|prior| field(&prior));
             let bits = match one_context {
-                Some(_) => [[0; BLOCK]; 2],
+                Some(_) => [[0; BLOCK]; CONTEXT_BITS],
                 None => context_bits(context),
             };
-            let lanes = |values: [f32; 4]| match one_context {
+            let lanes = |values: [f32; N_CONTEXTS]| match one_context {
                 Some(c) => [values[c]; BLOCK],
                 None => lookup_by_context(&bits, values),
             };
@@ -276,12 +280,12 @@ impl SensorEvidence {
         &mut self,
         context: &[MapContext; BLOCK],
         present: u8,
-        evidence: &[CellEvidence; 4],
+        evidence: &[CellEvidence; N_CONTEXTS],
     ) {
         let e = self;
         let any = &evidence[present.trailing_zeros() as usize];
         e.broadcast(any);
-        let contexts = || (0..4).filter(move |&c| present & (1 << c) != 0);
+        let contexts = || (0..N_CONTEXTS).filter(move |&c| present & (1 << c) != 0);
         let bits = context_bits(context);
         // Each value that can vary, looked up by context where the contexts present disagree.
         let values = |v: &CellEvidence| [v.beta, v.sg_free, v.sg_occupied];
@@ -303,28 +307,37 @@ impl SensorEvidence {
 /// All bits set in the lanes chosen, none in the others.
 type Mask = [u32; BLOCK];
 
-/// The two bits of each lane's map context (`MapContext` discriminants are 0 to 3), as masks.
+/// Bits of a map context's discriminant the lookup reads.
+const CONTEXT_BITS: usize = 3;
+const _: () = assert!(N_CONTEXTS <= 1 << CONTEXT_BITS);
+
+/// The three bits of each lane's map context (`MapContext` discriminants are 0 to 4), as masks.
 #[inline(always)]
-fn context_bits(context: &[MapContext; BLOCK]) -> [Mask; 2] {
-    let mut bits = [[0; BLOCK]; 2];
+fn context_bits(context: &[MapContext; BLOCK]) -> [Mask; CONTEXT_BITS] {
+    let mut bits = [[0; BLOCK]; CONTEXT_BITS];
     for i in 0..BLOCK {
         let c = context[i] as u8;
-        bits[0][i] = if c & 1 != 0 { u32::MAX } else { 0 };
-        bits[1][i] = if c & 2 != 0 { u32::MAX } else { 0 };
+        for (bit, mask) in bits.iter_mut().enumerate() {
+            mask[i] = if c & (1 << bit) != 0 { u32::MAX } else { 0 };
+        }
     }
     bits
 }
 
-/// `values[context]` in each lane, with `bits` from [`context_bits`]: three bit selects.
+/// `values[context]` in each lane, with `bits` from [`context_bits`]: seven bit selects over
+/// the eight values the bits can name (those past the last context repeat the first, never
+/// picked).
 #[inline(always)]
-fn lookup_by_context(bits: &[Mask; 2], values: [f32; 4]) -> Lanes {
-    let v = values.map(f32::to_bits);
+fn lookup_by_context(bits: &[Mask; CONTEXT_BITS], values: [f32; N_CONTEXTS]) -> Lanes {
+    let v: [u32; 1 << CONTEXT_BITS] =
+        std::array::from_fn(|c| values.get(c).unwrap_or(&values[0]).to_bits());
     let pick = |mask: u32, set: u32, clear: u32| (set & mask) | (clear & !mask);
     let mut lanes = [0.0; BLOCK];
     for i in 0..BLOCK {
-        let (low, high) = (bits[0][i], bits[1][i]);
-        let value = pick(high, pick(low, v[3], v[2]), pick(low, v[1], v[0]));
-        lanes[i] = f32::from_bits(value);
+        let [b0, b1, b2] = [bits[0][i], bits[1][i], bits[2][i]];
+        let low = pick(b1, pick(b0, v[3], v[2]), pick(b0, v[1], v[0]));
+        let high = pick(b1, pick(b0, v[7], v[6]), pick(b0, v[5], v[4]));
+        lanes[i] = f32::from_bits(pick(b2, high, low));
     }
     lanes
 }

@@ -97,7 +97,7 @@ fn reachable_this_step(before: PlaneBits, sensor: &SensorEvidence, k: &StepConst
     specialised
 }
 
-/// The focal sets a step of this block must visit: the 16 [`REACHABLE`] ones when every mass
+/// The focal sets a step of this block must visit: the 17 [`REACHABLE`] ones when every mass
 /// outside them is +0 and the discounting moves mass to Ω only (Mercier's moves it to any
 /// superset), else all 32. The usual grid, started vacuous, never leaves them.
 #[inline(always)]

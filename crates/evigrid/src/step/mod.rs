@@ -161,8 +161,8 @@ fn step_cells(
         "a SensorGrid or GisGrid plane does not hold {len} cells"
     );
     let constants = StepConstants::new(params, dt_s);
-    // A grid that only ever held mass on the 16 reachable sets keeps it there under discounting
-    // to Ω: its other 16 planes are +0 and need not even be read. Mercier's discounting moves
+    // A grid that only ever held mass on the 17 reachable sets keeps it there under discounting
+    // to Ω: its other 15 planes are +0 and need not even be read. Mercier's discounting moves
     // mass anywhere.
     let to_omega = matches!(constants.discount, Discount::ToOmega(_));
     let reachable_only = to_omega && !pg.may_leave_reachable();

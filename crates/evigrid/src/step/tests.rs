@@ -158,6 +158,18 @@ fn dempster_with_intermediate_space_prior() {
 }
 
 #[test]
+fn beside_a_building_free_stays_free_and_a_return_is_the_building() {
+    // GG {F,I} 0.9. Free 0.7: {F} 0.7 (no conflict, F ∈ G), {F,I} 0.3·0.9 = 0.27, Ω 0.03.
+    let p = still_params();
+    let cell = one_step(VACUOUS, 0.0, (0.7, 0.0), MapContext::BuildingEdge, &p, 0.1);
+    assert_masses(&cell, &[(F, 0.7), (F | I, 0.27), (OMEGA, 0.03)]);
+    // Occupied 0.8: O∩{F,I} = {I} 0.72, O 0.08, {F,I} 0.18, Ω 0.02; K = 0.
+    let cell = one_step(VACUOUS, 0.0, (0.0, 0.8), MapContext::BuildingEdge, &p, 0.1);
+    assert_masses(&cell, &[(I, 0.72), (O, 0.08), (F | I, 0.18), (OMEGA, 0.02)]);
+    assert_eq!(cell.stats.total_map_conflicts, 0);
+}
+
+#[test]
 fn total_conflict_with_the_map_keeps_the_sensor_and_is_counted() {
     // β_B = 1 and m(F) = 1: K = 1. SG' = r(SG) = {F} 1.
     let mut p = still_params();
@@ -605,7 +617,8 @@ fn arb_cell() -> impl Strategy<Value = RandomCell> {
         Just(MapContext::Unknown),
         Just(MapContext::Other),
         Just(MapContext::Road),
-        Just(MapContext::Building)
+        Just(MapContext::Building),
+        Just(MapContext::BuildingEdge)
     ];
     (
         prop::collection::vec(weight, N_SETS),
@@ -757,11 +770,12 @@ fn scene(width: usize, height: usize, seed: u64) -> (PerceptionGrid, SensorGrid,
         } else {
             (0.0, 0.0)
         };
-        gg.context[idx] = match (next() * 4.0) as u8 {
+        gg.context[idx] = match (next() * 5.0) as u8 {
             0 => MapContext::Unknown,
             1 => MapContext::Other,
             2 => MapContext::Road,
-            _ => MapContext::Building,
+            3 => MapContext::Building,
+            _ => MapContext::BuildingEdge,
         };
         pg.zeta_mut()[idx] = next();
     }
@@ -833,9 +847,10 @@ fn shortcuts_taken_per_block_give_each_cell_what_it_gets_alone() {
         MapContext::Building,
         MapContext::Other,
         MapContext::Unknown,
+        MapContext::BuildingEdge,
     ];
     for idx in 0..pg.len() {
-        gg.context[idx] = contexts[(idx / 70) % 4];
+        gg.context[idx] = contexts[(idx / 70) % contexts.len()];
         if !(200..260).contains(&idx) {
             (sg.m_free_mut()[idx], sg.m_occupied_mut()[idx]) = (0.0, 0.0);
         }
@@ -843,7 +858,7 @@ fn shortcuts_taken_per_block_give_each_cell_what_it_gets_alone() {
             pg.zeta_mut()[idx] = 0.0;
         }
         // Mass on every focal set, so that the order of every sum shows in the last bits; in
-        // the blocks from cell 384 on, only on the 16 sets a grid started vacuous can reach
+        // the blocks from cell 384 on, only on the 17 sets a grid started vacuous can reach
         // (the step then visits only those), with a cell of all 32 sets every 100.
         let mut m = [0.0; N_SETS];
         let mut state = idx as u64 + 1;
@@ -953,7 +968,8 @@ fn planes_skipped_as_zero_give_the_same_bits_as_planes_read() {
                 MapContext::Road,
                 MapContext::Building,
                 MapContext::Unknown,
-            ][col / 50 % 4];
+                MapContext::BuildingEdge,
+            ][col / 50 % 5];
         }
     }
     for unobserved in [UnobservedCells::Fuse, UnobservedCells::DiscountOnly] {
@@ -1015,7 +1031,7 @@ fn step_and_decide_decides_as_decide_grid_after_step() {
 
 #[test]
 fn a_grid_kept_on_the_reachable_sets_skips_the_others_with_the_same_bits() {
-    // Started vacuous and stepped with discounting to Ω, a grid never holds mass outside the 16
+    // Started vacuous and stepped with discounting to Ω, a grid never holds mass outside the 17
     // reachable sets, so the step leaves those planes unread. A clone whose planes were handed
     // out for writing (so the step must check every block) must end with the same bits.
     let (_, sg, gg) = scene(131, 40, 9);

@@ -1,0 +1,108 @@
+//! Where the `evigrid` variant's in-view moving errors come from, by kind of cell.
+//!
+//! ```text
+//! cargo run --release -p evigrid-eval --example diagnose_moving -- MAP SCENARIO.toml [SEEDS] [CONFIG.toml]
+//! ```
+//! For every frame and every cell the scan observed (the in-view mask), a false M (truth F, I,
+//! U or S decided M) and a missed M (truth M decided otherwise) are counted by what the scan
+//! saw in the cell now (a return, or a ray through it), whether a truth-M cell is among its
+//! 8 neighbours (partial cover of an object), and whether the motion stage gave the cell a
+//! velocity this frame. SEEDS is a comma-separated list (default: the scenario's seed and the
+//! next, as `evigrid eval --seeds 2`).
+
+use std::collections::BTreeMap;
+
+use eval::{EvalConfig, Variant, evaluate_observed};
+use evigrid::{Label, Params};
+use sim::Scenario;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let (Some(map_path), Some(scenario_path)) = (args.first(), args.get(1)) else {
+        return Err("usage: diagnose_moving MAP SCENARIO.toml [SEEDS] [CONFIG.toml]".into());
+    };
+    let map = geodata::load_map(map_path, &geodata::LoadOptions::default())?.map;
+    let scenario = Scenario::from_toml(&std::fs::read_to_string(scenario_path)?)?;
+    let seeds: Vec<u64> = match args.get(2) {
+        Some(list) => list.split(',').map(str::parse).collect::<Result<_, _>>()?,
+        None => vec![scenario.seed, scenario.seed + 1],
+    };
+    let mut config = EvalConfig::default();
+    if let Some(path) = args.get(3) {
+        config.params = Params::from_toml_str(&std::fs::read_to_string(path)?)?;
+    }
+    let mut counts: BTreeMap<String, u64> = BTreeMap::new();
+    evaluate_observed(
+        &map,
+        &scenario,
+        &[Variant::Evigrid],
+        &seeds,
+        &config,
+        &mut |_| {},
+        &mut |f| {
+            let window = f.front_end.window();
+            let sensor = f.front_end.sensor_grid();
+            let decisions = f.fusion.decisions();
+            let velocity = f.fusion.motion().map(|m| m.velocity_east());
+            let speed_north = f.fusion.motion().map(|m| m.velocity_north());
+            let (m_free, m_occupied) = (sensor.m_free(), sensor.m_occupied());
+            for idx in 0..window.len() {
+                let seen = if m_occupied[idx] > 0.0 {
+                    "return"
+                } else if m_free[idx] > 0.0 {
+                    "ray"
+                } else {
+                    continue;
+                };
+                let truth = f.truth[idx];
+                let decided = decisions[idx];
+                let false_moving = decided == Label::M
+                    && matches!(truth, Label::F | Label::I | Label::U | Label::S);
+                let missed = truth == Label::M && decided != Label::M;
+                if !false_moving && !missed {
+                    continue;
+                }
+                let Some(cell) = window.cell_of_storage(idx) else {
+                    continue;
+                };
+                let beside_moving = (-1..=1).any(|dr| {
+                    (-1..=1).any(|dc| {
+                        (dr, dc) != (0, 0)
+                            && window
+                                .storage_index(cell.col + dc, cell.row + dr)
+                                .is_some_and(|n| f.truth[n] == Label::M)
+                    })
+                });
+                let has_velocity = velocity.is_some_and(|v| v[idx] != 0.0)
+                    || speed_north.is_some_and(|v| v[idx] != 0.0);
+                let key = if false_moving {
+                    format!(
+                        "false M  truth {:?} | {seen} | {} | {}",
+                        truth,
+                        if beside_moving { "beside M" } else { "apart" },
+                        if has_velocity {
+                            "velocity"
+                        } else {
+                            "no velocity"
+                        }
+                    )
+                } else {
+                    format!(
+                        "missed M decided {:?} | {seen} | {}",
+                        decided,
+                        if has_velocity {
+                            "velocity"
+                        } else {
+                            "no velocity"
+                        }
+                    )
+                };
+                *counts.entry(key).or_default() += 1;
+            }
+        },
+    )?;
+    for (key, n) in &counts {
+        println!("{n:>7}  {key}");
+    }
+    Ok(())
+}
