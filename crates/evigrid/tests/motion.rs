@@ -101,3 +101,39 @@ fn a_car_driving_away_is_decided_moving_within_three_frames() {
     );
     assert!(paper_moving.iter().all(|&m| !m), "paper: {paper_moving:?}");
 }
+
+#[test]
+fn an_object_appearing_in_space_seen_free_gets_moving_evidence_at_once() {
+    let mut params = Params::default();
+    (params.window.width_cells, params.window.height_cells) = (80, 80);
+    params.sensor.ground_model = GroundModel::None;
+    let mut front_end = FrontEnd::new(&params, None).unwrap();
+    let mut evigrid = Fusion::with_method(params, Prior::Map, Method::Evigrid).unwrap();
+    // A post 6 m to the left is there from the start; a 0.6 m pedestrian steps, at frame 5,
+    // into the space 6 m ahead that the scanner saw free until then.
+    let post: Aabb = [-0.3, 5.7, 0.3, 6.3];
+    let walker: Aabb = [5.7, -0.3, 6.3, 0.3];
+    for k in 0..6 {
+        let mut boxes = FENCE.to_vec();
+        boxes.push(post);
+        if k == 5 {
+            boxes.push(walker);
+        }
+        front_end
+            .process(&scan(&boxes), &Isometry3::IDENTITY, DT_S * k as f64)
+            .unwrap();
+        let stats = evigrid.update(&front_end).unwrap();
+        let moving_cells = stats.motion.map(|m| m.moving_cells);
+        if k < 5 {
+            // Nothing entered space seen free: the fence and the post are first sightings
+            // at frame 0 (no history), then static.
+            assert_eq!(moving_cells, Some(0), "frame {k}");
+        } else {
+            // The walker's face (two cells) entered cells seen free: moving evidence, although
+            // there is nothing to register it against.
+            assert!(moving_cells.is_some_and(|n| n >= 1), "{moving_cells:?}");
+            let face = front_end.window().storage_index_of_point(5.8, 0.1).unwrap();
+            assert_eq!(evigrid.decisions()[face], Label::M);
+        }
+    }
+}

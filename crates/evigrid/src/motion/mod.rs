@@ -281,7 +281,24 @@ impl MotionStage {
             let Some(track) = self.tracks.of_observation(k) else {
                 continue;
             };
-            let mass = evidence::track_mass(track, &self.params);
+            let mut mass = evidence::track_mass(track, &self.params);
+            // A first sighting, with nothing to register against: if most of its cells were
+            // seen free in the frames kept, the object entered space seen empty (the cue of
+            // SPEC §5's free→occupied conflict, per object). An object that comes out of
+            // occlusion, or into the field of view, entered no cell seen free.
+            if track.measurements == 0 {
+                let recent = (1..=self.params.history_frames)
+                    .filter_map(|k| self.history.frame_back(k))
+                    .fold(0u8, |bits, (bit, _)| bits | bit);
+                let entered = cells
+                    .iter()
+                    .filter(|c| self.history.free_bits(c.idx as usize) & recent != 0)
+                    .count();
+                let share = entered as f64 / cells.len().max(1) as f64;
+                if recent != 0 && share >= self.params.match_fraction {
+                    mass = MotionMass::Moving((self.params.mu_moving * share) as f32);
+                }
+            }
             let [vx, vy] = track.velocity.map(|v| v.mean_mps as f32);
             for (c, &moved) in cells.iter().zip(moved) {
                 let idx = c.idx as usize;
