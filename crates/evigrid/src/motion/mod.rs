@@ -277,7 +277,12 @@ impl MotionStage {
             let Some(track) = self.tracks.of_observation(k) else {
                 continue;
             };
-            let mass = evidence::track_mass(track, &self.params);
+            let mass = evidence::off_buildings(
+                evidence::track_mass(track, &self.params),
+                cells
+                    .iter()
+                    .map(|c| self.gis.context.get(c.idx as usize).copied()),
+            );
             let [vx, vy] = track.velocity.map(|v| v.mean_mps as f32);
             for (c, &moved) in cells.iter().zip(moved) {
                 let idx = c.idx as usize;
@@ -291,7 +296,7 @@ impl MotionStage {
                         self.velocity_north[idx] = vy;
                         self.velocity_cells.push(c.idx);
                     }
-                    MotionMass::Static(_) => static_cells += 1,
+                    MotionMass::Static(_) | MotionMass::Stopped(_) => static_cells += 1,
                 }
                 let mut m = perception.cell_masses(idx);
                 combine(&mut m, mass, self.residual);
