@@ -13,9 +13,10 @@
 //!    it clearly better than no shift, is its displacement;
 //! 3. clusters join tracks whose velocity a Kalman filter follows through occlusions
 //!    (`tracks`, `kalman`);
-//! 4. each track's velocity and its uncertainty give its cells mass on {M} (moving) or on
-//!    Ω∖{M} (static), combined conjunctively with the cell's mass after the SPEC §5 step
-//!    (`evidence`); the cells it touched are decided again.
+//! 4. each track's velocity and its uncertainty give its cells mass on {M} (moving), on {S}
+//!    (static after travelling: a stopped road user) or on Ω∖{M} (static), combined
+//!    conjunctively with the cell's mass after the SPEC §5 step (`evidence`); the cells it
+//!    touched are decided again.
 //!
 //! The stage also keeps the boundary-aware map prior of the variant (`context`) and a
 //! velocity per cell. Memory is sized by the window; after the first frames nothing is
@@ -57,7 +58,7 @@ pub struct MotionStats {
     pub tracks: usize,
     /// Cells given mass on {M}.
     pub moving_cells: usize,
-    /// Cells given mass on Ω∖{M}.
+    /// Cells given mass on Ω∖{M}, or on {S} (a stopped track).
     pub static_cells: usize,
     /// Wall time, milliseconds.
     pub ms: f64,
