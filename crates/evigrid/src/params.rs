@@ -827,6 +827,10 @@ mod tests {
             ("[motion]\nmu_moving = 1.5\n", "motion.mu_moving"),
             ("[motion]\nmin_speed_mps = -1.0\n", "motion.min_speed_mps"),
             ("[motion]\ngate_m = nan\n", "motion.gate_m"),
+            (
+                "[motion]\nmobile_after_travel_m = 0.0\n",
+                "motion.mobile_after_travel_m",
+            ),
         ] {
             match Params::from_toml_str(text) {
                 Ok(_) => panic!("{text} accepted"),
