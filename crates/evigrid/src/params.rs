@@ -725,6 +725,10 @@ pub struct MotionParams {
     pub mu_moving: f64,
     /// Mass on Ω∖{M} given to a static track's cells, `[0, 1]`. By default 0.9.
     pub mu_static: f64,
+    /// Distance, m, a track must have travelled while judged moving (its net displacement, so
+    /// a static object's jitter does not add up) to count as a mobile object: once static
+    /// again, its cells get mass `mu_static` on {S} (stopped) instead of Ω∖{M}. By default 2.
+    pub mobile_after_travel_m: f64,
     /// Cells of the intermediate space (context T) this close to a building cell, in cells
     /// (4-neighbour steps, 0-4), take the context "beside a building", prior {F, I}: the map
     /// prior by the cell centre misses cells cut by a façade, and a footprint is drawn or
@@ -749,6 +753,7 @@ impl Default for MotionParams {
             static_sigma_mps: 1.0,
             mu_moving: 0.8,
             mu_static: 0.9,
+            mobile_after_travel_m: 2.0,
             building_margin_cells: 2,
         }
     }
@@ -793,6 +798,7 @@ impl MotionParams {
         positive("motion.gate_m", self.gate_m)?;
         positive("motion.static_sigma_mps", self.static_sigma_mps)?;
         positive("motion.max_coast_s", self.max_coast_s)?;
+        positive("motion.mobile_after_travel_m", self.mobile_after_travel_m)?;
         unit("motion.mu_moving", self.mu_moving)?;
         unit("motion.mu_static", self.mu_static)?;
         Ok(())
@@ -822,6 +828,10 @@ mod tests {
             ("[motion]\nmu_moving = 1.5\n", "motion.mu_moving"),
             ("[motion]\nmin_speed_mps = -1.0\n", "motion.min_speed_mps"),
             ("[motion]\ngate_m = nan\n", "motion.gate_m"),
+            (
+                "[motion]\nmobile_after_travel_m = 0.0\n",
+                "motion.mobile_after_travel_m",
+            ),
         ] {
             match Params::from_toml_str(text) {
                 Ok(_) => panic!("{text} accepted"),

@@ -6,15 +6,21 @@
 //! - moving (|v| ≥ `min_speed_mps`, and at least `moving_after_measurements` registrations
 //!   of the track): m({M}) = `mu_moving` · c, the rest on Ω;
 //! - static (|v| < `min_speed_mps` and √(σx² + σy²) < `static_sigma_mps`: slow and known
-//!   well enough): m(Ω∖{M}) = `mu_static`, the rest on Ω: "not moving", which says nothing
-//!   about I, U or S;
+//!   well enough), and the track has travelled `mobile_after_travel_m` while moving (net) and
+//!   its cluster touches no mapped building: m({S}) = `mu_static`, the rest on Ω: a mobile
+//!   object standing still, "not moving" and "a road user" at once;
+//! - static otherwise: m(Ω∖{M}) = `mu_static`, the rest on Ω: "not moving", which says
+//!   nothing about I, U or S (street furniture and a standing pedestrian are alike in size);
 //! - otherwise (never registered, or too uncertain): vacuous.
 //!
 //! The cell's mass function m is combined with it by the conjunctive rule on Ω_PG, and the
 //! conflict it creates follows the fusion's residual policy (SPEC §5 step 4): mass on {M}
-//! meets m(A) for A ∌ M as conflict, mass on Ω∖{M} meets m({M}) as conflict. Mass on a set A
-//! goes only to A ∩ {M} or A∖{M}, so a grid whose masses lie on the sets the step can reach
-//! keeps them there.
+//! meets m(A) for A ∌ M as conflict, mass on Ω∖{M} meets m({M}) as conflict, mass on {S}
+//! meets m(A) for A ∌ S as conflict. Mass on a set A goes only to A ∩ {M}, A∖{M} or
+//! A ∩ {S}, so a grid whose masses lie on the sets the step can reach keeps them there (they
+//! are closed under intersection and hold {S}).
+
+use geodata::MapContext;
 
 use crate::grids::{N_SETS, OMEGA, class};
 use crate::params::{MotionParams, ResidualPolicy};
@@ -30,6 +36,16 @@ pub enum MotionMass {
     Moving(f32),
     /// m(Ω∖{M}) = the value, the rest on Ω.
     Static(f32),
+    /// m({S}) = the value, the rest on Ω: a mobile object (its track has moved) standing still.
+    Stopped(f32),
+}
+
+/// Whether the track moves now: fast enough, and registered often enough to say so.
+pub(crate) fn is_moving(track: &Track, params: &MotionParams) -> bool {
+    let [x, y] = track.velocity;
+    track.measurements > 0
+        && (track.measurements as usize) >= params.moving_after_measurements
+        && x.mean_mps.hypot(y.mean_mps) >= params.min_speed_mps
 }
 
 /// The evidence a track gives its cells.
@@ -47,9 +63,32 @@ pub(crate) fn track_mass(track: &Track, params: &MotionParams) -> MotionMass {
         let confidence = 1.0 - (-0.5 * chi_sq).exp();
         MotionMass::Moving((params.mu_moving * confidence) as f32)
     } else if (x.variance + y.variance).sqrt() < params.static_sigma_mps {
-        MotionMass::Static(params.mu_static as f32)
+        let [dx, dy] = track.travel_m;
+        if dx.hypot(dy) >= params.mobile_after_travel_m {
+            MotionMass::Stopped(params.mu_static as f32)
+        } else {
+            MotionMass::Static(params.mu_static as f32)
+        }
     } else {
         MotionMass::Vacuous
+    }
+}
+
+/// Stopped evidence only for a cluster clear of mapped buildings: one touching a building or
+/// the band beside one is (part of) the building, whose visible face slid as the ego passed, not a road
+/// user; it keeps "not moving" (m(Ω∖{M})). `contexts` are its cells' map contexts.
+pub(crate) fn off_buildings(
+    mass: MotionMass,
+    mut contexts: impl Iterator<Item = Option<MapContext>>,
+) -> MotionMass {
+    match mass {
+        MotionMass::Stopped(b)
+            if contexts
+                .any(|c| matches!(c, Some(MapContext::Building | MapContext::BuildingEdge))) =>
+        {
+            MotionMass::Static(b)
+        }
+        other => other,
     }
 }
 
@@ -83,6 +122,16 @@ pub fn combine(m: &mut [f32; N_SETS], evidence: MotionMass, residual: ResidualPo
                 }
             }
         }
+        MotionMass::Stopped(b) => {
+            for (set, &mass) in m.iter().enumerate().skip(1) {
+                out[set] += (1.0 - b) * mass;
+                if set & class::S != 0 {
+                    out[class::S] += b * mass;
+                } else {
+                    conflict += b * mass;
+                }
+            }
+        }
     }
     match residual {
         ResidualPolicy::ToOmega => out[OMEGA] += conflict,
@@ -106,7 +155,7 @@ pub fn combine(m: &mut [f32; N_SETS], evidence: MotionMass, residual: ResidualPo
 mod tests {
     use super::*;
     use crate::motion::kalman::VelocityFilter;
-    use class::{F, M, S};
+    use class::{F, I, M, S, U};
 
     fn cell(pairs: &[(usize, f32)]) -> [f32; N_SETS] {
         let mut m = [0.0; N_SETS];
@@ -166,12 +215,79 @@ mod tests {
         assert!((m.iter().sum::<f32>() - 1.0).abs() < 1e-6);
     }
 
+    #[test]
+    fn stopped_evidence_turns_pavement_infrastructure_or_stopped_into_stopped() {
+        // A pavement cell (context T, focal {F,U,S,M}) holding a return: m({U,S}) = 0.6,
+        // m({F,U,S,M}) = 0.3, m(Ω) = 0.1, with m({S}) = 0.9 and no conflict: every set holds S.
+        let mut m = cell(&[(U | S, 0.6), (F | U | S | M, 0.3), (OMEGA, 0.1)]);
+        combine(&mut m, MotionMass::Stopped(0.9), ResidualPolicy::ToOmega);
+        close(
+            &m,
+            &cell(&[
+                (S, 0.9),
+                (U | S, 0.06),
+                (F | U | S | M, 0.03),
+                (OMEGA, 0.01),
+            ]),
+        );
+        // betP(S) = 0.9 + 0.06/2 + 0.03/4 + 0.01/5, betP(U) = 0.03 + 0.0075 + 0.002.
+        let betp = crate::decision::betp(&m);
+        assert!((betp[3] - 0.9395).abs() < 1e-6, "{betp:?}");
+        assert!((betp[2] - 0.0395).abs() < 1e-6, "{betp:?}");
+    }
+
+    #[test]
+    fn stopped_evidence_on_a_set_without_s_is_conflict_under_each_policy() {
+        // m({I}) = 0.5, m({S,M}) = 0.2, m(Ω) = 0.3 with m({S}) = 0.6: {I} keeps 0.2 and
+        // sends 0.3 to the conflict; {S,M} keeps 0.08, gives 0.12 to {S}; Ω keeps 0.12,
+        // gives 0.18 to {S}.
+        let start = cell(&[(I, 0.5), (S | M, 0.2), (OMEGA, 0.3)]);
+        let mut m = start;
+        combine(&mut m, MotionMass::Stopped(0.6), ResidualPolicy::ToOmega);
+        close(
+            &m,
+            &cell(&[(I, 0.2), (S | M, 0.08), (S, 0.3), (OMEGA, 0.12 + 0.3)]),
+        );
+        let mut m = start;
+        combine(&mut m, MotionMass::Stopped(0.6), ResidualPolicy::Keep);
+        close(
+            &m,
+            &cell(&[(0, 0.3), (I, 0.2), (S | M, 0.08), (S, 0.3), (OMEGA, 0.12)]),
+        );
+        let mut m = start;
+        combine(&mut m, MotionMass::Stopped(0.6), ResidualPolicy::Normalise);
+        close(
+            &m,
+            &cell(&[
+                (I, 0.2 / 0.7),
+                (S | M, 0.08 / 0.7),
+                (S, 0.3 / 0.7),
+                (OMEGA, 0.12 / 0.7),
+            ]),
+        );
+    }
+
+    #[test]
+    fn a_cluster_on_a_building_is_not_stopped() {
+        let on = [Some(MapContext::Road), Some(MapContext::Building)];
+        let off = [Some(MapContext::Road), Some(MapContext::Other), None];
+        let stopped = MotionMass::Stopped(0.9);
+        assert_eq!(
+            off_buildings(stopped, on.into_iter()),
+            MotionMass::Static(0.9)
+        );
+        assert_eq!(off_buildings(stopped, off.into_iter()), stopped);
+        let moving = MotionMass::Moving(0.5);
+        assert_eq!(off_buildings(moving, on.into_iter()), moving);
+    }
+
     fn track(v: [f64; 2], variance: f64, measurements: u32) -> Track {
         Track {
             position_m: [0.0; 2],
             velocity: v.map(|v| VelocityFilter::new(v, variance)),
             last_seen_s: 0.0,
             measurements,
+            travel_m: [0.0; 2],
         }
     }
 
@@ -211,5 +327,26 @@ mod tests {
             track_mass(&track([3.0, 0.0], 1.0, 1), &p),
             MotionMass::Moving(expected)
         );
+    }
+
+    #[test]
+    fn a_static_track_that_travelled_is_stopped() {
+        let p = MotionParams::default();
+        assert_eq!(p.mobile_after_travel_m, 2.0);
+        let mut t = track([0.1, 0.0], 0.01, 4);
+        // 1.2 m east and 1.6 m north: 2 m in all, a mobile object standing still.
+        t.travel_m = [1.2, 1.6];
+        assert_eq!(track_mass(&t, &p), MotionMass::Stopped(0.9));
+        // 1.9 m: not enough, only "not moving".
+        t.travel_m = [1.9, 0.0];
+        assert_eq!(track_mass(&t, &p), MotionMass::Static(0.9));
+        // Travelled, but moving now: moving, whatever it did before.
+        let mut fast = track([3.0, 0.0], 1.0, 2);
+        fast.travel_m = [5.0, 0.0];
+        assert!(matches!(track_mass(&fast, &p), MotionMass::Moving(_)));
+        // Travelled, but too uncertain now: nothing.
+        let mut unsure = track([0.1, 0.0], 1.0, 3);
+        unsure.travel_m = [5.0, 0.0];
+        assert_eq!(track_mass(&unsure, &p), MotionMass::Vacuous);
     }
 }

@@ -13,9 +13,10 @@
 //!    it clearly better than no shift, is its displacement;
 //! 3. clusters join tracks whose velocity a Kalman filter follows through occlusions
 //!    (`tracks`, `kalman`);
-//! 4. each track's velocity and its uncertainty give its cells mass on {M} (moving) or on
-//!    Ω∖{M} (static), combined conjunctively with the cell's mass after the SPEC §5 step
-//!    (`evidence`); the cells it touched are decided again.
+//! 4. each track's velocity and its uncertainty give its cells mass on {M} (moving), on {S}
+//!    (static after travelling: a stopped road user) or on Ω∖{M} (static), combined
+//!    conjunctively with the cell's mass after the SPEC §5 step (`evidence`); the cells it
+//!    touched are decided again.
 //!
 //! The stage also keeps the boundary-aware map prior of the variant (`context`) and a
 //! velocity per cell. Memory is sized by the window; after the first frames nothing is
@@ -58,7 +59,7 @@ pub struct MotionStats {
     pub tracks: usize,
     /// Cells given mass on {M}.
     pub moving_cells: usize,
-    /// Cells given mass on Ω∖{M}.
+    /// Cells given mass on Ω∖{M}, or on {S} (a stopped track).
     pub static_cells: usize,
     /// Wall time, milliseconds.
     pub ms: f64,
@@ -299,6 +300,12 @@ impl MotionStage {
                     mass = MotionMass::Moving((self.params.mu_moving * share) as f32);
                 }
             }
+            let mass = evidence::off_buildings(
+                mass,
+                cells
+                    .iter()
+                    .map(|c| self.gis.context.get(c.idx as usize).copied()),
+            );
             let [vx, vy] = track.velocity.map(|v| v.mean_mps as f32);
             for (c, &moved) in cells.iter().zip(moved) {
                 let idx = c.idx as usize;
@@ -312,7 +319,7 @@ impl MotionStage {
                         self.velocity_north[idx] = vy;
                         self.velocity_cells.push(c.idx);
                     }
-                    MotionMass::Static(_) => static_cells += 1,
+                    MotionMass::Static(_) | MotionMass::Stopped(_) => static_cells += 1,
                 }
                 let mut m = perception.cell_masses(idx);
                 combine(&mut m, mass, self.residual);

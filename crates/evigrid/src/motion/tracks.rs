@@ -6,6 +6,7 @@
 //! up to `max_coast_s`, so that an object coming out of occlusion, whose cells have no history
 //! to register against, still carries its speed.
 
+use super::evidence;
 use super::kalman::VelocityFilter;
 use crate::params::MotionParams;
 
@@ -29,6 +30,10 @@ pub(crate) struct Track {
     pub(crate) last_seen_s: f64,
     /// Registrations that measured its velocity (none: it knows nothing of motion).
     pub(crate) measurements: u32,
+    /// Net displacement, m, summed over the frames the track was judged moving in
+    /// ([`evidence::is_moving`]): once it reaches `mobile_after_travel_m` the object is a
+    /// mobile one, so when static it is stopped (S), not infrastructure.
+    pub(crate) travel_m: [f64; 2],
 }
 
 /// The tracks and the association scratch, kept between frames.
@@ -111,6 +116,7 @@ impl Tracks {
                         velocity: [VelocityFilter::new(0.0, unknown_variance); 2],
                         last_seen_s: now_s,
                         measurements: 0,
+                        travel_m: [0.0; 2],
                     });
                     self.assigned[oi] = (self.tracks.len() - 1) as u32;
                     self.tracks.len() - 1
@@ -125,6 +131,11 @@ impl Tracks {
                     filter.update(z, variance);
                 }
                 t.measurements = t.measurements.saturating_add(1);
+            }
+            if evidence::is_moving(t, params) {
+                for (d, v) in t.travel_m.iter_mut().zip(&t.velocity) {
+                    *d += v.mean_mps * dt_s;
+                }
             }
         }
     }
@@ -197,6 +208,47 @@ mod tests {
         assert_eq!(tracks.len(), 2);
         tracks.update(&[], 2.05, 1.05, &params);
         assert_eq!(tracks.len(), 0);
+    }
+
+    #[test]
+    fn a_track_remembers_its_net_travel_while_moving() {
+        let params = MotionParams::default();
+        let mut tracks = Tracks::default();
+        // 5 m/s east for 6 frames of 0.1 s, measured (σ = 1 m/s) from the second one, then
+        // braking at 5 m/s² to a stop, measured still for 10 more frames.
+        let speeds = (0..6)
+            .map(|_| 5.0)
+            .chain((0..10).map(|k| 4.5 - 0.5 * k as f64));
+        let mut x = 0.0;
+        for (k, v) in speeds.chain([0.0; 10]).enumerate() {
+            x += v * 0.1;
+            let measured = (k > 0).then_some(v);
+            tracks.update(&[seen(x, measured)], 0.1 * k as f64, 0.1, &params);
+        }
+        assert_eq!(tracks.len(), 1);
+        let t = tracks.of_observation(0).copied();
+        // Every frame judged moving adds the filtered v·dt, which lags the braking (gain
+        // about 0.26 with σ = 1 m/s): the 4.75 m driven and about 1.3 m more; the frames
+        // below min_speed_mps add nothing.
+        let travel = t.map_or(0.0, |t| t.travel_m[0]);
+        assert!(travel > 4.75 && travel < 6.5, "{travel}");
+        assert!(t.is_some_and(|t| !evidence::is_moving(&t, &params)));
+
+        // A static object whose cluster jumps a cell back and forth (pose noise): each jump
+        // registered against the last frame alone (0.5 m in 0.1 s, σ = 2.5 m/s), alternating
+        // in sign; its net travel stays near zero.
+        let mut tracks = Tracks::default();
+        for k in 0..20 {
+            let (x, v) = if k % 2 == 0 { (0.5, 5.0) } else { (0.0, -5.0) };
+            let jump = Observation {
+                centroid_m: [x, 0.0],
+                velocity: Some(([v, 0.0], 6.25)),
+            };
+            tracks.update(&[jump], 0.1 * k as f64, 0.1, &params);
+        }
+        assert_eq!(tracks.len(), 1);
+        let travel = tracks.of_observation(0).map_or(9.0, |t| t.travel_m[0]);
+        assert!(travel.abs() < params.mobile_after_travel_m, "{travel}");
     }
 
     #[test]
