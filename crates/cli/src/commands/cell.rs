@@ -423,4 +423,18 @@ mod tests {
         assert_ne!(records[7].decision, "M");
         Ok(())
     }
+
+    #[test]
+    fn beside_a_building_free_is_free_and_a_return_is_the_building() -> anyhow::Result<()> {
+        let p = Params::default();
+        let obs = parse_observations("free*3,occupied*3", &p)?;
+        let records = simulate(&obs, ContextArg::BuildingEdge.into(), &p, 0.1);
+        // In the building's own context the free space would be decided I (β_B on {I} wins
+        // over the sensor's m(F)); beside it, the prior {F, I} leaves the choice to the sensor.
+        assert_eq!(records[2].decision, "F");
+        assert_eq!(records[5].decision, "I");
+        let inside = simulate(&obs, MapContext::Building, &p, 0.1);
+        assert_eq!(inside[2].decision, "I");
+        Ok(())
+    }
 }
