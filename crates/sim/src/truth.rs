@@ -8,7 +8,9 @@
 //!   building is I (U if the building is missing from the map): the cell-centre rule by which the
 //!   map prior gives a cell the building context (SPEC §4), so a mapped building's cells are the
 //!   same cells in truth and in the prior (up to rounding on an edge through a centre). A cell a
-//!   building covers at some sample but not at its centre is [`Label::Edge`], the boundary band:
+//!   building overlaps but not at its centre is [`Label::Edge`], the boundary band (by exact
+//!   overlap: the cells the footprint's outline passes through, so a façade 5 cm into a cell,
+//!   between its edge and its outer samples, counts as the scanner's returns there do):
 //!   part wall, part open space, it is crossed by rays from one side and hit from another, and
 //!   free or infrastructure are both defensible there. The evaluation scores the band as static
 //!   (predicting M there is wrong, see `eval::metrics`) and no other class.
@@ -137,6 +139,17 @@ pub fn label_window_with_outline(
     let mut xs = Vec::new();
     for &id in &ids {
         let b = &world.buildings()[id as usize];
+        // The band by exact overlap: a cell the outline crosses holds some of the building,
+        // however thin, and the scanner returns from it (a sample can miss a façade 5 cm into
+        // the cell). The cells it covers at a sample are claimed by the scanline below.
+        for ring in &b.rings {
+            for (k, &a) in ring.iter().enumerate() {
+                let end = ring[(k + 1) % ring.len()];
+                cells_on_segment(a, end, lo, s, (w, h), |col, row| {
+                    claim(&mut out[row * w + col], Label::Edge);
+                });
+            }
+        }
         let class = if b.mapped { Label::I } else { Label::U };
         let k0 = first_sample(b.bounds.0.y, y0).max(0.0) as usize;
         let k1 = last_sample(b.bounds.1.y, y0).min((h * n) as f64 - 1.0);
@@ -222,6 +235,65 @@ pub fn label_window_with_outline(
     }
 }
 
+/// Calls `visit(col, row)` for every cell of a `w × h` grid of `s`-metre cells with origin
+/// `origin` that the segment `a`–`b` passes through (Amanatides & Woo's traversal), in order.
+fn cells_on_segment(
+    a: Vec2,
+    b: Vec2,
+    origin: Vec2,
+    s: f64,
+    (w, h): (usize, usize),
+    mut visit: impl FnMut(usize, usize),
+) {
+    let cell = |v: f64, o: f64| ((v - o) / s).floor();
+    let (mut col, mut row) = (cell(a.x, origin.x), cell(a.y, origin.y));
+    let (end_col, end_row) = (cell(b.x, origin.x), cell(b.y, origin.y));
+    if !(col.is_finite() && row.is_finite() && end_col.is_finite() && end_row.is_finite()) {
+        return;
+    }
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    // Parameter t ∈ [0, 1] along the segment at which it crosses the next column / row line.
+    let next = |v: f64, o: f64, c: f64, d: f64| {
+        if d > 0.0 {
+            ((c + 1.0) * s + o - v) / d
+        } else if d < 0.0 {
+            (c * s + o - v) / d
+        } else {
+            f64::INFINITY
+        }
+    };
+    let mut t_col = next(a.x, origin.x, col, dx);
+    let mut t_row = next(a.y, origin.y, row, dy);
+    let (t_dcol, t_drow) = (s / dx.abs(), s / dy.abs());
+    let steps = (end_col - col).abs() + (end_row - row).abs();
+    let mut t_enter = 0.0f64;
+    for _ in 0..=(steps as u64) {
+        // Only a cell whose interior the segment enters: the midpoint of its piece strictly
+        // inside (a segment along a cell edge, or through a corner, overlaps nothing there).
+        let t_exit = t_col.min(t_row).min(1.0);
+        let t_mid = 0.5 * (t_enter + t_exit);
+        let (mx, my) = (a.x + dx * t_mid, a.y + dy * t_mid);
+        let inside = |m: f64, o: f64, c: f64| c * s + o < m && m < (c + 1.0) * s + o;
+        if col >= 0.0
+            && row >= 0.0
+            && (col as usize) < w
+            && (row as usize) < h
+            && inside(mx, origin.x, col)
+            && inside(my, origin.y, row)
+        {
+            visit(col as usize, row as usize);
+        }
+        t_enter = t_exit;
+        if t_col < t_row {
+            col += dx.signum();
+            t_col += t_dcol;
+        } else {
+            row += dy.signum();
+            t_row += t_drow;
+        }
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
@@ -271,8 +343,9 @@ mod tests {
     #[test]
     fn building_cells_by_centre_and_partly_covered_cells_in_the_band() {
         // Building x ∈ [0.9, 2.3], y ∈ [0, 2]. Sample x positions are k + 1/6, k + 1/2, k + 5/6.
-        // Cell 0: sample 0.833 < 0.9 → free. Cell 1: all in → I. Cell 2: sample 2.167 ≤ 2.3 but
-        // centre 2.5 outside → edge.
+        // Cell 1: all in → I. Cell 2: centre 2.5 outside, the building covers x ≤ 2.3 → edge.
+        // Cell 0: no sample inside (0.833 < 0.9), but the façade at x = 0.9 is in it → edge.
+        // Row 2 only touches the roof line y = 2: not covered.
         let b = Building::new(vec![vec![
             Vec2::new(0.9, 0.0),
             Vec2::new(2.3, 0.0),
@@ -285,13 +358,31 @@ mod tests {
         label_window(&world, &[], None, &window(), 3, &mut out);
         assert_eq!(
             rows(&out, 8),
-            vec!["........", "........", ".Ie.....", ".Ie....."]
+            vec!["........", "........", "eIe.....", "eIe....."]
         );
-        // With one sample (the centre) cell 2's centre 2.5 is outside → only cell 1, no band.
+        // With one sample (the centre), the same: the band does not depend on the samples.
         label_window(&world, &[], None, &window(), 1, &mut out);
         assert_eq!(
             rows(&out, 8),
-            vec!["........", "........", ".I......", ".I......"]
+            vec!["........", "........", "eIe.....", "eIe....."]
+        );
+        // A façade along a cell line, x = 1.0 exactly, puts nothing in cell 0.
+        let flush = Building::new(vec![vec![
+            Vec2::new(1.0, 0.0),
+            Vec2::new(2.3, 0.0),
+            Vec2::new(2.3, 2.0),
+            Vec2::new(1.0, 2.0),
+        ]])
+        .unwrap();
+        let world = World::new(
+            vec![flush],
+            vec![],
+            (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)),
+        );
+        label_window(&world, &[], None, &window(), 3, &mut out);
+        assert_eq!(
+            rows(&out, 8),
+            vec!["........", "........", ".Ie.....", ".Ie....."]
         );
     }
 
