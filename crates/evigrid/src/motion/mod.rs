@@ -70,8 +70,9 @@ pub struct MotionStats {
 pub enum CellMotion {
     /// Its track was never registered, and no first-sighting evidence.
     Unregistered,
-    /// Its track was never registered; its cells were seen free: moving evidence.
-    FirstSighting,
+    /// Its track gave no evidence (never registered, or uncertain), but its cells were seen
+    /// free in the frames kept: moving evidence.
+    EnteredSeenFree,
     /// Registered, slow, too uncertain to be static: no evidence.
     Uncertain,
     /// Registered slow and certain: m(Ω∖{M}).
@@ -294,7 +295,8 @@ impl MotionStage {
                 )
                 .map(|r| {
                     self.cluster_frames.push(r.frames as u32);
-                    let sigma = self.params.shift_sigma_cells * cell_size_m / r.sum_span_sq.sqrt();
+                    let sigma =
+                        r.variance_cells(self.params.shift_sigma_cells).sqrt() * cell_size_m;
                     let (vx, vy) = r.velocity_cells_per_s;
                     ([vx * cell_size_m, vy * cell_size_m], sigma * sigma)
                 });
@@ -345,22 +347,26 @@ impl MotionStage {
                 MotionMass::Static(_) => CellMotion::Static,
                 MotionMass::Stopped(_) => CellMotion::Stopped,
             };
-            // A first sighting, with nothing to register against: if most of its cells were
-            // seen free in the frames kept, the object entered space seen empty (the cue of
-            // SPEC §5's free→occupied conflict, per object). An object that comes out of
-            // occlusion, or into the field of view, entered no cell seen free.
-            if track.measurements == 0 {
+            // A track that says nothing (a first sighting, with nothing to register against,
+            // or a slow one whose registrations cannot tell standing from walking): if most
+            // of its cells were seen free in the frames kept, the object entered space seen
+            // empty (the cue of SPEC §5's free→occupied conflict, per object). An object that
+            // comes out of occlusion, or into the field of view, entered no cell seen free;
+            // a static one occupies its cells in every frame.
+            if mass == MotionMass::Vacuous {
                 let recent = (1..=self.params.history_frames)
                     .filter_map(|k| self.history.frame_back(k))
                     .fold(0u8, |bits, (bit, _)| bits | bit);
-                let entered = cells
-                    .iter()
-                    .filter(|c| self.history.free_bits(c.idx as usize) & recent != 0)
-                    .count();
-                let share = entered as f64 / cells.len().max(1) as f64;
-                if recent != 0 && share >= self.params.match_fraction {
-                    mass = MotionMass::Moving((self.params.mu_moving * share) as f32);
-                    state = CellMotion::FirstSighting;
+                if recent != 0 {
+                    let entered = cells
+                        .iter()
+                        .filter(|c| self.history.free_bits(c.idx as usize) & recent != 0)
+                        .count();
+                    let share = entered as f64 / cells.len().max(1) as f64;
+                    mass = evidence::entered_seen_free(mass, share, &self.params);
+                    if mass != MotionMass::Vacuous {
+                        state = CellMotion::EnteredSeenFree;
+                    }
                 }
             }
             let mass = evidence::off_buildings(
