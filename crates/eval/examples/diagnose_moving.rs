@@ -108,13 +108,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             .get(&(idx as u32))
                             .map_or("-".to_owned(), |s| if detail {
                                 format!(
-                                    "{:?} n{} f{} m{} v{:.1} s{:.1}",
+                                    "{:?} n{} f{} m{} v{:.1} s{:.1} age{:.1}",
                                     s.state,
                                     s.cluster_cells.min(9),
                                     s.frames,
                                     s.measurements.min(9),
                                     s.speed_mps,
-                                    s.sigma_mps
+                                    s.sigma_mps,
+                                    s.track_age_s.min(1.0)
                                 )
                             } else {
                                 format!("{:?}", s.state)

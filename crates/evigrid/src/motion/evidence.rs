@@ -302,6 +302,7 @@ mod tests {
             position_m: [0.0; 2],
             velocity: v.map(|v| VelocityFilter::new(v, variance)),
             last_seen_s: 0.0,
+            first_seen_s: 0.0,
             measurements,
             travel_m: [0.0; 2],
         }

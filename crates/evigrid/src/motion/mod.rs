@@ -102,6 +102,8 @@ pub struct CellReport {
     pub sigma_mps: f32,
     /// Its track's registrations.
     pub measurements: u32,
+    /// Its track's age, s.
+    pub track_age_s: f32,
 }
 
 /// The motion stage of one window: history, clusters, tracks, and their scratch buffers.
@@ -393,6 +395,7 @@ impl MotionStage {
                     sigma_mps: (track.velocity[0].variance + track.velocity[1].variance).sqrt()
                         as f32,
                     measurements: track.measurements,
+                    track_age_s: (time_s - track.first_seen_s) as f32,
                 });
                 match mass {
                     MotionMass::Vacuous => continue,
