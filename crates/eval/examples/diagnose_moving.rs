@@ -31,6 +31,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(path) = args.get(3) {
         config.params = Params::from_toml_str(&std::fs::read_to_string(path)?)?;
     }
+    let detail = std::env::var_os("DIAGNOSE_DETAIL").is_some();
     let mut counts: BTreeMap<String, u64> = BTreeMap::new();
     evaluate_observed(
         &map,
@@ -46,6 +47,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let velocity = f.fusion.motion().map(|m| m.velocity_east());
             let speed_north = f.fusion.motion().map(|m| m.velocity_north());
             let (m_free, m_occupied) = (sensor.m_free(), sensor.m_occupied());
+            let states: std::collections::HashMap<u32, evigrid::motion::CellReport> = f
+                .fusion
+                .motion()
+                .map(|m| m.cell_states().iter().map(|r| (r.idx, *r)).collect())
+                .unwrap_or_default();
             for idx in 0..window.len() {
                 let seen = if m_occupied[idx] > 0.0 {
                     "return"
@@ -77,8 +83,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     || speed_north.is_some_and(|v| v[idx] != 0.0);
                 let key = if false_moving {
                     format!(
-                        "false M  truth {:?} | {seen} | {} | {}",
+                        "false M  truth {:?} | {seen} | {} | {} | {}",
                         truth,
+                        states
+                            .get(&(idx as u32))
+                            .map_or("-".to_owned(), |s| format!("{:?}", s.state)),
                         if beside_moving { "beside M" } else { "apart" },
                         if has_velocity {
                             "velocity"
@@ -88,13 +97,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     )
                 } else {
                     format!(
-                        "missed M decided {:?} | {seen} | {}",
+                        "missed M decided {:?} | {seen} | {} | {}",
                         decided,
                         if has_velocity {
                             "velocity"
                         } else {
                             "no velocity"
-                        }
+                        },
+                        states
+                            .get(&(idx as u32))
+                            .map_or("-".to_owned(), |s| if detail {
+                                format!(
+                                    "{:?} n{} f{} m{} v{:.1} s{:.1} age{:.1}",
+                                    s.state,
+                                    s.cluster_cells.min(9),
+                                    s.frames,
+                                    s.measurements.min(9),
+                                    s.speed_mps,
+                                    s.sigma_mps,
+                                    s.track_age_s.min(1.0)
+                                )
+                            } else {
+                                format!("{:?}", s.state)
+                            })
                     )
                 };
                 *counts.entry(key).or_default() += 1;

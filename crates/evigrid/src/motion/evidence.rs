@@ -74,6 +74,22 @@ pub(crate) fn track_mass(track: &Track, params: &MotionParams) -> MotionMass {
     }
 }
 
+/// The evidence of a cluster whose track says nothing (`mass` vacuous: never registered, or
+/// slow but too uncertain to be static) when a share `entered_share` of its cells was seen
+/// free in the frames kept: it entered space seen empty, m({M}) = `mu_moving` · share if the
+/// share reaches `match_fraction`. Any other evidence is kept.
+pub(crate) fn entered_seen_free(
+    mass: MotionMass,
+    entered_share: f64,
+    params: &MotionParams,
+) -> MotionMass {
+    if mass == MotionMass::Vacuous && entered_share >= params.match_fraction {
+        MotionMass::Moving((params.mu_moving * entered_share) as f32)
+    } else {
+        mass
+    }
+}
+
 /// Stopped evidence only for a cluster clear of mapped buildings: one touching a building or
 /// the band beside one is (part of) the building, whose visible face slid as the ego passed, not a road
 /// user; it keeps "not moving" (m(Ω∖{M})). `contexts` are its cells' map contexts.
@@ -286,6 +302,7 @@ mod tests {
             position_m: [0.0; 2],
             velocity: v.map(|v| VelocityFilter::new(v, variance)),
             last_seen_s: 0.0,
+            first_seen_s: 0.0,
             measurements,
             travel_m: [0.0; 2],
         }
@@ -327,6 +344,27 @@ mod tests {
             track_mass(&track([3.0, 0.0], 1.0, 1), &p),
             MotionMass::Moving(expected)
         );
+    }
+
+    #[test]
+    fn a_silent_track_that_entered_cells_seen_free_is_moving() {
+        let params = MotionParams::default();
+        // Registered once, no shift, σ² = 0.8 (m/s)² per axis: √1.6 ≥ static_sigma_mps = 1,
+        // too uncertain to be static; three of its four cells seen free: m({M}) = 0.8 · 0.75.
+        let slow = track([0.0, 0.0], 0.8, 1);
+        let mass = track_mass(&slow, &params);
+        assert_eq!(mass, MotionMass::Vacuous);
+        assert_eq!(
+            entered_seen_free(mass, 0.75, &params),
+            MotionMass::Moving(0.6)
+        );
+        // One cell of four: below match_fraction, nothing.
+        assert_eq!(entered_seen_free(mass, 0.25, &params), MotionMass::Vacuous);
+        // A track known static keeps its evidence whatever its cells.
+        let still = track([0.0, 0.0], 0.1, 5);
+        let mass = track_mass(&still, &params);
+        assert_eq!(mass, MotionMass::Static(0.9));
+        assert_eq!(entered_seen_free(mass, 1.0, &params), mass);
     }
 
     #[test]

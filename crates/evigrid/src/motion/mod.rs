@@ -65,6 +65,47 @@ pub struct MotionStats {
     pub ms: f64,
 }
 
+/// What the motion stage made of an occupied cell this frame (for diagnosis).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum CellMotion {
+    /// Its track was never registered, and no first-sighting evidence.
+    Unregistered,
+    /// Its track gave no evidence (never registered, or uncertain), but its cells were seen
+    /// free in the frames kept: moving evidence.
+    EnteredSeenFree,
+    /// Registered, slow, too uncertain to be static: no evidence.
+    Uncertain,
+    /// Registered slow and certain: m(Ω∖{M}).
+    Static,
+    /// Static after travelling: m({S}).
+    Stopped,
+    /// Moving: m({M}).
+    Moving,
+    /// A cell of a moving cluster explained as static: no evidence.
+    StaticPart,
+}
+
+/// One cluster cell of the last frame, for diagnosis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CellReport {
+    /// Storage index.
+    pub idx: u32,
+    /// What the stage made of it.
+    pub state: CellMotion,
+    /// Cells of its cluster.
+    pub cluster_cells: u32,
+    /// Past frames its cluster's registration used this frame (0: not registered).
+    pub frames: u32,
+    /// Its track's speed, m/s, and √(σx² + σy²), m/s.
+    pub speed_mps: f32,
+    /// See `speed_mps`.
+    pub sigma_mps: f32,
+    /// Its track's registrations.
+    pub measurements: u32,
+    /// Its track's age, s.
+    pub track_age_s: f32,
+}
+
 /// The motion stage of one window: history, clusters, tracks, and their scratch buffers.
 #[derive(Clone, Debug)]
 pub struct MotionStage {
@@ -90,6 +131,10 @@ pub struct MotionStage {
     velocity_north: Vec<f32>,
     /// Cells whose velocity is set, to clear them on the next frame.
     velocity_cells: Vec<u32>,
+    /// This frame's cluster cells and what the stage made of them.
+    cell_states: Vec<CellReport>,
+    /// Past frames each cluster's registration used this frame.
+    cluster_frames: Vec<u32>,
 }
 
 impl MotionStage {
@@ -114,6 +159,8 @@ impl MotionStage {
             velocity_east: vec![0.0; len],
             velocity_north: vec![0.0; len],
             velocity_cells: Vec::new(),
+            cell_states: Vec::new(),
+            cluster_frames: Vec::new(),
         }
     }
 
@@ -163,6 +210,11 @@ impl MotionStage {
             + self.history.dense_bytes()
             + self.gis.heap_bytes()
             + 4 * (self.velocity_east.capacity() + self.velocity_north.capacity())
+    }
+
+    /// This frame's cluster cells (storage index) and what the stage made of each.
+    pub fn cell_states(&self) -> &[CellReport] {
+        &self.cell_states
     }
 
     /// Estimated velocity east of every cell, m/s (0 where no moving track covers it).
@@ -219,6 +271,7 @@ impl MotionStage {
         self.clusters.label(window, &self.occupied);
         self.observations.clear();
         self.moved.clear();
+        self.cluster_frames.clear();
         let mut registered = 0;
         for k in 0..self.clusters.len() {
             let cells = self.clusters.cluster(k);
@@ -243,11 +296,16 @@ impl MotionStage {
                     &self.params,
                 )
                 .map(|r| {
-                    let sigma = self.params.shift_sigma_cells * cell_size_m / r.sum_span_sq.sqrt();
+                    self.cluster_frames.push(r.frames as u32);
+                    let sigma =
+                        r.variance_cells(self.params.shift_sigma_cells).sqrt() * cell_size_m;
                     let (vx, vy) = r.velocity_cells_per_s;
                     ([vx * cell_size_m, vy * cell_size_m], sigma * sigma)
                 });
             registered += usize::from(velocity.is_some());
+            if velocity.is_none() {
+                self.cluster_frames.push(0);
+            }
             self.moved.extend(
                 cells
                     .iter()
@@ -273,6 +331,7 @@ impl MotionStage {
             }
         }
         self.velocity_cells.clear();
+        self.cell_states.clear();
         let (mut moving_cells, mut static_cells) = (0, 0);
         let mut first = 0;
         for k in 0..self.clusters.len() {
@@ -283,21 +342,33 @@ impl MotionStage {
                 continue;
             };
             let mut mass = evidence::track_mass(track, &self.params);
-            // A first sighting, with nothing to register against: if most of its cells were
-            // seen free in the frames kept, the object entered space seen empty (the cue of
-            // SPEC §5's free→occupied conflict, per object). An object that comes out of
-            // occlusion, or into the field of view, entered no cell seen free.
-            if track.measurements == 0 {
+            let mut state = match mass {
+                MotionMass::Vacuous if track.measurements == 0 => CellMotion::Unregistered,
+                MotionMass::Vacuous => CellMotion::Uncertain,
+                MotionMass::Moving(_) => CellMotion::Moving,
+                MotionMass::Static(_) => CellMotion::Static,
+                MotionMass::Stopped(_) => CellMotion::Stopped,
+            };
+            // A track that says nothing (a first sighting, with nothing to register against,
+            // or a slow one whose registrations cannot tell standing from walking): if most
+            // of its cells were seen free in the frames kept, the object entered space seen
+            // empty (the cue of SPEC §5's free→occupied conflict, per object). An object that
+            // comes out of occlusion, or into the field of view, entered no cell seen free;
+            // a static one occupies its cells in every frame.
+            if mass == MotionMass::Vacuous {
                 let recent = (1..=self.params.history_frames)
                     .filter_map(|k| self.history.frame_back(k))
                     .fold(0u8, |bits, (bit, _)| bits | bit);
-                let entered = cells
-                    .iter()
-                    .filter(|c| self.history.free_bits(c.idx as usize) & recent != 0)
-                    .count();
-                let share = entered as f64 / cells.len().max(1) as f64;
-                if recent != 0 && share >= self.params.match_fraction {
-                    mass = MotionMass::Moving((self.params.mu_moving * share) as f32);
+                if recent != 0 {
+                    let entered = cells
+                        .iter()
+                        .filter(|c| self.history.free_bits(c.idx as usize) & recent != 0)
+                        .count();
+                    let share = entered as f64 / cells.len().max(1) as f64;
+                    mass = evidence::entered_seen_free(mass, share, &self.params);
+                    if mass != MotionMass::Vacuous {
+                        state = CellMotion::EnteredSeenFree;
+                    }
                 }
             }
             let mass = evidence::off_buildings(
@@ -306,9 +377,26 @@ impl MotionStage {
                     .iter()
                     .map(|c| self.gis.context.get(c.idx as usize).copied()),
             );
+            if let (MotionMass::Static(_), CellMotion::Stopped) = (mass, state) {
+                state = CellMotion::Static;
+            }
             let [vx, vy] = track.velocity.map(|v| v.mean_mps as f32);
             for (c, &moved) in cells.iter().zip(moved) {
                 let idx = c.idx as usize;
+                self.cell_states.push(CellReport {
+                    idx: c.idx,
+                    state: match mass {
+                        MotionMass::Moving(_) if !moved => CellMotion::StaticPart,
+                        _ => state,
+                    },
+                    cluster_cells: cells.len() as u32,
+                    frames: self.cluster_frames.get(k).copied().unwrap_or(0),
+                    speed_mps: vx.hypot(vy),
+                    sigma_mps: (track.velocity[0].variance + track.velocity[1].variance).sqrt()
+                        as f32,
+                    measurements: track.measurements,
+                    track_age_s: (time_s - track.first_seen_s) as f32,
+                });
                 match mass {
                     MotionMass::Vacuous => continue,
                     // A static part of a moving cluster gets no evidence.

@@ -35,9 +35,10 @@ pub(crate) struct Registration {
     /// origin of the shifts d_k against the time spans τ_k of the frames that matched,
     /// Σ d_k·τ_k / Σ τ_k².
     pub(crate) velocity_cells_per_s: (f64, f64),
-    /// Σ τ_k² of those frames, s²: a shift error of σ cells gives a velocity error of
-    /// σ / √(Σ τ_k²) cells per second.
+    /// Σ τ_k² of those frames, s².
     pub(crate) sum_span_sq: f64,
+    /// Σ τ_k of those frames, s.
+    pub(crate) sum_span: f64,
     /// Frames that matched.
     pub(crate) frames: usize,
 }
@@ -191,6 +192,7 @@ impl Registrar {
             .max(1.0) as u32;
         let cell_size_m = window.cell_size_m();
         let (mut sum_dt_x, mut sum_dt_y, mut sum_tt, mut frames) = (0.0, 0.0, 0.0, 0);
+        let mut sum_t = 0.0;
         for frames_back in 1..=params.history_frames {
             let Some((bit, then_s)) = history.frame_back(frames_back) else {
                 break;
@@ -239,6 +241,7 @@ impl Registrar {
             sum_dt_x += dx as f64 * span_s;
             sum_dt_y += dy as f64 * span_s;
             sum_tt += span_s * span_s;
+            sum_t += span_s;
             frames += 1;
             self.last = LastShift { dx, dy, bit };
             // Two cells or more: precise enough, and further back a fast object leaves the
@@ -250,8 +253,25 @@ impl Registrar {
         (frames > 0).then(|| Registration {
             velocity_cells_per_s: (sum_dt_x / sum_tt, sum_dt_y / sum_tt),
             sum_span_sq: sum_tt,
+            sum_span: sum_t,
             frames,
         })
+    }
+}
+
+impl Registration {
+    /// Variance per axis of the velocity, (cells/s)², for shifts of standard deviation
+    /// `shift_sigma_cells` against one past frame.
+    ///
+    /// A shift d_k = x_now − x_k is quantised at both ends: e_now − e_k, each end of variance
+    /// σ²/2. The error e_now of this frame is the same in every d_k, so the frames are not
+    /// independent: the slope Σ d_k τ_k / Σ τ_k² has variance
+    /// σ²/2 · ((Σ τ_k)² / (Σ τ_k²)² + 1 / Σ τ_k²), which is σ² / τ² for one frame but
+    /// shrinks far less with more frames than σ² / Σ τ_k² would say. A slow object that shows
+    /// no whole-cell shift over a few tenths of a second is not known to stand still.
+    pub(crate) fn variance_cells(&self, shift_sigma_cells: f64) -> f64 {
+        let common = self.sum_span * self.sum_span / (self.sum_span_sq * self.sum_span_sq);
+        0.5 * shift_sigma_cells * shift_sigma_cells * (common + 1.0 / self.sum_span_sq)
     }
 }
 
@@ -368,6 +388,28 @@ mod tests {
         assert_eq!(still.velocity_cells_per_s, (0.0, 0.0));
         assert_eq!(still.frames, 3);
         assert!((still.sum_span_sq - (0.01 + 0.04 + 0.09)).abs() < 1e-9);
+        assert!((still.sum_span - 0.6).abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_velocity_variance_counts_the_shared_error_of_the_current_frame() {
+        let one = Registration {
+            velocity_cells_per_s: (0.0, 0.0),
+            sum_span_sq: 0.01,
+            sum_span: 0.1,
+            frames: 1,
+        };
+        // One frame 0.1 s back, σ = 0.5 cell: 0.125 · (100 + 100) = 25 = 0.5² / 0.1².
+        assert!((one.variance_cells(0.5) - 25.0).abs() < 1e-9);
+        // Three frames 0.1, 0.2, 0.3 s back: 0.125 · (0.36 / 0.0196 + 1 / 0.14) = 3.188 76,
+        // not 0.25 / 0.14 = 1.786 (independent frames).
+        let three = Registration {
+            sum_span_sq: 0.14,
+            sum_span: 0.6,
+            frames: 3,
+            ..one
+        };
+        assert!((three.variance_cells(0.5) - 3.188_775_510_204_082).abs() < 1e-9);
     }
 
     #[test]

@@ -28,6 +28,8 @@ pub(crate) struct Track {
     pub(crate) velocity: [VelocityFilter; 2],
     /// Time the track was last observed, s.
     pub(crate) last_seen_s: f64,
+    /// Time the track started, s.
+    pub(crate) first_seen_s: f64,
     /// Registrations that measured its velocity (none: it knows nothing of motion).
     pub(crate) measurements: u32,
     /// Net displacement, m, summed over the frames the track was judged moving in
@@ -115,6 +117,7 @@ impl Tracks {
                         position_m: o.centroid_m,
                         velocity: [VelocityFilter::new(0.0, unknown_variance); 2],
                         last_seen_s: now_s,
+                        first_seen_s: now_s,
                         measurements: 0,
                         travel_m: [0.0; 2],
                     });
