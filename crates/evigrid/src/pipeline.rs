@@ -72,7 +72,7 @@ use crate::grids::{GisGrid, PerceptionGrid, SensorGrid};
 use crate::label::Label;
 use crate::map_prior::MapPrior;
 use crate::motion::{MotionStage, MotionStats};
-use crate::params::{Params, ParamsError};
+use crate::params::{Params, ParamsError, PoseRefinement};
 use crate::pose::Isometry3;
 use crate::sensor_model::{SensorModel, SensorStats};
 use crate::step::{StepStats, step_and_decide};
@@ -167,6 +167,45 @@ pub struct FrontEndStats {
     pub prior_ms: f64,
     /// See `window_ms`.
     pub sensor_ms: f64,
+    /// What the pose refinement did (`[localisation]`), its time included.
+    pub pose_refinement: RefinementStats,
+}
+
+/// How the front end's pose refinement treated a frame (`[localisation]`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RefinementOutcome {
+    /// Refinement is off: the pose given was used.
+    #[default]
+    Off,
+    /// The first frame with points: the pose given, which starts the local map.
+    First,
+    /// The registered pose (gated, pulled towards the pose given) was used.
+    Refined,
+    /// The pose given was used: the scan had no usable point or the map none near it.
+    KeptNoData,
+    /// The pose given was used: the registration failed or did not converge.
+    KeptFailed,
+    /// The pose given was used: too few of the scan's points matched the map.
+    KeptLowOverlap,
+    /// The pose given was used: the registration moved it beyond the correction bounds.
+    KeptTooFar,
+}
+
+/// What the pose refinement did in one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct RefinementStats {
+    /// How the pose was obtained.
+    pub outcome: RefinementOutcome,
+    /// Horizontal distance between the pose used and the pose given, metres.
+    pub correction_m: f64,
+    /// Heading difference between the pose used and the pose given, degrees (signed,
+    /// counter-clockwise).
+    pub correction_deg: f64,
+    /// Scan points matched to the map in the registration's last iteration.
+    pub correspondences: usize,
+    /// Wall time, milliseconds.
+    pub ms: f64,
 }
 
 /// The per-frame front end (SPEC §2-§4): the window that follows the vehicle, the GISGrid of the
@@ -186,6 +225,10 @@ pub struct FrontEnd {
     dt_s: f64,
     /// Time of the last frame; `None` before the first, when the window is not placed yet.
     last_time_s: Option<f64>,
+    /// The pose refinement (`[localisation] refinement = "scan_to_map"`).
+    refiner: Option<odometry::PoseRefiner>,
+    /// The pose the last SensorGrid was built with.
+    world_from_sensor: Isometry3,
 }
 
 impl FrontEnd {
@@ -203,6 +246,18 @@ impl FrontEnd {
             params.grid.cell_size_m,
         )?;
         let (w, h) = (window.width(), window.height());
+        let refiner = match params.localisation.refinement {
+            PoseRefinement::None => None,
+            PoseRefinement::ScanToMap => Some(
+                odometry::PoseRefiner::new(params.localisation.refine_params(&params.sensor))
+                    // Validated above, so not reached; named should the two checks part.
+                    .map_err(|e| {
+                        PipelineError::Params(ParamsError::Parse {
+                            message: format!("localisation: {e}"),
+                        })
+                    })?,
+            ),
+        };
         Ok(Self {
             sensor_model: SensorModel::new(params.sensor.clone()),
             sensor: SensorGrid::new(w, h),
@@ -212,11 +267,15 @@ impl FrontEnd {
             new_cells: NewCells::All,
             dt_s: 0.0,
             last_time_s: None,
+            refiner,
+            world_from_sensor: Isometry3::IDENTITY,
         })
     }
 
     /// Processes one scan: `points_in_sensor` in the sensor frame, taken at `time_s` (seconds,
     /// any origin, non-decreasing) from the pose `world_from_sensor` in the map's local frame.
+    /// With pose refinement on, that pose is the prior of a registration against the previous
+    /// scans and the SensorGrid is built with the refined pose ([`FrontEnd::world_from_sensor`]).
     ///
     /// # Errors
     ///
@@ -238,8 +297,20 @@ impl FrontEnd {
                 world_from_sensor: *world_from_sensor,
             });
         }
-        let [x_m, y_m, _] = world_from_sensor.translation;
         let ms = |start: Instant| start.elapsed().as_secs_f64() * 1e3;
+
+        // Pose refinement: registered now, added to the map once the frame is accepted.
+        let start = Instant::now();
+        let refinement = self
+            .refiner
+            .as_ref()
+            .map(|refiner| refiner.refine(points_in_sensor, &to_nalgebra(world_from_sensor)));
+        let (world_from_sensor, pose_refinement) = match &refinement {
+            None => (*world_from_sensor, RefinementStats::default()),
+            Some(refinement) => refined_pose(world_from_sensor, refinement, ms(start)),
+        };
+        let world_from_sensor = &world_from_sensor;
+        let [x_m, y_m, _] = world_from_sensor.translation;
 
         // Follow the vehicle: whole-cell shift of the window (SPEC §2).
         let start = Instant::now();
@@ -272,6 +343,13 @@ impl FrontEnd {
         );
         let sensor_ms = ms(start);
 
+        let mut pose_refinement = pose_refinement;
+        if let (Some(refiner), Some(refinement)) = (&mut self.refiner, &refinement) {
+            let start = Instant::now();
+            refiner.insert(refinement);
+            pose_refinement.ms += ms(start);
+        }
+        self.world_from_sensor = *world_from_sensor;
         self.dt_s = time_s - previous_s;
         self.last_time_s = Some(time_s);
         Ok(FrontEndStats {
@@ -281,7 +359,14 @@ impl FrontEnd {
             window_ms,
             prior_ms,
             sensor_ms,
+            pose_refinement,
         })
+    }
+
+    /// The pose the last SensorGrid was built with: the one given, or its refinement
+    /// (`[localisation]`). The identity before the first frame.
+    pub fn world_from_sensor(&self) -> &Isometry3 {
+        &self.world_from_sensor
     }
 
     /// The window (world ↔ storage mapping of every grid).
@@ -323,6 +408,65 @@ impl FrontEnd {
     pub fn has_map(&self) -> bool {
         self.map_prior.has_map()
     }
+}
+
+/// evigrid's pose as nalgebra's, for the odometry crate.
+fn to_nalgebra(pose: &Isometry3) -> nalgebra::Isometry3<f64> {
+    let r = &pose.rotation;
+    let matrix = nalgebra::Matrix3::new(
+        r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
+    );
+    let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(
+        &nalgebra::Rotation3::from_matrix_unchecked(matrix),
+    );
+    let [x, y, z] = pose.translation;
+    nalgebra::Isometry3::from_parts(nalgebra::Translation3::new(x, y, z), rotation)
+}
+
+/// The pose to build the SensorGrid with after a refinement of `given`, and its stats. A kept
+/// prior is `given` itself, bit for bit, not its round trip through nalgebra.
+fn refined_pose(
+    given: &Isometry3,
+    refinement: &odometry::Refinement,
+    ms: f64,
+) -> (Isometry3, RefinementStats) {
+    use odometry::{KeptReason, RefineOutcome};
+    let outcome = match refinement.outcome {
+        RefineOutcome::First => RefinementOutcome::First,
+        RefineOutcome::Refined => RefinementOutcome::Refined,
+        RefineOutcome::KeptPrior(KeptReason::NoData) => RefinementOutcome::KeptNoData,
+        RefineOutcome::KeptPrior(KeptReason::LowOverlap) => RefinementOutcome::KeptLowOverlap,
+        RefineOutcome::KeptPrior(KeptReason::TooFar) => RefinementOutcome::KeptTooFar,
+        RefineOutcome::KeptPrior(_) => RefinementOutcome::KeptFailed,
+        _ => RefinementOutcome::KeptFailed,
+    };
+    let mut stats = RefinementStats {
+        outcome,
+        correspondences: refinement.correspondences,
+        ms,
+        ..RefinementStats::default()
+    };
+    if outcome != RefinementOutcome::Refined {
+        return (*given, stats);
+    }
+    let pose = refinement.world_from_sensor;
+    let rotation = pose.rotation.to_rotation_matrix();
+    let m = rotation.matrix();
+    let used = Isometry3 {
+        rotation: [
+            [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+            [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+            [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+        ],
+        translation: [pose.translation.x, pose.translation.y, pose.translation.z],
+    };
+    let heading = |r: &[[f64; 3]; 3]| r[1][0].atan2(r[0][0]);
+    let mut turn = heading(&used.rotation) - heading(&given.rotation);
+    turn = (turn + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+    stats.correction_m = (used.translation[0] - given.translation[0])
+        .hypot(used.translation[1] - given.translation[1]);
+    stats.correction_deg = turn.to_degrees();
+    (used, stats)
 }
 
 /// Which map prior a [`Fusion`] combines with the sensor (SPEC §5 step 2).
@@ -570,6 +714,8 @@ pub struct FrameStats {
     pub trace_ms: f64,
     /// Wall time of the motion stage, milliseconds ([`Method::Evigrid`]; 0 otherwise).
     pub motion_ms: f64,
+    /// What the pose refinement did (`[localisation]`), its time included.
+    pub pose_refinement: RefinementStats,
 }
 
 /// The whole perception loop for one drive: a [`FrontEnd`] and the [`Fusion`] of its map prior.
@@ -638,6 +784,7 @@ impl Pipeline {
             step_ms: back.step_ms,
             trace_ms: back.trace_ms,
             motion_ms: back.motion.map_or(0.0, |m| m.ms),
+            pose_refinement: front.pose_refinement,
         })
     }
 
