@@ -6,7 +6,8 @@
 //! Runs the scenario's drives through a `FrontEnd` twice, with `[localisation] refinement`
 //! `"none"` (the pose the localisation reports) and `"scan_to_map"` (the other keys from
 //! CONFIG), and prints the root mean square position and heading errors against the true
-//! sensor pose, with the refinement outcomes. SEEDS as in `diagnose_moving` (default: the
+//! sensor pose, and of their change from one scan to the next (what makes a static object jump
+//! a cell), with the refinement outcomes. SEEDS as in `diagnose_moving` (default: the
 //! scenario's seed and the next).
 
 use std::collections::BTreeMap;
@@ -34,6 +35,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut params = config.params_for(&scenario);
         params.localisation.refinement = refinement;
         let (mut sum_sq_m, mut sum_sq_rad, mut frames) = (0.0, 0.0, 0usize);
+        // Changes of the error from one scan to the next: what makes a static object jump.
+        let (mut step_sq_m, mut step_sq_rad, mut steps) = (0.0, 0.0, 0usize);
         let mut outcomes: BTreeMap<String, usize> = BTreeMap::new();
         let mut ms = 0.0;
         for &seed in &seeds {
@@ -43,6 +46,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             };
             let mut drive = Drive::new(&map, &scenario)?;
             let mut front_end = FrontEnd::new(&params, None)?;
+            let mut last_error: Option<(f64, f64, f64)> = None;
             while let Some(frame) = drive.next_frame() {
                 let scan = &frame.scan;
                 let stats = front_end.process(
@@ -62,17 +66,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let turn = (heading - truth.heading_rad + std::f64::consts::PI)
                     .rem_euclid(std::f64::consts::TAU)
                     - std::f64::consts::PI;
+                if let Some((lx, ly, lh)) = last_error {
+                    step_sq_m += (dx - lx).powi(2) + (dy - ly).powi(2);
+                    step_sq_rad += (turn - lh).powi(2);
+                    steps += 1;
+                }
+                last_error = Some((dx, dy, turn));
                 sum_sq_m += dx * dx + dy * dy;
                 sum_sq_rad += turn * turn;
                 frames += 1;
             }
         }
         let n = frames.max(1) as f64;
+        let m = steps.max(1) as f64;
         println!(
             "refinement {refinement:?}: {frames} frames, RMS position error {:.4} m, RMS heading \
-             error {:.4}°, refinement {:.2} ms/frame, outcomes {outcomes:?}",
+             error {:.4}°; scan to scan {:.4} m, {:.4}°; refinement {:.2} ms/frame, outcomes \
+             {outcomes:?}",
             (sum_sq_m / n).sqrt(),
             (sum_sq_rad / n).sqrt().to_degrees(),
+            (step_sq_m / m).sqrt(),
+            (step_sq_rad / m).sqrt().to_degrees(),
             ms / n,
         );
     }

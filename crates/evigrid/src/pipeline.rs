@@ -853,6 +853,103 @@ mod tests {
         p
     }
 
+    /// A planar scan (z = 0) from `(x, y, heading)` of a street: façades at y = 8 and y = -9
+    /// and poles every 4 m on both pavements, one ray every 0.25° all around.
+    fn street_scan(pose: (f64, f64, f64)) -> Vec<[f32; 3]> {
+        let mut boxes = vec![(-30.0, 8.0, 60.0, 8.2), (-30.0, -9.2, 60.0, -9.0)];
+        for k in -7..15 {
+            let x = f64::from(k) * 4.0;
+            boxes.push((x, 6.0, x + 0.3, 6.3));
+            boxes.push((x + 2.0, -7.3, x + 2.3, -7.0));
+        }
+        (0..1440)
+            .filter_map(|k| {
+                let bearing = f64::from(k) * 0.25_f64.to_radians();
+                let (sin, cos) = (pose.2 + bearing).sin_cos();
+                // Slab test of the ray against each box; the nearest entry.
+                let range = boxes
+                    .iter()
+                    .filter_map(|&(x0, y0, x1, y1)| {
+                        let slab = |o: f64, d: f64, lo: f64, hi: f64| {
+                            if d.abs() < 1e-12 {
+                                if (lo..=hi).contains(&o) {
+                                    (f64::NEG_INFINITY, f64::INFINITY)
+                                } else {
+                                    (f64::INFINITY, f64::NEG_INFINITY)
+                                }
+                            } else {
+                                let (a, b) = ((lo - o) / d, (hi - o) / d);
+                                (a.min(b), a.max(b))
+                            }
+                        };
+                        let (ax, bx) = slab(pose.0, cos, x0, x1);
+                        let (ay, by) = slab(pose.1, sin, y0, y1);
+                        let (near, far) = (ax.max(ay), bx.min(by));
+                        (near <= far && near > 0.0).then_some(near)
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                let (bs, bc) = bearing.sin_cos();
+                (range < 60.0).then(|| [(range * bc) as f32, (range * bs) as f32, 0.0])
+            })
+            .collect()
+    }
+
+    #[test]
+    fn refinement_brings_noisy_poses_back_towards_the_truth() -> Result<(), PipelineError> {
+        let mut on = params();
+        on.localisation.refinement = PoseRefinement::ScanToMap;
+        on.localisation.voxel_size_m = 0.25;
+        let mut refined = FrontEnd::new(&on, None)?;
+        let mut given = FrontEnd::new(&params(), None)?;
+        // Driving east at 0.8 m a scan; the reported pose off by a fixed pattern of errors of
+        // the size of a good GNSS/INS's (0.1 m, 0.2°).
+        let errors: [(f64, f64, f64); 4] = [(0.12, -0.08, 0.2), (-0.1, 0.1, -0.25), (0.05, 0.12, 0.15), (-0.12, -0.05, -0.2)];
+        // Errors between consecutive scans, what makes a static object jump a cell: given and
+        // used, position (m) and heading (rad).
+        let (mut before_sq, mut after_sq) = (0.0, 0.0);
+        let mut last: Option<((f64, f64, f64), [f64; 3], f64)> = None;
+        for k in 0..24_u32 {
+            let x = f64::from(k) * 0.8;
+            let (ex, ey, eh) = errors[k as usize % errors.len()];
+            let prior = Isometry3::from_xyz_rpy(x + ex, ey, 0.0, 0.0, 0.0, eh.to_radians());
+            let scan = street_scan((x, 0.0, 0.0));
+            let stats = refined.process(&scan, &prior, f64::from(k) * 0.1)?;
+            given.process(&scan, &prior, f64::from(k) * 0.1)?;
+            assert_eq!(given.world_from_sensor(), &prior);
+            let pose = *refined.world_from_sensor();
+            let heading = pose.rotation[1][0].atan2(pose.rotation[0][0]);
+            let error = [pose.translation[0] - x, pose.translation[1], heading];
+            if k == 0 {
+                assert_eq!(stats.pose_refinement.outcome, RefinementOutcome::First);
+            } else {
+                assert_eq!(stats.pose_refinement.outcome, RefinementOutcome::Refined, "{k}");
+                assert!(pose.translation[2].abs() < 1e-9 && pose.rotation[2][2] > 1.0 - 1e-12);
+            }
+            if let Some((given_error, used_error, _)) = last {
+                let (gx, gy, gh) = given_error;
+                before_sq += (ex - gx).powi(2) + (ey - gy).powi(2) + (20.0 * (eh - gh).to_radians()).powi(2);
+                after_sq += (error[0] - used_error[0]).powi(2)
+                    + (error[1] - used_error[1]).powi(2)
+                    + (20.0 * (error[2] - used_error[2])).powi(2);
+            }
+            last = Some(((ex, ey, eh), error, 0.0));
+        }
+        // Heading weighs as the displacement it causes 20 m away.
+        let (before, after) = ((before_sq / 23.0).sqrt(), (after_sq / 23.0).sqrt());
+        assert!(after < 0.3 * before, "RMS {before} m -> {after} m");
+        Ok(())
+    }
+
+    #[test]
+    fn refinement_off_uses_the_pose_given_and_reports_off() -> Result<(), PipelineError> {
+        let mut front_end = FrontEnd::new(&params(), None)?;
+        let pose = Isometry3::from_xyz_rpy(1.0, 2.0, 0.0, 0.0, 0.0, 0.3);
+        let stats = front_end.process(&street_scan((0.0, 0.0, 0.0)), &pose, 0.0)?;
+        assert_eq!(front_end.world_from_sensor(), &pose);
+        assert_eq!(stats.pose_refinement, RefinementStats::default());
+        Ok(())
+    }
+
     #[test]
     fn the_memory_budget_counts_every_per_cell_allocation() -> Result<(), PipelineError> {
         let mut params = params();
