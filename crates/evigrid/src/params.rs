@@ -857,11 +857,26 @@ mod tests {
             Err(ParamsError::Parse { .. })
         ));
         for (text, name) in [
-            ("[localisation]\nvoxel_size_m = 0\n", "localisation.voxel_size_m"),
-            ("[localisation]\nvoxel_size_m = 1e-9\n", "localisation.voxel_size_m"),
-            ("[localisation]\nmax_correction_m = nan\n", "localisation.max_correction_m"),
-            ("[localisation]\nmax_correction_deg = 200\n", "localisation.max_correction_deg"),
-            ("[localisation]\nprior_weight = 1.5\n", "localisation.prior_weight"),
+            (
+                "[localisation]\nvoxel_size_m = 0\n",
+                "localisation.voxel_size_m",
+            ),
+            (
+                "[localisation]\nvoxel_size_m = 1e-9\n",
+                "localisation.voxel_size_m",
+            ),
+            (
+                "[localisation]\nmax_correction_m = nan\n",
+                "localisation.max_correction_m",
+            ),
+            (
+                "[localisation]\nmax_correction_deg = 200\n",
+                "localisation.max_correction_deg",
+            ),
+            (
+                "[localisation]\nprior_weight = 1.5\n",
+                "localisation.prior_weight",
+            ),
         ] {
             match Params::from_toml_str(text) {
                 Ok(_) => panic!("{text} accepted"),
@@ -1194,7 +1209,11 @@ impl LocalisationParams {
         }
         positive("localisation.max_correction_m", self.max_correction_m)?;
         positive("localisation.max_correction_deg", self.max_correction_deg)?;
-        at_most_f64("localisation.max_correction_deg", self.max_correction_deg, 180.0)?;
+        at_most_f64(
+            "localisation.max_correction_deg",
+            self.max_correction_deg,
+            180.0,
+        )?;
         unit("localisation.prior_weight", self.prior_weight)?;
         Ok(())
     }

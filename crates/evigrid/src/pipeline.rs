@@ -889,7 +889,7 @@ mod tests {
                     })
                     .fold(f64::INFINITY, f64::min);
                 let (bs, bc) = bearing.sin_cos();
-                (range < 60.0).then(|| [(range * bc) as f32, (range * bs) as f32, 0.0])
+                (range < 60.0).then_some([(range * bc) as f32, (range * bs) as f32, 0.0])
             })
             .collect()
     }
@@ -903,11 +903,16 @@ mod tests {
         let mut given = FrontEnd::new(&params(), None)?;
         // Driving east at 0.8 m a scan; the reported pose off by a fixed pattern of errors of
         // the size of a good GNSS/INS's (0.1 m, 0.2°).
-        let errors: [(f64, f64, f64); 4] = [(0.12, -0.08, 0.2), (-0.1, 0.1, -0.25), (0.05, 0.12, 0.15), (-0.12, -0.05, -0.2)];
+        let errors: [(f64, f64, f64); 4] = [
+            (0.12, -0.08, 0.2),
+            (-0.1, 0.1, -0.25),
+            (0.05, 0.12, 0.15),
+            (-0.12, -0.05, -0.2),
+        ];
         // Errors between consecutive scans, what makes a static object jump a cell: given and
         // used, position (m) and heading (rad).
         let (mut before_sq, mut after_sq) = (0.0, 0.0);
-        let mut last: Option<((f64, f64, f64), [f64; 3], f64)> = None;
+        let mut last: Option<((f64, f64, f64), [f64; 3])> = None;
         for k in 0..24_u32 {
             let x = f64::from(k) * 0.8;
             let (ex, ey, eh) = errors[k as usize % errors.len()];
@@ -922,17 +927,22 @@ mod tests {
             if k == 0 {
                 assert_eq!(stats.pose_refinement.outcome, RefinementOutcome::First);
             } else {
-                assert_eq!(stats.pose_refinement.outcome, RefinementOutcome::Refined, "{k}");
+                assert_eq!(
+                    stats.pose_refinement.outcome,
+                    RefinementOutcome::Refined,
+                    "{k}"
+                );
                 assert!(pose.translation[2].abs() < 1e-9 && pose.rotation[2][2] > 1.0 - 1e-12);
             }
-            if let Some((given_error, used_error, _)) = last {
+            if let Some((given_error, used_error)) = last {
                 let (gx, gy, gh) = given_error;
-                before_sq += (ex - gx).powi(2) + (ey - gy).powi(2) + (20.0 * (eh - gh).to_radians()).powi(2);
+                before_sq +=
+                    (ex - gx).powi(2) + (ey - gy).powi(2) + (20.0 * (eh - gh).to_radians()).powi(2);
                 after_sq += (error[0] - used_error[0]).powi(2)
                     + (error[1] - used_error[1]).powi(2)
                     + (20.0 * (error[2] - used_error[2])).powi(2);
             }
-            last = Some(((ex, ey, eh), error, 0.0));
+            last = Some(((ex, ey, eh), error));
         }
         // Heading weighs as the displacement it causes 20 m away.
         let (before, after) = ((before_sq / 23.0).sqrt(), (after_sq / 23.0).sqrt());

@@ -15,11 +15,11 @@
 
 use nalgebra::{Isometry3, Vector3};
 
+use crate::OdometryError;
 use crate::icp::{self, IcpSettings};
 use crate::lie;
 use crate::threshold::AdaptiveThreshold;
 use crate::voxel::{VoxelMap, downsample};
-use crate::OdometryError;
 
 /// Parameters of [`PoseRefiner`].
 #[derive(Debug, Clone, PartialEq)]
@@ -453,7 +453,11 @@ mod tests {
         assert_eq!(half.outcome, RefineOutcome::Refined);
         let x = |r: &Refinement| r.world_from_sensor.translation.x;
         assert!(x(&free).abs() < 0.02, "{}", x(&free));
-        assert!((x(&half) - 0.5 * (x(&free) + 0.2)).abs() < 1e-3, "{}", x(&half));
+        assert!(
+            (x(&half) - 0.5 * (x(&free) + 0.2)).abs() < 1e-3,
+            "{}",
+            x(&half)
+        );
         assert!((x(&kept) - 0.2).abs() < 1e-6, "{}", x(&kept));
     }
 
@@ -490,10 +494,7 @@ mod tests {
         assert_eq!(refinement.world_from_sensor, prior);
         // No point at all, or only unusable ones.
         let empty = refiner.refine(&[[f32::NAN, 0.0, 0.0], [0.5, 0.0, 0.0]], &prior);
-        assert_eq!(
-            empty.outcome,
-            RefineOutcome::KeptPrior(KeptReason::NoData)
-        );
+        assert_eq!(empty.outcome, RefineOutcome::KeptPrior(KeptReason::NoData));
         assert_eq!(empty.world_from_sensor, prior);
     }
 
