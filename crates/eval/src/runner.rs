@@ -434,7 +434,7 @@ fn front_end_seconds(stats: &FrontEndStats, variant: Variant) -> f64 {
     } else {
         0.0
     };
-    (stats.window_ms + prior_ms + stats.sensor_ms) / 1e3
+    (stats.pose_refinement.ms + stats.window_ms + prior_ms + stats.sensor_ms) / 1e3
 }
 
 /// Latency bookkeeping for one frame: per actor with returns, is any return's cell decided M?
