@@ -338,6 +338,8 @@ fn run_drive(
         // The shared front end: window, map prior, SensorGrid, once for every variant.
         let pose = scan.estimated_isometry();
         let stats = front_end.process(&points, &pose, scan.time_s)?;
+        // The pose the SensorGrid was built with: the estimated one, or its refinement.
+        let pose = *front_end.world_from_sensor();
         let window = front_end.window();
         for span in front_end.new_cell_spans() {
             observed[span].fill(false);
@@ -384,10 +386,7 @@ fn run_drive(
                     front_end,
                     fusion,
                     truth: &truth_storage,
-                    ego_position: [
-                        scan.world_from_sensor_estimated.position_m.x,
-                        scan.world_from_sensor_estimated.position_m.y,
-                    ],
+                    ego_position: [pose.translation[0], pose.translation[1]],
                     points_in_sensor: &points,
                     world_from_sensor: &pose,
                     time_s: scan.time_s,
@@ -415,7 +414,7 @@ fn run_drive(
                     observed_now[idx],
                 );
             }
-            update_latency(&mut r.latency, drive, &frame, window, &r.predicted);
+            update_latency(&mut r.latency, drive, &frame, &pose, window, &r.predicted);
         }
         progress(Progress {
             seed_index,
@@ -435,7 +434,7 @@ fn front_end_seconds(stats: &FrontEndStats, variant: Variant) -> f64 {
     } else {
         0.0
     };
-    (stats.window_ms + prior_ms + stats.sensor_ms) / 1e3
+    (stats.pose_refinement.ms + stats.window_ms + prior_ms + stats.sensor_ms) / 1e3
 }
 
 /// Latency bookkeeping for one frame: per actor with returns, is any return's cell decided M?
@@ -443,18 +442,18 @@ fn update_latency(
     latency: &mut Latency,
     drive: &Drive,
     frame: &Frame,
+    world_from_sensor: &evigrid::Isometry3,
     window: &Window,
     predicted: &[Label],
 ) {
     let scan = &frame.scan;
-    let est = scan.world_from_sensor_estimated;
     // Actors with returns, in id order (BTreeMap: deterministic).
     let mut per_actor: std::collections::BTreeMap<u32, bool> = std::collections::BTreeMap::new();
     for (p, hit) in scan.points_in_sensor.iter().zip(&scan.hits) {
         if let HitTarget::Actor(id) = *hit {
-            let q = est.world_from_body(*p);
+            let [x, y, _] = world_from_sensor.transform_point([p.x, p.y, 0.0]);
             let decided = window
-                .storage_index_of_point(q.x, q.y)
+                .storage_index_of_point(x, y)
                 .and_then(|i| predicted.get(i))
                 .is_some_and(|&d| d == Label::M);
             *per_actor.entry(id).or_insert(false) |= decided;

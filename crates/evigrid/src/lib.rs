@@ -70,13 +70,14 @@ mod window;
 // The per-frame pipeline: what an embedding uses first.
 pub use pipeline::{
     FrameStats, FrontEnd, FrontEndStats, Fusion, FusionStats, Method, NewCells, Pipeline,
-    PipelineError, Prior,
+    PipelineError, Prior, RefinementOutcome, RefinementStats,
 };
 // Parameters (SPEC §7), one type per `[section]`.
 pub use params::{
     AccumulatorParams, ClassRates, DecisionParams, DiscountMode, FusionParams, GridParams,
-    GroundModel, MEMORY_BUDGET_BYTES, MapParams, MotionParams, Params, ParamsError, ResidualPolicy,
-    SensorParams, SetRate, UnobservedCells, WINDOW_BYTES_PER_CELL, WindowParams, check_window_size,
+    GroundModel, LocalisationParams, MEMORY_BUDGET_BYTES, MapParams, MotionParams, Params,
+    ParamsError, PoseRefinement, ResidualPolicy, SensorParams, SetRate, UnobservedCells,
+    WINDOW_BYTES_PER_CELL, WindowParams, check_window_size,
 };
 // The labels, the decision and the pignistic probability (SPEC §6).
 pub use decision::{betp, decide, decide_grid};

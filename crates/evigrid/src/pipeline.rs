@@ -72,7 +72,7 @@ use crate::grids::{GisGrid, PerceptionGrid, SensorGrid};
 use crate::label::Label;
 use crate::map_prior::MapPrior;
 use crate::motion::{MotionStage, MotionStats};
-use crate::params::{Params, ParamsError};
+use crate::params::{Params, ParamsError, PoseRefinement};
 use crate::pose::Isometry3;
 use crate::sensor_model::{SensorModel, SensorStats};
 use crate::step::{StepStats, step_and_decide};
@@ -167,6 +167,45 @@ pub struct FrontEndStats {
     pub prior_ms: f64,
     /// See `window_ms`.
     pub sensor_ms: f64,
+    /// What the pose refinement did (`[localisation]`), its time included.
+    pub pose_refinement: RefinementStats,
+}
+
+/// How the front end's pose refinement treated a frame (`[localisation]`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RefinementOutcome {
+    /// Refinement is off: the pose given was used.
+    #[default]
+    Off,
+    /// The first frame with points: the pose given, which starts the local map.
+    First,
+    /// The registered pose (gated, pulled towards the pose given) was used.
+    Refined,
+    /// The pose given was used: the scan had no usable point or the map none near it.
+    KeptNoData,
+    /// The pose given was used: the registration failed or did not converge.
+    KeptFailed,
+    /// The pose given was used: too few of the scan's points matched the map.
+    KeptLowOverlap,
+    /// The pose given was used: the registration moved it beyond the correction bounds.
+    KeptTooFar,
+}
+
+/// What the pose refinement did in one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct RefinementStats {
+    /// How the pose was obtained.
+    pub outcome: RefinementOutcome,
+    /// Horizontal distance between the pose used and the pose given, metres.
+    pub correction_m: f64,
+    /// Heading difference between the pose used and the pose given, degrees (signed,
+    /// counter-clockwise).
+    pub correction_deg: f64,
+    /// Scan points matched to the map in the registration's last iteration.
+    pub correspondences: usize,
+    /// Wall time, milliseconds.
+    pub ms: f64,
 }
 
 /// The per-frame front end (SPEC §2-§4): the window that follows the vehicle, the GISGrid of the
@@ -186,6 +225,10 @@ pub struct FrontEnd {
     dt_s: f64,
     /// Time of the last frame; `None` before the first, when the window is not placed yet.
     last_time_s: Option<f64>,
+    /// The pose refinement (`[localisation] refinement = "scan_to_map"`).
+    refiner: Option<odometry::PoseRefiner>,
+    /// The pose the last SensorGrid was built with.
+    world_from_sensor: Isometry3,
 }
 
 impl FrontEnd {
@@ -203,6 +246,18 @@ impl FrontEnd {
             params.grid.cell_size_m,
         )?;
         let (w, h) = (window.width(), window.height());
+        let refiner = match params.localisation.refinement {
+            PoseRefinement::None => None,
+            PoseRefinement::ScanToMap => Some(
+                odometry::PoseRefiner::new(params.localisation.refine_params(&params.sensor))
+                    // Validated above, so not reached; named should the two checks part.
+                    .map_err(|e| {
+                        PipelineError::Params(ParamsError::Parse {
+                            message: format!("localisation: {e}"),
+                        })
+                    })?,
+            ),
+        };
         Ok(Self {
             sensor_model: SensorModel::new(params.sensor.clone()),
             sensor: SensorGrid::new(w, h),
@@ -212,11 +267,15 @@ impl FrontEnd {
             new_cells: NewCells::All,
             dt_s: 0.0,
             last_time_s: None,
+            refiner,
+            world_from_sensor: Isometry3::IDENTITY,
         })
     }
 
     /// Processes one scan: `points_in_sensor` in the sensor frame, taken at `time_s` (seconds,
     /// any origin, non-decreasing) from the pose `world_from_sensor` in the map's local frame.
+    /// With pose refinement on, that pose is the prior of a registration against the previous
+    /// scans and the SensorGrid is built with the refined pose ([`FrontEnd::world_from_sensor`]).
     ///
     /// # Errors
     ///
@@ -238,8 +297,20 @@ impl FrontEnd {
                 world_from_sensor: *world_from_sensor,
             });
         }
-        let [x_m, y_m, _] = world_from_sensor.translation;
         let ms = |start: Instant| start.elapsed().as_secs_f64() * 1e3;
+
+        // Pose refinement: registered now, added to the map once the frame is accepted.
+        let start = Instant::now();
+        let refinement = self
+            .refiner
+            .as_ref()
+            .map(|refiner| refiner.refine(points_in_sensor, &to_nalgebra(world_from_sensor)));
+        let (world_from_sensor, pose_refinement) = match &refinement {
+            None => (*world_from_sensor, RefinementStats::default()),
+            Some(refinement) => refined_pose(world_from_sensor, refinement, ms(start)),
+        };
+        let world_from_sensor = &world_from_sensor;
+        let [x_m, y_m, _] = world_from_sensor.translation;
 
         // Follow the vehicle: whole-cell shift of the window (SPEC §2).
         let start = Instant::now();
@@ -272,6 +343,13 @@ impl FrontEnd {
         );
         let sensor_ms = ms(start);
 
+        let mut pose_refinement = pose_refinement;
+        if let (Some(refiner), Some(refinement)) = (&mut self.refiner, &refinement) {
+            let start = Instant::now();
+            refiner.insert(refinement);
+            pose_refinement.ms += ms(start);
+        }
+        self.world_from_sensor = *world_from_sensor;
         self.dt_s = time_s - previous_s;
         self.last_time_s = Some(time_s);
         Ok(FrontEndStats {
@@ -281,7 +359,14 @@ impl FrontEnd {
             window_ms,
             prior_ms,
             sensor_ms,
+            pose_refinement,
         })
+    }
+
+    /// The pose the last SensorGrid was built with: the one given, or its refinement
+    /// (`[localisation]`). The identity before the first frame.
+    pub fn world_from_sensor(&self) -> &Isometry3 {
+        &self.world_from_sensor
     }
 
     /// The window (world ↔ storage mapping of every grid).
@@ -323,6 +408,65 @@ impl FrontEnd {
     pub fn has_map(&self) -> bool {
         self.map_prior.has_map()
     }
+}
+
+/// evigrid's pose as nalgebra's, for the odometry crate.
+fn to_nalgebra(pose: &Isometry3) -> nalgebra::Isometry3<f64> {
+    let r = &pose.rotation;
+    let matrix = nalgebra::Matrix3::new(
+        r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
+    );
+    let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(
+        &nalgebra::Rotation3::from_matrix_unchecked(matrix),
+    );
+    let [x, y, z] = pose.translation;
+    nalgebra::Isometry3::from_parts(nalgebra::Translation3::new(x, y, z), rotation)
+}
+
+/// The pose to build the SensorGrid with after a refinement of `given`, and its stats. A kept
+/// prior is `given` itself, bit for bit, not its round trip through nalgebra.
+fn refined_pose(
+    given: &Isometry3,
+    refinement: &odometry::Refinement,
+    ms: f64,
+) -> (Isometry3, RefinementStats) {
+    use odometry::{KeptReason, RefineOutcome};
+    let outcome = match refinement.outcome {
+        RefineOutcome::First => RefinementOutcome::First,
+        RefineOutcome::Refined => RefinementOutcome::Refined,
+        RefineOutcome::KeptPrior(KeptReason::NoData) => RefinementOutcome::KeptNoData,
+        RefineOutcome::KeptPrior(KeptReason::LowOverlap) => RefinementOutcome::KeptLowOverlap,
+        RefineOutcome::KeptPrior(KeptReason::TooFar) => RefinementOutcome::KeptTooFar,
+        RefineOutcome::KeptPrior(_) => RefinementOutcome::KeptFailed,
+        _ => RefinementOutcome::KeptFailed,
+    };
+    let mut stats = RefinementStats {
+        outcome,
+        correspondences: refinement.correspondences,
+        ms,
+        ..RefinementStats::default()
+    };
+    if outcome != RefinementOutcome::Refined {
+        return (*given, stats);
+    }
+    let pose = refinement.world_from_sensor;
+    let rotation = pose.rotation.to_rotation_matrix();
+    let m = rotation.matrix();
+    let used = Isometry3 {
+        rotation: [
+            [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+            [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+            [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+        ],
+        translation: [pose.translation.x, pose.translation.y, pose.translation.z],
+    };
+    let heading = |r: &[[f64; 3]; 3]| r[1][0].atan2(r[0][0]);
+    let mut turn = heading(&used.rotation) - heading(&given.rotation);
+    turn = (turn + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+    stats.correction_m = (used.translation[0] - given.translation[0])
+        .hypot(used.translation[1] - given.translation[1]);
+    stats.correction_deg = turn.to_degrees();
+    (used, stats)
 }
 
 /// Which map prior a [`Fusion`] combines with the sensor (SPEC §5 step 2).
@@ -570,6 +714,8 @@ pub struct FrameStats {
     pub trace_ms: f64,
     /// Wall time of the motion stage, milliseconds ([`Method::Evigrid`]; 0 otherwise).
     pub motion_ms: f64,
+    /// What the pose refinement did (`[localisation]`), its time included.
+    pub pose_refinement: RefinementStats,
 }
 
 /// The whole perception loop for one drive: a [`FrontEnd`] and the [`Fusion`] of its map prior.
@@ -638,6 +784,7 @@ impl Pipeline {
             step_ms: back.step_ms,
             trace_ms: back.trace_ms,
             motion_ms: back.motion.map_or(0.0, |m| m.ms),
+            pose_refinement: front.pose_refinement,
         })
     }
 
@@ -704,6 +851,113 @@ mod tests {
         p.window.height_cells = 20;
         p.sensor.ground_model = GroundModel::None;
         p
+    }
+
+    /// A planar scan (z = 0) from `(x, y, heading)` of a street: façades at y = 8 and y = -9
+    /// and poles every 4 m on both pavements, one ray every 0.25° all around.
+    fn street_scan(pose: (f64, f64, f64)) -> Vec<[f32; 3]> {
+        let mut boxes = vec![(-30.0, 8.0, 60.0, 8.2), (-30.0, -9.2, 60.0, -9.0)];
+        for k in -7..15 {
+            let x = f64::from(k) * 4.0;
+            boxes.push((x, 6.0, x + 0.3, 6.3));
+            boxes.push((x + 2.0, -7.3, x + 2.3, -7.0));
+        }
+        (0..1440)
+            .filter_map(|k| {
+                let bearing = f64::from(k) * 0.25_f64.to_radians();
+                let (sin, cos) = (pose.2 + bearing).sin_cos();
+                // Slab test of the ray against each box; the nearest entry.
+                let range = boxes
+                    .iter()
+                    .filter_map(|&(x0, y0, x1, y1)| {
+                        let slab = |o: f64, d: f64, lo: f64, hi: f64| {
+                            if d.abs() < 1e-12 {
+                                if (lo..=hi).contains(&o) {
+                                    (f64::NEG_INFINITY, f64::INFINITY)
+                                } else {
+                                    (f64::INFINITY, f64::NEG_INFINITY)
+                                }
+                            } else {
+                                let (a, b) = ((lo - o) / d, (hi - o) / d);
+                                (a.min(b), a.max(b))
+                            }
+                        };
+                        let (ax, bx) = slab(pose.0, cos, x0, x1);
+                        let (ay, by) = slab(pose.1, sin, y0, y1);
+                        let (near, far) = (ax.max(ay), bx.min(by));
+                        (near <= far && near > 0.0).then_some(near)
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                let (bs, bc) = bearing.sin_cos();
+                (range < 60.0).then_some([(range * bc) as f32, (range * bs) as f32, 0.0])
+            })
+            .collect()
+    }
+
+    #[test]
+    fn refinement_brings_noisy_poses_back_towards_the_truth() -> Result<(), PipelineError> {
+        let mut on = params();
+        on.localisation.refinement = PoseRefinement::ScanToMap;
+        on.localisation.voxel_size_m = 0.25;
+        let mut refined = FrontEnd::new(&on, None)?;
+        let mut given = FrontEnd::new(&params(), None)?;
+        // Driving east at 0.8 m a scan; the reported pose off by a fixed pattern of errors of
+        // the size of a good GNSS/INS's (0.1 m, 0.2°).
+        let errors: [(f64, f64, f64); 4] = [
+            (0.12, -0.08, 0.2),
+            (-0.1, 0.1, -0.25),
+            (0.05, 0.12, 0.15),
+            (-0.12, -0.05, -0.2),
+        ];
+        // Errors between consecutive scans, what makes a static object jump a cell: given and
+        // used, position (m) and heading (rad).
+        let (mut before_sq, mut after_sq) = (0.0, 0.0);
+        let mut last: Option<((f64, f64, f64), [f64; 3])> = None;
+        for k in 0..24_u32 {
+            let x = f64::from(k) * 0.8;
+            let (ex, ey, eh) = errors[k as usize % errors.len()];
+            let prior = Isometry3::from_xyz_rpy(x + ex, ey, 0.0, 0.0, 0.0, eh.to_radians());
+            let scan = street_scan((x, 0.0, 0.0));
+            let stats = refined.process(&scan, &prior, f64::from(k) * 0.1)?;
+            given.process(&scan, &prior, f64::from(k) * 0.1)?;
+            assert_eq!(given.world_from_sensor(), &prior);
+            let pose = *refined.world_from_sensor();
+            let heading = pose.rotation[1][0].atan2(pose.rotation[0][0]);
+            let error = [pose.translation[0] - x, pose.translation[1], heading];
+            if k == 0 {
+                assert_eq!(stats.pose_refinement.outcome, RefinementOutcome::First);
+            } else {
+                assert_eq!(
+                    stats.pose_refinement.outcome,
+                    RefinementOutcome::Refined,
+                    "{k}"
+                );
+                assert!(pose.translation[2].abs() < 1e-9 && pose.rotation[2][2] > 1.0 - 1e-12);
+            }
+            if let Some((given_error, used_error)) = last {
+                let (gx, gy, gh) = given_error;
+                before_sq +=
+                    (ex - gx).powi(2) + (ey - gy).powi(2) + (20.0 * (eh - gh).to_radians()).powi(2);
+                after_sq += (error[0] - used_error[0]).powi(2)
+                    + (error[1] - used_error[1]).powi(2)
+                    + (20.0 * (error[2] - used_error[2])).powi(2);
+            }
+            last = Some(((ex, ey, eh), error));
+        }
+        // Heading weighs as the displacement it causes 20 m away.
+        let (before, after) = ((before_sq / 23.0).sqrt(), (after_sq / 23.0).sqrt());
+        assert!(after < 0.3 * before, "RMS {before} m -> {after} m");
+        Ok(())
+    }
+
+    #[test]
+    fn refinement_off_uses_the_pose_given_and_reports_off() -> Result<(), PipelineError> {
+        let mut front_end = FrontEnd::new(&params(), None)?;
+        let pose = Isometry3::from_xyz_rpy(1.0, 2.0, 0.0, 0.0, 0.0, 0.3);
+        let stats = front_end.process(&street_scan((0.0, 0.0, 0.0)), &pose, 0.0)?;
+        assert_eq!(front_end.world_from_sensor(), &pose);
+        assert_eq!(stats.pose_refinement, RefinementStats::default());
+        Ok(())
     }
 
     #[test]

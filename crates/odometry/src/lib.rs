@@ -6,6 +6,9 @@
 //! map, starting from a constant-velocity prediction; the correspondence threshold adapts to how
 //! far the registrations deviate from that prediction.
 //!
+//! [`PoseRefiner`] does the same registration with a reported pose (GNSS/INS) as the prior:
+//! it corrects that pose instead of replacing it.
+//!
 //! ```no_run
 //! use odometry::{Odometry, OdometryParams};
 //! # fn scans() -> Vec<(Vec<[f32; 3]>, f64)> { Vec::new() }
@@ -32,9 +35,11 @@ mod lie;
 pub mod metrics;
 mod params;
 mod pipeline;
+mod refine;
 mod threshold;
 mod voxel;
 
 pub use error::OdometryError;
 pub use params::OdometryParams;
 pub use pipeline::{FrameOutcome, FrameReport, Odometry};
+pub use refine::{KeptReason, PoseRefiner, RefineOutcome, RefineParams, Refinement};

@@ -621,7 +621,7 @@ pub fn run(args: RunArgs) -> Result<()> {
                 window: pipeline.window(),
                 decisions: pipeline.decisions(),
                 perception: pipeline.perception(),
-                world_from_sensor: pose,
+                world_from_sensor: pipeline.front_end().world_from_sensor(),
                 points_in_sensor: &scan.points_in_sensor,
                 fix,
             });

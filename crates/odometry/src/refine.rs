@@ -1,0 +1,537 @@
+//! Pose refinement: a reported pose (GNSS/INS, a noisy localisation) corrected by registering
+//! the scan against a local map of the previous scans.
+//!
+//! Unlike [`crate::Odometry`], the prior is the pose given with each scan, not a
+//! constant-velocity prediction: ICP starts from it, its correction is gated (a failed or
+//! unconverged registration, or one that moves the pose farther from the prior than the prior
+//! can be wrong, keeps the prior), and the accepted pose is pulled a fraction of the way back to
+//! the prior. Without that pull the refined poses would be consistent with each other but the
+//! whole map would keep the error of the first scan's prior and drift from there; with it the
+//! map frame follows the average of the priors.
+//!
+//! The map holds the scans at their refined poses and forgets what lies beyond the range, so
+//! memory does not grow with the drive. Planar scans (all points at one height, level poses)
+//! work: the plane pins height, roll and pitch, and its in-plane structure the rest.
+
+use nalgebra::{Isometry3, Vector3};
+
+use crate::OdometryError;
+use crate::icp::{self, IcpSettings};
+use crate::lie;
+use crate::threshold::AdaptiveThreshold;
+use crate::voxel::{VoxelMap, downsample};
+
+/// Parameters of [`PoseRefiner`].
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct RefineParams {
+    /// Points farther than this from the sensor are not registered, and map points farther than
+    /// this from the current position are forgotten (metres, default 80).
+    pub max_range_m: f64,
+    /// Points closer than this to the sensor are not registered (metres, default 2).
+    pub min_range_m: f64,
+    /// Edge of a local-map voxel (metres, default 0.25: a sparse planar scanner needs fine
+    /// voxels, or point-to-point ICP settles on the map's sampling along a façade). A scan is
+    /// downsampled at half of it for the map and at 1.5 times it for registration, as in
+    /// [`crate::Odometry`].
+    pub voxel_size_m: f64,
+    /// At most this many points are kept per map voxel (default 20).
+    pub max_points_per_voxel: usize,
+    /// Correspondence threshold before any correction has been observed (metres, default 1);
+    /// then KISS-ICP's adaptive threshold from the corrections applied to the priors.
+    pub initial_threshold_m: f64,
+    /// Gauss–Newton iterations per scan at most (default 100).
+    pub max_iterations: usize,
+    /// ICP stops when an update's norm (metres and radians as one 6-vector) is below this
+    /// (default 1e-4).
+    pub convergence_tolerance: f64,
+    /// A registration that moves the position farther than this from the prior is refused and
+    /// the prior kept (metres, default 0.5: five times a good GNSS/INS's 0.1 m).
+    pub max_correction_m: f64,
+    /// A registration that turns the pose by more than this from the prior is refused and the
+    /// prior kept (degrees, default 1: five times a good INS's 0.2°).
+    pub max_correction_deg: f64,
+    /// Fraction of the way from the registered pose back to the prior, in `[0, 1]` (default
+    /// 0.1): keeps the map frame on the priors' average instead of drifting with the first
+    /// scan's error. 1 keeps the prior (registration measured but not used).
+    pub prior_weight: f64,
+    /// A registration with fewer correspondences than this fraction of the registered points
+    /// is refused (default 0.3): a scan that mostly sees what the map has not.
+    pub min_overlap: f64,
+}
+
+impl Default for RefineParams {
+    fn default() -> Self {
+        Self {
+            max_range_m: 80.0,
+            min_range_m: 2.0,
+            voxel_size_m: 0.25,
+            max_points_per_voxel: 20,
+            initial_threshold_m: 1.0,
+            max_iterations: 100,
+            convergence_tolerance: 1e-4,
+            max_correction_m: 0.5,
+            max_correction_deg: 1.0,
+            prior_weight: 0.1,
+            min_overlap: 0.3,
+        }
+    }
+}
+
+impl RefineParams {
+    /// Checks every field; the error names the first one that is out of range.
+    ///
+    /// # Errors
+    /// [`OdometryError::InvalidParameter`].
+    pub fn validate(&self) -> Result<(), OdometryError> {
+        let positive = |name: &'static str, value: f64| {
+            if value.is_finite() && value > 0.0 {
+                Ok(())
+            } else {
+                Err(invalid(name, value, "must be finite and > 0"))
+            }
+        };
+        let unit = |name: &'static str, value: f64| {
+            if (0.0..=1.0).contains(&value) {
+                Ok(())
+            } else {
+                Err(invalid(name, value, "must be within [0, 1]"))
+            }
+        };
+        positive("max_range_m", self.max_range_m)?;
+        if !(self.min_range_m.is_finite()
+            && self.min_range_m >= 0.0
+            && self.min_range_m < self.max_range_m)
+        {
+            return Err(invalid(
+                "min_range_m",
+                self.min_range_m,
+                "must be finite, >= 0 and < max_range_m",
+            ));
+        }
+        positive("voxel_size_m", self.voxel_size_m)?;
+        // Voxel indices are i32: a voxel so small that the map's extent overflows them is a typo.
+        if self.max_range_m / self.voxel_size_m > 1.0e6 {
+            return Err(invalid(
+                "voxel_size_m",
+                self.voxel_size_m,
+                "must be at least max_range_m / 1e6",
+            ));
+        }
+        if self.max_points_per_voxel == 0 {
+            return Err(invalid("max_points_per_voxel", 0, "must be >= 1"));
+        }
+        positive("initial_threshold_m", self.initial_threshold_m)?;
+        if self.max_iterations == 0 {
+            return Err(invalid("max_iterations", 0, "must be >= 1"));
+        }
+        positive("convergence_tolerance", self.convergence_tolerance)?;
+        positive("max_correction_m", self.max_correction_m)?;
+        if !(self.max_correction_deg.is_finite()
+            && self.max_correction_deg > 0.0
+            && self.max_correction_deg <= 180.0)
+        {
+            return Err(invalid(
+                "max_correction_deg",
+                self.max_correction_deg,
+                "must be within (0, 180]",
+            ));
+        }
+        unit("prior_weight", self.prior_weight)?;
+        unit("min_overlap", self.min_overlap)?;
+        Ok(())
+    }
+}
+
+fn invalid(name: &'static str, value: impl ToString, expected: &'static str) -> OdometryError {
+    OdometryError::InvalidParameter {
+        name,
+        value: value.to_string(),
+        expected,
+    }
+}
+
+/// Why a scan kept its prior.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum KeptReason {
+    /// The scan had no usable point, or the map none near it.
+    NoData,
+    /// ICP could not compute an update (too few correspondences, singular equations).
+    Failed,
+    /// ICP did not converge within the iteration limit.
+    NotConverged,
+    /// Too few of the scan's points found a map point.
+    LowOverlap,
+    /// The registration moved the pose farther from the prior than `max_correction_*`.
+    TooFar,
+}
+
+/// How a scan's pose was obtained.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum RefineOutcome {
+    /// The first scan with points: the map starts from its prior.
+    First,
+    /// Registered, gated and blended with the prior.
+    Refined,
+    /// The prior, for the reason given.
+    KeptPrior(KeptReason),
+}
+
+/// The refinement of one scan, from [`PoseRefiner::refine`]; hand it to
+/// [`PoseRefiner::insert`] to add the scan to the map.
+#[derive(Debug, Clone)]
+pub struct Refinement {
+    /// The pose to use: refined, or the prior.
+    pub world_from_sensor: Isometry3<f64>,
+    /// How it was obtained.
+    pub outcome: RefineOutcome,
+    /// `prior⁻¹ · registered` as ICP found it, gated or not (identity when ICP did not run).
+    pub correction: Isometry3<f64>,
+    /// Correspondences in ICP's last iteration.
+    pub correspondences: usize,
+    /// Points registered (the scan downsampled at 1.5 voxels).
+    pub source_points: usize,
+    /// Gauss–Newton iterations run.
+    pub iterations: usize,
+    /// The scan downsampled for the map, sensor frame.
+    frame: Vec<Vector3<f64>>,
+}
+
+/// Refines reported poses against a local map of the previous scans. See the module docs.
+#[derive(Debug, Clone)]
+pub struct PoseRefiner {
+    params: RefineParams,
+    map: VoxelMap,
+    threshold: AdaptiveThreshold,
+}
+
+impl PoseRefiner {
+    /// A refiner with an empty map.
+    ///
+    /// # Errors
+    /// [`OdometryError::InvalidParameter`] naming the first invalid field.
+    pub fn new(params: RefineParams) -> Result<Self, OdometryError> {
+        params.validate()?;
+        Ok(Self {
+            map: VoxelMap::new(params.voxel_size_m, params.max_points_per_voxel),
+            // As KISS-ICP: corrections under 0.1 m (bound at the range) are sampling noise, and
+            // would shrink the threshold below the map's point spacing.
+            threshold: AdaptiveThreshold::new(params.initial_threshold_m, 0.1, params.max_range_m),
+            params,
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &RefineParams {
+        &self.params
+    }
+
+    /// Voxels in the local map.
+    pub fn map_voxels(&self) -> usize {
+        self.map.voxel_count()
+    }
+
+    /// Registers `points` (sensor frame; NaN, infinite and out-of-range points are skipped)
+    /// against the map, starting from `prior` (`world_from_sensor`). Changes nothing: the map
+    /// and the threshold are updated by [`PoseRefiner::insert`].
+    pub fn refine(&self, points: &[[f32; 3]], prior: &Isometry3<f64>) -> Refinement {
+        let p = &self.params;
+        let (min_sq, max_sq) = (p.min_range_m * p.min_range_m, p.max_range_m * p.max_range_m);
+        let kept: Vec<Vector3<f64>> = points
+            .iter()
+            .filter(|raw| raw.iter().all(|c| c.is_finite()))
+            .map(|raw| Vector3::new(f64::from(raw[0]), f64::from(raw[1]), f64::from(raw[2])))
+            .filter(|point| (min_sq..=max_sq).contains(&point.norm_squared()))
+            .collect();
+        let frame: Vec<Vector3<f64>> = downsample(&kept, 0.5 * p.voxel_size_m)
+            .into_iter()
+            .map(|i| kept[i])
+            .collect();
+        let source: Vec<Vector3<f64>> = downsample(&frame, 1.5 * p.voxel_size_m)
+            .into_iter()
+            .map(|i| frame[i])
+            .collect();
+        let mut refinement = Refinement {
+            world_from_sensor: *prior,
+            outcome: RefineOutcome::KeptPrior(KeptReason::NoData),
+            correction: Isometry3::identity(),
+            correspondences: 0,
+            source_points: source.len(),
+            iterations: 0,
+            frame,
+        };
+        if refinement.frame.is_empty() {
+            return refinement;
+        }
+        if self.map.is_empty() {
+            refinement.outcome = RefineOutcome::First;
+            return refinement;
+        }
+        let sigma = self.threshold.sigma();
+        let settings = IcpSettings {
+            max_correspondence_m: 3.0 * sigma,
+            kernel_scale_m: sigma / 3.0,
+            max_iterations: p.max_iterations,
+            tolerance: p.convergence_tolerance,
+        };
+        let outcome = icp::register(&source, &self.map, prior, &settings);
+        refinement.correspondences = outcome.correspondences;
+        refinement.iterations = outcome.iterations;
+        let correction = prior.inverse() * outcome.world_from_sensor;
+        refinement.correction = correction;
+        let reason = if outcome.failed {
+            Some(KeptReason::Failed)
+        } else if !outcome.converged {
+            Some(KeptReason::NotConverged)
+        } else if (outcome.correspondences as f64) < p.min_overlap * source.len() as f64 {
+            Some(KeptReason::LowOverlap)
+        } else if correction.translation.vector.norm() > p.max_correction_m
+            || correction.rotation.angle() > p.max_correction_deg.to_radians()
+        {
+            Some(KeptReason::TooFar)
+        } else {
+            None
+        };
+        if let Some(reason) = reason {
+            refinement.outcome = RefineOutcome::KeptPrior(reason);
+            return refinement;
+        }
+        // registered · exp(w · log(registered⁻¹ · prior)): w of the way back to the prior.
+        let back = lie::log(&correction.inverse()) * p.prior_weight;
+        refinement.world_from_sensor = outcome.world_from_sensor * lie::exp(&back);
+        refinement.outcome = RefineOutcome::Refined;
+        refinement
+    }
+
+    /// Adds the scan of `refinement` to the map at its pose, feeds the adaptive threshold with
+    /// the correction and forgets the map beyond the range.
+    pub fn insert(&mut self, refinement: &Refinement) {
+        if refinement.outcome == RefineOutcome::Refined {
+            self.threshold.observe(&refinement.correction);
+        }
+        let pose = &refinement.world_from_sensor;
+        self.map.add(&refinement.frame, pose);
+        self.map
+            .remove_far(&pose.translation.vector, self.params.max_range_m);
+    }
+
+    /// [`PoseRefiner::refine`] then [`PoseRefiner::insert`]: the pose to use for this scan.
+    pub fn refine_and_insert(&mut self, points: &[[f32; 3]], prior: &Isometry3<f64>) -> Refinement {
+        let refinement = self.refine(points, prior);
+        self.insert(&refinement);
+        refinement
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    /// A planar world (z = 0): building walls along a street, and poles, as a 2-D scanner sees
+    /// them.
+    fn world_segments() -> Vec<([f64; 2], [f64; 2])> {
+        // Poles every 6 m on both pavements, 0.3 m square: what pins the position along the
+        // street, which the façades leave free.
+        let poles = (-3..10).flat_map(|k| {
+            let x = f64::from(k) * 6.0 + 1.0;
+            [6.5, -7.5].into_iter().flat_map(move |y| {
+                [
+                    ([x, y], [x + 0.3, y]),
+                    ([x + 0.3, y], [x + 0.3, y + 0.3]),
+                    ([x + 0.3, y + 0.3], [x, y + 0.3]),
+                    ([x, y + 0.3], [x, y]),
+                ]
+            })
+        });
+        let mut segments = vec![
+            ([-20.0, 8.0], [60.0, 8.0]),
+            ([-20.0, -9.0], [15.0, -9.0]),
+            ([15.0, -9.0], [15.0, -25.0]),
+            ([22.0, -9.0], [22.0, -25.0]),
+            ([22.0, -9.0], [60.0, -9.0]),
+            ([40.0, 8.0], [40.0, 30.0]),
+            ([5.0, 3.0], [5.3, 3.0]),
+            ([28.0, -4.0], [28.3, -4.0]),
+        ];
+        segments.extend(poles);
+        segments
+    }
+
+    /// A 360° planar scan from `pose` (x, y, heading): the first wall hit per ray, every 0.25°.
+    fn planar_scan(pose: (f64, f64, f64)) -> Vec<[f32; 3]> {
+        let segments = world_segments();
+        let mut points = Vec::new();
+        for k in 0..1440 {
+            let bearing = f64::from(k) * 0.25_f64.to_radians();
+            let (sin, cos) = (pose.2 + bearing).sin_cos();
+            let mut best = f64::INFINITY;
+            for (a, b) in &segments {
+                // Ray origin + t·d against segment a + s·(b − a).
+                let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
+                let denom = cos * ey - sin * ex;
+                if denom.abs() < 1e-12 {
+                    continue;
+                }
+                let (wx, wy) = (a[0] - pose.0, a[1] - pose.1);
+                let t = (wx * ey - wy * ex) / denom;
+                let s = (wx * sin - wy * cos) / denom;
+                if t > 0.0 && (0.0..=1.0).contains(&s) {
+                    best = best.min(t);
+                }
+            }
+            if best < 80.0 {
+                let (bs, bc) = bearing.sin_cos();
+                points.push([(best * bc) as f32, (best * bs) as f32, 0.0]);
+            }
+        }
+        points
+    }
+
+    fn level(x: f64, y: f64, heading: f64) -> Isometry3<f64> {
+        Isometry3::from_parts(
+            Translation3::new(x, y, 0.0),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, heading),
+        )
+    }
+
+    fn errors(estimate: &Isometry3<f64>, truth: &Isometry3<f64>) -> (f64, f64) {
+        let delta = truth.inverse() * estimate;
+        (delta.translation.vector.norm(), delta.rotation.angle())
+    }
+
+    #[test]
+    fn a_noisy_planar_pose_is_pulled_back_to_the_truth() {
+        let params = RefineParams {
+            prior_weight: 0.0,
+            voxel_size_m: 0.25,
+            ..RefineParams::default()
+        };
+        let mut refiner = PoseRefiner::new(params).expect("valid");
+        // Two scans at their true poses build the map.
+        for x in [0.0, 0.8] {
+            let truth = level(x, 0.0, 0.0);
+            let first = refiner.refine_and_insert(&planar_scan((x, 0.0, 0.0)), &truth);
+            assert_ne!(first.outcome, RefineOutcome::KeptPrior(KeptReason::TooFar));
+        }
+        let truth = (1.6, 0.0, 0.0);
+        let prior = level(1.6 + 0.15, -0.12, 0.3_f64.to_radians());
+        let refinement = refiner.refine(&planar_scan(truth), &prior);
+        assert_eq!(refinement.outcome, RefineOutcome::Refined);
+        let truth = level(truth.0, truth.1, truth.2);
+        let (before_m, before_rad) = errors(&prior, &truth);
+        let (after_m, after_rad) = errors(&refinement.world_from_sensor, &truth);
+        assert!(before_m > 0.19 && before_rad > 0.005);
+        assert!(after_m < 0.03, "{after_m} m");
+        assert!(after_rad < 0.05_f64.to_radians(), "{after_rad} rad");
+        // Planar stays planar: no height, roll or pitch appear.
+        let pose = refinement.world_from_sensor;
+        assert!(pose.translation.z.abs() < 1e-9);
+        let (roll, pitch, _) = pose.rotation.euler_angles();
+        assert!(roll.abs() < 1e-9 && pitch.abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_prior_weight_pulls_back_towards_the_prior() {
+        let build = |prior_weight| {
+            let mut refiner = PoseRefiner::new(RefineParams {
+                prior_weight,
+                ..RefineParams::default()
+            })
+            .expect("valid");
+            refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0));
+            refiner
+        };
+        let prior = level(0.2, 0.0, 0.0);
+        let scan = planar_scan((0.0, 0.0, 0.0));
+        let free = build(0.0).refine(&scan, &prior);
+        let half = build(0.5).refine(&scan, &prior);
+        let kept = build(1.0).refine(&scan, &prior);
+        assert_eq!(half.outcome, RefineOutcome::Refined);
+        let x = |r: &Refinement| r.world_from_sensor.translation.x;
+        assert!(x(&free).abs() < 0.02, "{}", x(&free));
+        assert!(
+            (x(&half) - 0.5 * (x(&free) + 0.2)).abs() < 1e-3,
+            "{}",
+            x(&half)
+        );
+        assert!((x(&kept) - 0.2).abs() < 1e-6, "{}", x(&kept));
+    }
+
+    #[test]
+    fn a_registration_beyond_the_gate_keeps_the_prior() {
+        let mut refiner = PoseRefiner::new(RefineParams {
+            max_correction_m: 0.1,
+            ..RefineParams::default()
+        })
+        .expect("valid");
+        refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0));
+        // The truth is 0.3 m from the prior: ICP finds it, the gate refuses it.
+        let prior = level(0.3, 0.0, 0.0);
+        let refinement = refiner.refine(&planar_scan((0.0, 0.0, 0.0)), &prior);
+        assert_eq!(
+            refinement.outcome,
+            RefineOutcome::KeptPrior(KeptReason::TooFar)
+        );
+        assert!(refinement.correction.translation.vector.norm() > 0.2);
+        assert_eq!(refinement.world_from_sensor, prior);
+    }
+
+    #[test]
+    fn a_scan_with_nothing_to_match_keeps_the_prior() {
+        let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
+        refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0));
+        // A scan of a place 1 km away: no correspondence.
+        let prior = level(1000.0, 0.0, 0.1);
+        let refinement = refiner.refine(&planar_scan((0.0, 0.0, 0.0)), &prior);
+        assert_eq!(
+            refinement.outcome,
+            RefineOutcome::KeptPrior(KeptReason::Failed)
+        );
+        assert_eq!(refinement.world_from_sensor, prior);
+        // No point at all, or only unusable ones.
+        let empty = refiner.refine(&[[f32::NAN, 0.0, 0.0], [0.5, 0.0, 0.0]], &prior);
+        assert_eq!(empty.outcome, RefineOutcome::KeptPrior(KeptReason::NoData));
+        assert_eq!(empty.world_from_sensor, prior);
+    }
+
+    #[test]
+    fn the_map_stays_local() {
+        let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
+        refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0));
+        assert!(refiner.map_voxels() > 0);
+        // Far away: the old map is forgotten, only the new scan remains.
+        let far = refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(500.0, 0.0, 0.0));
+        let alone = PoseRefiner::new(RefineParams::default())
+            .expect("valid")
+            .refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(500.0, 0.0, 0.0));
+        assert_eq!(far.frame.len(), alone.frame.len());
+        let mut fresh = PoseRefiner::new(RefineParams::default()).expect("valid");
+        fresh.insert(&alone);
+        assert_eq!(refiner.map_voxels(), fresh.map_voxels());
+    }
+
+    #[test]
+    fn errors_name_the_parameter() {
+        type Spoil = fn(&mut RefineParams);
+        let cases: [(&str, Spoil); 6] = [
+            ("max_range_m", |p| p.max_range_m = 0.0),
+            ("min_range_m", |p| p.min_range_m = 100.0),
+            ("voxel_size_m", |p| p.voxel_size_m = f64::NAN),
+            ("max_correction_m", |p| p.max_correction_m = -1.0),
+            ("max_correction_deg", |p| p.max_correction_deg = 200.0),
+            ("prior_weight", |p| p.prior_weight = 1.5),
+        ];
+        for (expected, spoil) in cases {
+            let mut params = RefineParams::default();
+            spoil(&mut params);
+            match PoseRefiner::new(params) {
+                Err(OdometryError::InvalidParameter { name, .. }) => assert_eq!(name, expected),
+                other => panic!("{expected}: {other:?}"),
+            }
+        }
+    }
+}
