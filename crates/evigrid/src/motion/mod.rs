@@ -43,7 +43,8 @@ use crate::window::{Entered, Window};
 use clusters::Clusters;
 use geodata::MapContext;
 use history::OccupancyHistory;
-use register::{Now, Registrar};
+use rayon::prelude::*;
+use register::{Now, Registrar, Registration};
 use tracks::{Observation, Tracks};
 
 /// What the motion stage did in one frame.
@@ -116,7 +117,10 @@ pub struct MotionStage {
     edge_not_moving: f32,
     history: OccupancyHistory,
     clusters: Clusters,
-    registrar: Registrar,
+    /// One registrar (search scratch) per worker: clusters are registered in parallel.
+    registrars: Vec<Registrar>,
+    /// This frame's registration of each cluster.
+    registrations: Vec<Option<Registration>>,
     tracks: Tracks,
     observations: Vec<Observation>,
     occupied: Vec<u32>,
@@ -149,7 +153,8 @@ impl MotionStage {
             edge_not_moving: params.map.beta_building as f32,
             history: OccupancyHistory::new(len),
             clusters: Clusters::new(len),
-            registrar: Registrar::default(),
+            registrars: Vec::new(),
+            registrations: Vec::new(),
             tracks: Tracks::default(),
             observations: Vec::new(),
             occupied: Vec::new(),
@@ -267,13 +272,70 @@ impl MotionStage {
             }
         }
 
-        // 2-3. Clusters, each registered against the past frames.
+        // 2-3. Clusters, each registered against the past frames: independent searches, run
+        // in parallel over a few contiguous runs of clusters of about equal cell counts, each
+        // with its own scratch, writing its own part of the outputs.
         self.clusters.label(window, &self.occupied);
-        self.observations.clear();
+        let n_clusters = self.clusters.len();
+        let total_cells: usize = (0..n_clusters)
+            .map(|k| self.clusters.cluster(k).len())
+            .sum();
         self.moved.clear();
+        self.moved.resize(total_cells, false);
+        self.registrations.clear();
+        self.registrations.resize(n_clusters, None);
+        let parts = rayon::current_num_threads().clamp(1, 64);
+        if self.registrars.len() < parts {
+            self.registrars.resize_with(parts, Registrar::default);
+        }
+        {
+            let (clusters, history, params) = (&self.clusters, &self.history, &self.params);
+            let m_free = sensor.m_free();
+            let mut runs = Vec::with_capacity(parts);
+            let (mut moved, mut registrations) = (&mut self.moved[..], &mut self.registrations[..]);
+            let mut registrars = self.registrars.iter_mut();
+            let (mut k, mut done_cells) = (0, 0);
+            for part in 0..parts {
+                let target = total_cells * (part + 1) / parts;
+                let start = k;
+                let mut cells_in_run = 0;
+                while k < n_clusters && (done_cells + cells_in_run < target || part + 1 == parts) {
+                    cells_in_run += clusters.cluster(k).len();
+                    k += 1;
+                }
+                done_cells += cells_in_run;
+                let (run_moved, rest_moved) = std::mem::take(&mut moved).split_at_mut(cells_in_run);
+                let (run_regs, rest_regs) =
+                    std::mem::take(&mut registrations).split_at_mut(k - start);
+                (moved, registrations) = (rest_moved, rest_regs);
+                if let Some(registrar) = registrars.next() {
+                    runs.push((start..k, run_moved, run_regs, registrar));
+                }
+            }
+            runs.into_par_iter()
+                .for_each(|(range, run_moved, run_regs, registrar)| {
+                    let mut first = 0;
+                    for (k, slot) in range.zip(run_regs.iter_mut()) {
+                        let cells = clusters.cluster(k);
+                        let now = Now {
+                            time_s,
+                            clusters,
+                            cluster: k as u32,
+                            m_free,
+                        };
+                        *slot = registrar.register(cells, window, history, now, params);
+                        for (flag, c) in run_moved[first..first + cells.len()].iter_mut().zip(cells)
+                        {
+                            *flag = slot.is_none() || registrar.moved(c);
+                        }
+                        first += cells.len();
+                    }
+                });
+        }
+        self.observations.clear();
         self.cluster_frames.clear();
         let mut registered = 0;
-        for k in 0..self.clusters.len() {
+        for k in 0..n_clusters {
             let cells = self.clusters.cluster(k);
             let (mut sx, mut sy) = (0.0, 0.0);
             for c in cells {
@@ -281,36 +343,15 @@ impl MotionStage {
                 sy += c.row as f64 + 0.5;
             }
             let n = cells.len().max(1) as f64;
-            let velocity = self
-                .registrar
-                .register(
-                    cells,
-                    window,
-                    &self.history,
-                    Now {
-                        time_s,
-                        clusters: &self.clusters,
-                        cluster: k as u32,
-                        m_free: sensor.m_free(),
-                    },
-                    &self.params,
-                )
-                .map(|r| {
-                    self.cluster_frames.push(r.frames as u32);
-                    let sigma =
-                        r.variance_cells(self.params.shift_sigma_cells).sqrt() * cell_size_m;
-                    let (vx, vy) = r.velocity_cells_per_s;
-                    ([vx * cell_size_m, vy * cell_size_m], sigma * sigma)
-                });
+            let registration = self.registrations[k];
+            self.cluster_frames
+                .push(registration.map_or(0, |r| r.frames as u32));
+            let velocity = registration.map(|r| {
+                let sigma = r.variance_cells(self.params.shift_sigma_cells).sqrt() * cell_size_m;
+                let (vx, vy) = r.velocity_cells_per_s;
+                ([vx * cell_size_m, vy * cell_size_m], sigma * sigma)
+            });
             registered += usize::from(velocity.is_some());
-            if velocity.is_none() {
-                self.cluster_frames.push(0);
-            }
-            self.moved.extend(
-                cells
-                    .iter()
-                    .map(|c| velocity.is_none() || self.registrar.moved(c)),
-            );
             self.observations.push(Observation {
                 centroid_m: [sx / n * cell_size_m, sy / n * cell_size_m],
                 velocity,

@@ -71,6 +71,8 @@ pub(crate) struct Registrar {
     free: Vec<u8>,
     /// Per patch cell, 0xff if the cell is seen free now, else 0.
     left: Vec<u8>,
+    /// Patch index of each counted cell of the cluster.
+    heres: Vec<usize>,
     /// As `counts`, only the cells whose move is seen (see `register`).
     seen_counts: Vec<[u32; SLOTS]>,
     counts: Vec<[u32; SLOTS]>,
@@ -154,6 +156,13 @@ impl Registrar {
             counts.clear();
             counts.resize((side * side) as usize, [0; SLOTS]);
         }
+        self.heres.clear();
+        self.heres.extend(
+            cells
+                .iter()
+                .step_by(stride)
+                .map(|c| (c.row - r0 + radius) as usize * pw + (c.col - c0 + radius) as usize),
+        );
         for (s, (count, seen_count)) in self
             .counts
             .iter_mut()
@@ -161,28 +170,24 @@ impl Registrar {
             .enumerate()
         {
             let (dx, dy) = (s as i64 % side - radius, s as i64 / side - radius);
+            // Patch index of the cell a shift d came from: here − (dy·pw + dx), always inside
+            // the patch (it reaches `radius` beyond the cluster).
+            let offset = (dy * pw as i64 + dx) as isize;
             let (mut lanes, mut seen_lanes) = (0u64, 0u64);
-            let mut in_lanes = 0;
-            for c in cells.iter().step_by(stride) {
-                let here = (c.row - r0 + radius) as usize * pw + (c.col - c0 + radius) as usize;
-                let from =
-                    (c.row - dy - r0 + radius) as usize * pw + (c.col - dx - c0 + radius) as usize;
-                let came_from = self.patch[from];
-                lanes += SPREAD[usize::from(came_from)];
-                // The move is seen where the cell it came from is seen empty now, or where
-                // this cell was seen free then.
-                let seen = self.free[here] | self.left[from];
-                seen_lanes += SPREAD[usize::from(came_from & seen)];
-                in_lanes += 1;
-                // A byte lane holds up to 255.
-                if in_lanes == 255 {
-                    flush(&mut lanes, count);
-                    flush(&mut seen_lanes, seen_count);
-                    in_lanes = 0;
+            for chunk in self.heres.chunks(255) {
+                for &here in chunk {
+                    let from = here.wrapping_sub_signed(offset);
+                    let came_from = self.patch[from];
+                    lanes += SPREAD[usize::from(came_from)];
+                    // The move is seen where the cell it came from is seen empty now, or where
+                    // this cell was seen free then.
+                    let seen = self.free[here] | self.left[from];
+                    seen_lanes += SPREAD[usize::from(came_from & seen)];
                 }
+                // A byte lane holds up to 255.
+                flush(&mut lanes, count);
+                flush(&mut seen_lanes, seen_count);
             }
-            flush(&mut lanes, count);
-            flush(&mut seen_lanes, seen_count);
         }
 
         let zero = (radius * side + radius) as usize;
