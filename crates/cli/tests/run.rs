@@ -82,6 +82,11 @@ fn runs_end_to_end_on_real_scans() {
         .map(|line| serde_json::from_str(line).unwrap())
         .collect();
     assert_eq!(frames.len(), 3);
+    // Every record lists the objects judged moving (the default method has a motion stage).
+    assert!(
+        frames.iter().all(|f| f["moving_objects"].is_array()),
+        "{frames:?}"
+    );
     summary["per_frame"] = frames.into();
     assert_eq!(summary["params"]["window"]["width_cells"], 200);
     let classes: Vec<u64> = serde_json::from_value(summary["final_classes"].clone()).unwrap();

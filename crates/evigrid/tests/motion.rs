@@ -67,6 +67,7 @@ fn a_car_driving_away_is_decided_moving_within_three_frames() {
     let mut paper = Fusion::new(params, Prior::Map).unwrap();
     let mut decided_moving = Vec::new();
     let mut paper_moving = Vec::new();
+    let mut car_ids = None;
     for k in 0..12 {
         // A 4.5 m × 1.8 m car, rear face 3 m ahead, driving away at 8 m/s.
         let rear_m = 3.0 + 8.0 * DT_S * k as f64;
@@ -87,6 +88,21 @@ fn a_car_driving_away_is_decided_moving_within_three_frames() {
             assert_ne!(evigrid.decisions()[fence], Label::M, "frame {k} ({x}, {y})");
         }
         if k >= 3 {
+            // One moving object, the car, with its velocity and the same id every frame.
+            let objects = evigrid.motion().map(|m| m.moving_objects().to_vec());
+            let objects = objects.unwrap_or_default();
+            assert_eq!(objects.len(), 1, "frame {k}: {objects:?}");
+            let car = objects[0];
+            let [vx, vy] = car.velocity_mps.unwrap_or([f32::NAN; 2]);
+            assert!(
+                (vx - 8.0).abs() < 1.5 && vy.abs() < 1.0,
+                "frame {k}: {car:?}"
+            );
+            assert!(
+                (car.position_m[0] - rear_m).abs() < 1.0,
+                "frame {k}: {car:?}"
+            );
+            assert_eq!(*car_ids.get_or_insert(car.id), car.id, "frame {k}");
             let velocity = evigrid.motion().map(|m| m.velocity_east()[face]);
             assert!(
                 velocity.is_some_and(|v| (v - 8.0).abs() < 1.5),

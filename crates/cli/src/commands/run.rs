@@ -158,7 +158,8 @@ Outputs (in --out):
   map.pgm, map.yaml            final decided grid for nav2's map_server (trinary)
   decision-map.png, .pgw, .prj final decision map georeferenced for QGIS (with a local frame)
   frames.jsonl                 one JSON object per frame, written as the run goes: timing, counts,
-                               ground and obstacle shares, the ego-path check
+                               ground and obstacle shares, the ego-path check, the objects judged
+                               moving (id, position, velocity)
   summary.json                 parameters, totals over the drive (complete: false and stopped: why
                                when it ended early), skipped scans";
 
@@ -188,6 +189,9 @@ struct FrameRecord {
     ego_path: EgoPathCheck,
     /// Of the observed ego-path cells, the share decided I, U, S or M (`null`: none observed).
     ego_path_share: Option<f64>,
+    /// The objects the `evigrid` method judged moving, with their velocity (empty for
+    /// `kurdej2013`).
+    moving_objects: Vec<evigrid::motion::MovingObject>,
 }
 
 /// Totals of the ego-path check over the drive.
@@ -666,6 +670,11 @@ pub fn run(args: RunArgs) -> Result<()> {
             obstacle_cell_share: share(s.occupied_cells, s.occupied_cells + s.free_cells),
             ego_path_share: ego_path.share(),
             ego_path,
+            moving_objects: pipeline
+                .fusion()
+                .motion()
+                .map(|m| m.moving_objects().to_vec())
+                .unwrap_or_default(),
             stats,
             classes: count_decisions(pipeline.decisions()),
         };

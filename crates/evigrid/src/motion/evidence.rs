@@ -299,6 +299,7 @@ mod tests {
 
     fn track(v: [f64; 2], variance: f64, measurements: u32) -> Track {
         Track {
+            id: 1,
             position_m: [0.0; 2],
             velocity: v.map(|v| VelocityFilter::new(v, variance)),
             last_seen_s: 0.0,

@@ -107,6 +107,24 @@ pub struct CellReport {
     pub track_age_s: f32,
 }
 
+/// An object the stage judged moving this frame: a track and the cells of its cluster that
+/// received moving evidence.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct MovingObject {
+    /// The track's identifier: the same object keeps it from frame to frame while it is
+    /// tracked (it coasts through `max_coast_s` unseen).
+    pub id: u64,
+    /// Centroid of its cluster's cells, world frame (x east, y north), metres.
+    pub position_m: [f64; 2],
+    /// Estimated velocity east and north, m/s, and √(σx² + σy²) of it; `None` for an object
+    /// judged moving because it entered space seen free, with no velocity measured yet.
+    pub velocity_mps: Option<[f32; 2]>,
+    /// See `velocity_mps`.
+    pub sigma_mps: Option<f32>,
+    /// Cells given moving evidence this frame.
+    pub cells: u32,
+}
+
 /// The motion stage of one window: history, clusters, tracks, and their scratch buffers.
 #[derive(Clone, Debug)]
 pub struct MotionStage {
@@ -137,6 +155,7 @@ pub struct MotionStage {
     velocity_cells: Vec<u32>,
     /// This frame's cluster cells and what the stage made of them.
     cell_states: Vec<CellReport>,
+    moving_objects: Vec<MovingObject>,
     /// Past frames each cluster's registration used this frame.
     cluster_frames: Vec<u32>,
 }
@@ -165,6 +184,7 @@ impl MotionStage {
             velocity_north: vec![0.0; len],
             velocity_cells: Vec::new(),
             cell_states: Vec::new(),
+            moving_objects: Vec::new(),
             cluster_frames: Vec::new(),
         }
     }
@@ -215,6 +235,11 @@ impl MotionStage {
             + self.history.dense_bytes()
             + self.gis.heap_bytes()
             + 4 * (self.velocity_east.capacity() + self.velocity_north.capacity())
+    }
+
+    /// The objects judged moving this frame, with their velocity.
+    pub fn moving_objects(&self) -> &[MovingObject] {
+        &self.moving_objects
     }
 
     /// This frame's cluster cells (storage index) and what the stage made of each.
@@ -373,6 +398,7 @@ impl MotionStage {
         }
         self.velocity_cells.clear();
         self.cell_states.clear();
+        self.moving_objects.clear();
         let (mut moving_cells, mut static_cells) = (0, 0);
         let mut first = 0;
         for k in 0..self.clusters.len() {
@@ -422,6 +448,21 @@ impl MotionStage {
                 state = CellMotion::Static;
             }
             let [vx, vy] = track.velocity.map(|v| v.mean_mps as f32);
+            if let MotionMass::Moving(_) = mass {
+                let cells_moving = moved.iter().filter(|&&m| m).count() as u32;
+                let measured = state != CellMotion::EnteredSeenFree;
+                if cells_moving > 0 {
+                    self.moving_objects.push(MovingObject {
+                        id: track.id,
+                        position_m: self.observations[k].centroid_m,
+                        velocity_mps: measured.then_some([vx, vy]),
+                        sigma_mps: measured.then(|| {
+                            (track.velocity[0].variance + track.velocity[1].variance).sqrt() as f32
+                        }),
+                        cells: cells_moving,
+                    });
+                }
+            }
             for (c, &moved) in cells.iter().zip(moved) {
                 let idx = c.idx as usize;
                 self.cell_states.push(CellReport {

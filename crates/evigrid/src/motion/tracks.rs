@@ -22,6 +22,8 @@ pub(crate) struct Observation {
 /// One followed object.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Track {
+    /// Stable identifier, unique over the stage's life.
+    pub(crate) id: u64,
     /// Last centroid, moved by the velocity while the object is not seen, m.
     pub(crate) position_m: [f64; 2],
     /// Velocity east and north.
@@ -46,6 +48,8 @@ pub(crate) struct Tracks {
     taken: Vec<bool>,
     /// After [`Tracks::update`], the track of each observation.
     assigned: Vec<u32>,
+    /// The id the next track gets.
+    next_id: u64,
 }
 
 impl Tracks {
@@ -113,7 +117,9 @@ impl Tracks {
         for (oi, o) in observations.iter().enumerate() {
             let ti = match self.assigned[oi] {
                 u32::MAX => {
+                    self.next_id += 1;
                     self.tracks.push(Track {
+                        id: self.next_id,
                         position_m: o.centroid_m,
                         velocity: [VelocityFilter::new(0.0, unknown_variance); 2],
                         last_seen_s: now_s,
