@@ -637,6 +637,26 @@ mod tests {
     }
 
     #[test]
+    fn the_outline_band_is_counted_apart_and_scores_as_f_on_request() {
+        use Label as P;
+        // Truth F, F, F, M; the first two cells are in the outline band (F there only).
+        let truth = [P::F, P::F, P::F, P::M];
+        let pred = [P::M, P::F, P::M, P::M];
+        let band = [true, true, false, true];
+        let mut m = ConfusionMatrix::default();
+        m.add_frame_with_outline(&truth, &pred, &[true; 4], &band);
+        // Cell 3 is truly M: the band never hides a class.
+        assert_eq!(m.outline, [1, 0, 0, 0, 1, 0, 0]);
+        assert_eq!(m.counts[0], [0, 0, 0, 0, 1, 0, 0]);
+        assert_eq!(m.counts[4], [0, 0, 0, 0, 1, 0, 0]);
+        let s = m.scores();
+        assert_eq!((s.outline_cell_frames, s.outline_predicted_moving), (2, 1));
+        // M: TP 1, FP 1 → IoU 1/2; scored as F, the band's M is one more FP → 1/3.
+        assert_eq!(s.moving_iou, Some(0.5));
+        assert_eq!(m.outline_as_free().scores().moving_iou, Some(1.0 / 3.0));
+    }
+
+    #[test]
     fn every_score_matches_hand_computation() {
         let s = hand_matrix().scores();
         // F: TP 2, FP 1 (M→F), FN 2 (F→M, F→U): P 2/3, R 1/2, IoU 2/5, F1 4/7.

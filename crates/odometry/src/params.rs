@@ -74,37 +74,15 @@ impl OdometryParams {
 
     /// Checks every field; the error names the first one that is out of range.
     pub fn validate(&self) -> Result<(), OdometryError> {
-        fn positive(name: &'static str, value: f64) -> Result<(), OdometryError> {
-            if value.is_finite() && value > 0.0 {
-                Ok(())
-            } else {
-                Err(invalid(name, value, "must be finite and > 0"))
-            }
-        }
-        positive("max_range_m", self.max_range_m)?;
-        if !(self.min_range_m.is_finite()
-            && self.min_range_m >= 0.0
-            && self.min_range_m < self.max_range_m)
-        {
-            return Err(invalid(
-                "min_range_m",
-                self.min_range_m,
-                "must be finite, >= 0 and < max_range_m",
-            ));
-        }
-        positive("voxel_size_m", self.voxel_size_m)?;
-        // Voxel indices are i32: a voxel so small that the map's extent overflows them is a typo.
-        if self.max_range_m / self.voxel_size_m > 1.0e6 {
-            return Err(invalid(
-                "voxel_size_m",
-                self.voxel_size_m,
-                "must be at least max_range_m / 1e6",
-            ));
-        }
-        if self.max_points_per_voxel == 0 {
-            return Err(invalid("max_points_per_voxel", 0, "must be >= 1"));
-        }
-        positive("initial_threshold_m", self.initial_threshold_m)?;
+        check_registration(&Registration {
+            max_range_m: self.max_range_m,
+            min_range_m: self.min_range_m,
+            voxel_size_m: self.voxel_size_m,
+            max_points_per_voxel: self.max_points_per_voxel,
+            initial_threshold_m: self.initial_threshold_m,
+            max_iterations: self.max_iterations,
+            convergence_tolerance: self.convergence_tolerance,
+        })?;
         if !(self.min_motion_m.is_finite() && self.min_motion_m >= 0.0) {
             return Err(invalid(
                 "min_motion_m",
@@ -112,10 +90,6 @@ impl OdometryParams {
                 "must be finite and >= 0",
             ));
         }
-        if self.max_iterations == 0 {
-            return Err(invalid("max_iterations", 0, "must be >= 1"));
-        }
-        positive("convergence_tolerance", self.convergence_tolerance)?;
         positive("scan_period_s", self.scan_period_s)?;
         if !(self.vertical_angle_offset_deg.is_finite()
             && self.vertical_angle_offset_deg.abs() <= 5.0)
@@ -130,7 +104,62 @@ impl OdometryParams {
     }
 }
 
-fn invalid(name: &'static str, value: impl ToString, expected: &'static str) -> OdometryError {
+/// The settings the odometry and the pose refiner share: the scan's range, the local map and
+/// the registration.
+pub(crate) struct Registration {
+    pub(crate) max_range_m: f64,
+    pub(crate) min_range_m: f64,
+    pub(crate) voxel_size_m: f64,
+    pub(crate) max_points_per_voxel: usize,
+    pub(crate) initial_threshold_m: f64,
+    pub(crate) max_iterations: usize,
+    pub(crate) convergence_tolerance: f64,
+}
+
+/// Checks the shared settings; the error names the first field out of range.
+pub(crate) fn check_registration(r: &Registration) -> Result<(), OdometryError> {
+    positive("max_range_m", r.max_range_m)?;
+    if !(r.min_range_m.is_finite() && r.min_range_m >= 0.0 && r.min_range_m < r.max_range_m) {
+        return Err(invalid(
+            "min_range_m",
+            r.min_range_m,
+            "must be finite, >= 0 and < max_range_m",
+        ));
+    }
+    positive("voxel_size_m", r.voxel_size_m)?;
+    // Voxel indices are i32: a voxel so small that the map's extent overflows them is a typo.
+    if r.max_range_m / r.voxel_size_m > 1.0e6 {
+        return Err(invalid(
+            "voxel_size_m",
+            r.voxel_size_m,
+            "must be at least max_range_m / 1e6",
+        ));
+    }
+    if r.max_points_per_voxel == 0 {
+        return Err(invalid("max_points_per_voxel", 0, "must be >= 1"));
+    }
+    positive("initial_threshold_m", r.initial_threshold_m)?;
+    if r.max_iterations == 0 {
+        return Err(invalid("max_iterations", 0, "must be >= 1"));
+    }
+    positive("convergence_tolerance", r.convergence_tolerance)
+}
+
+/// Ok if `value` is finite and > 0.
+pub(crate) fn positive(name: &'static str, value: f64) -> Result<(), OdometryError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(name, value, "must be finite and > 0"))
+    }
+}
+
+/// The error naming parameter `name`, its `value` and what was `expected`.
+pub(crate) fn invalid(
+    name: &'static str,
+    value: impl ToString,
+    expected: &'static str,
+) -> OdometryError {
     OdometryError::InvalidParameter {
         name,
         value: value.to_string(),

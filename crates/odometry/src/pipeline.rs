@@ -6,7 +6,7 @@ use crate::deskew::{azimuth_time, deskew};
 use crate::icp::{self, IcpSettings};
 use crate::lie;
 use crate::threshold::AdaptiveThreshold;
-use crate::voxel::{VoxelMap, downsample};
+use crate::voxel::{VoxelMap, downsample, downsampled};
 use crate::{OdometryError, OdometryParams};
 
 /// How a scan's pose was obtained.
@@ -231,10 +231,7 @@ impl Odometry {
             }
             (None, _) => {}
         }
-        let source: Vec<Vector3<f64>> = downsample(&frame, 1.5 * params.voxel_size_m)
-            .into_iter()
-            .map(|i| frame[i])
-            .collect();
+        let source = downsampled(&frame, 1.5 * params.voxel_size_m);
         report.source_points = source.len();
 
         let last_pose = self.poses.last().copied();

@@ -18,8 +18,9 @@ use nalgebra::{Isometry3, Vector3};
 use crate::OdometryError;
 use crate::icp::{self, IcpSettings};
 use crate::lie;
+use crate::params::{Registration, check_registration, invalid, positive};
 use crate::threshold::AdaptiveThreshold;
-use crate::voxel::{VoxelMap, downsample};
+use crate::voxel::{VoxelMap, downsampled};
 
 /// Parameters of [`PoseRefiner`].
 #[derive(Debug, Clone, PartialEq)]
@@ -85,13 +86,15 @@ impl RefineParams {
     /// # Errors
     /// [`OdometryError::InvalidParameter`].
     pub fn validate(&self) -> Result<(), OdometryError> {
-        let positive = |name: &'static str, value: f64| {
-            if value.is_finite() && value > 0.0 {
-                Ok(())
-            } else {
-                Err(invalid(name, value, "must be finite and > 0"))
-            }
-        };
+        check_registration(&Registration {
+            max_range_m: self.max_range_m,
+            min_range_m: self.min_range_m,
+            voxel_size_m: self.voxel_size_m,
+            max_points_per_voxel: self.max_points_per_voxel,
+            initial_threshold_m: self.initial_threshold_m,
+            max_iterations: self.max_iterations,
+            convergence_tolerance: self.convergence_tolerance,
+        })?;
         let unit = |name: &'static str, value: f64| {
             if (0.0..=1.0).contains(&value) {
                 Ok(())
@@ -99,34 +102,6 @@ impl RefineParams {
                 Err(invalid(name, value, "must be within [0, 1]"))
             }
         };
-        positive("max_range_m", self.max_range_m)?;
-        if !(self.min_range_m.is_finite()
-            && self.min_range_m >= 0.0
-            && self.min_range_m < self.max_range_m)
-        {
-            return Err(invalid(
-                "min_range_m",
-                self.min_range_m,
-                "must be finite, >= 0 and < max_range_m",
-            ));
-        }
-        positive("voxel_size_m", self.voxel_size_m)?;
-        // Voxel indices are i32: a voxel so small that the map's extent overflows them is a typo.
-        if self.max_range_m / self.voxel_size_m > 1.0e6 {
-            return Err(invalid(
-                "voxel_size_m",
-                self.voxel_size_m,
-                "must be at least max_range_m / 1e6",
-            ));
-        }
-        if self.max_points_per_voxel == 0 {
-            return Err(invalid("max_points_per_voxel", 0, "must be >= 1"));
-        }
-        positive("initial_threshold_m", self.initial_threshold_m)?;
-        if self.max_iterations == 0 {
-            return Err(invalid("max_iterations", 0, "must be >= 1"));
-        }
-        positive("convergence_tolerance", self.convergence_tolerance)?;
         positive("max_correction_m", self.max_correction_m)?;
         if !(self.max_correction_deg.is_finite()
             && self.max_correction_deg > 0.0
@@ -141,14 +116,6 @@ impl RefineParams {
         unit("prior_weight", self.prior_weight)?;
         unit("min_overlap", self.min_overlap)?;
         Ok(())
-    }
-}
-
-fn invalid(name: &'static str, value: impl ToString, expected: &'static str) -> OdometryError {
-    OdometryError::InvalidParameter {
-        name,
-        value: value.to_string(),
-        expected,
     }
 }
 
@@ -246,14 +213,8 @@ impl PoseRefiner {
             .map(|raw| Vector3::new(f64::from(raw[0]), f64::from(raw[1]), f64::from(raw[2])))
             .filter(|point| (min_sq..=max_sq).contains(&point.norm_squared()))
             .collect();
-        let frame: Vec<Vector3<f64>> = downsample(&kept, 0.5 * p.voxel_size_m)
-            .into_iter()
-            .map(|i| kept[i])
-            .collect();
-        let source: Vec<Vector3<f64>> = downsample(&frame, 1.5 * p.voxel_size_m)
-            .into_iter()
-            .map(|i| frame[i])
-            .collect();
+        let frame = downsampled(&kept, 0.5 * p.voxel_size_m);
+        let source = downsampled(&frame, 1.5 * p.voxel_size_m);
         let mut refinement = Refinement {
             world_from_sensor: *prior,
             outcome: RefineOutcome::KeptPrior(KeptReason::NoData),

@@ -62,6 +62,14 @@ impl Hasher for VoxelHasher {
 
 type BuildVoxelHasher = BuildHasherDefault<VoxelHasher>;
 
+/// The points [`downsample`] keeps, in their order.
+pub(crate) fn downsampled(points: &[Vector3<f64>], voxel_size: f64) -> Vec<Vector3<f64>> {
+    downsample(points, voxel_size)
+        .into_iter()
+        .map(|i| points[i])
+        .collect()
+}
+
 /// One point per voxel of edge `voxel_size`: indices, ascending.
 ///
 /// The representative is an original point (KISS-ICP's choice over a centroid: the scan's own

@@ -400,6 +400,10 @@ impl MotionStage {
         self.cell_states.clear();
         self.moving_objects.clear();
         let (mut moving_cells, mut static_cells) = (0, 0);
+        // The history bits of the frames kept, for the seen-free test below.
+        let recent = (1..=self.params.history_frames)
+            .filter_map(|k| self.history.frame_back(k))
+            .fold(0u8, |bits, (bit, _)| bits | bit);
         let mut first = 0;
         for k in 0..self.clusters.len() {
             let cells = self.clusters.cluster(k);
@@ -423,9 +427,6 @@ impl MotionStage {
             // comes out of occlusion, or into the field of view, entered no cell seen free;
             // a static one occupies its cells in every frame.
             if mass == MotionMass::Vacuous {
-                let recent = (1..=self.params.history_frames)
-                    .filter_map(|k| self.history.frame_back(k))
-                    .fold(0u8, |bits, (bit, _)| bits | bit);
                 if recent != 0 {
                     let entered = cells
                         .iter()
