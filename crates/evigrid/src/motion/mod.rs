@@ -426,17 +426,15 @@ impl MotionStage {
             // empty (the cue of SPEC §5's free→occupied conflict, per object). An object that
             // comes out of occlusion, or into the field of view, entered no cell seen free;
             // a static one occupies its cells in every frame.
-            if mass == MotionMass::Vacuous {
-                if recent != 0 {
-                    let entered = cells
-                        .iter()
-                        .filter(|c| self.history.free_bits(c.idx as usize) & recent != 0)
-                        .count();
-                    let share = entered as f64 / cells.len().max(1) as f64;
-                    mass = evidence::entered_seen_free(mass, share, &self.params);
-                    if mass != MotionMass::Vacuous {
-                        state = CellMotion::EnteredSeenFree;
-                    }
+            if mass == MotionMass::Vacuous && recent != 0 {
+                let entered = cells
+                    .iter()
+                    .filter(|c| self.history.free_bits(c.idx as usize) & recent != 0)
+                    .count();
+                let share = entered as f64 / cells.len().max(1) as f64;
+                mass = evidence::entered_seen_free(mass, share, &self.params);
+                if mass != MotionMass::Vacuous {
+                    state = CellMotion::EnteredSeenFree;
                 }
             }
             let mass = evidence::off_buildings(
