@@ -846,12 +846,12 @@ mod tests {
     }
 
     #[test]
-    fn localisation_is_off_by_default_and_its_keys_are_named() {
+    fn localisation_is_on_by_default_and_its_keys_are_named() {
         let p = Params::default();
-        assert_eq!(p.localisation.refinement, PoseRefinement::None);
-        let on = Params::from_toml_str("[localisation]\nrefinement = \"scan_to_map\"\n")
+        assert_eq!(p.localisation.refinement, PoseRefinement::ScanToMap);
+        let off = Params::from_toml_str("[localisation]\nrefinement = \"none\"\n")
             .unwrap_or_else(|e| panic!("{e}"));
-        assert_eq!(on.localisation.refinement, PoseRefinement::ScanToMap);
+        assert_eq!(off.localisation.refinement, PoseRefinement::None);
         assert!(matches!(
             Params::from_toml_str("[localisation]\nrefinement = \"gps\"\n"),
             Err(ParamsError::Parse { .. })
@@ -864,6 +864,10 @@ mod tests {
             (
                 "[localisation]\nvoxel_size_m = 1e-9\n",
                 "localisation.voxel_size_m",
+            ),
+            (
+                "[localisation]\nplanar_voxel_size_m = -0.25\n",
+                "localisation.planar_voxel_size_m",
             ),
             (
                 "[localisation]\nmax_correction_m = nan\n",
@@ -884,7 +888,7 @@ mod tests {
             }
         }
         // Every value the section accepts is one the refiner accepts.
-        let refine = on.localisation.refine_params(&on.sensor);
+        let refine = p.localisation.refine_params(&p.sensor);
         assert!(odometry::PoseRefiner::new(refine).is_ok());
     }
 
@@ -1130,20 +1134,23 @@ unknown_threshold = 0.7
 
 /// Pose refinement (`[localisation]`): whether the front end trusts the pose it is given, or
 /// registers each scan against a local map of the previous scans with that pose as the prior
-/// (`docs/motion.md`, "Pose refinement"). Not in SPEC: with `refinement = "none"` (the default)
-/// the front end is exactly the paper's.
+/// (`docs/motion.md`, "Pose refinement"). Not in SPEC, and on by default: the pose is
+/// registered, not trusted alone. With `refinement = "none"` the front end is exactly the paper's.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct LocalisationParams {
     /// `"none"`: the pose given is used as it is. `"scan_to_map"`: it is the prior of a
     /// registration against the previous scans (crate `odometry`, [`odometry::PoseRefiner`]).
-    /// By default `"none"`.
+    /// By default `"scan_to_map"`.
     pub refinement: PoseRefinement,
-    /// Edge of the local map's voxels, metres; a scan is downsampled at half of it for the map
-    /// and at 1.5 times it for the registration. By default 0.25 (measured on the simulated
-    /// planar scanner, `docs/motion.md`; on KITTI's 64-beam scans 1 m takes 22 ms a frame
-    /// against 131 ms for the same corrections).
+    /// Edge of the local map's voxels for 3-D scans, metres; a scan is downsampled at half of
+    /// it for the map and at 1.5 times it for the registration. By default 1 (KISS-ICP's
+    /// choice; on KITTI's 64-beam scans 0.25 m takes 131 ms a frame against 22 ms for the same
+    /// corrections, `docs/motion.md`).
     pub voxel_size_m: f64,
+    /// The same for planar scans (every point within 5 cm of one height): by default 0.25,
+    /// measured on the simulated planar scanner. The drive's first scan decides which applies.
+    pub planar_voxel_size_m: f64,
     /// A registration that moves the position farther than this from the given pose is refused
     /// and the given pose kept, metres. By default 0.5 (five times a good GNSS/INS's 0.1 m).
     pub max_correction_m: f64,
@@ -1159,8 +1166,9 @@ impl Default for LocalisationParams {
     fn default() -> Self {
         let refine = odometry::RefineParams::default();
         Self {
-            refinement: PoseRefinement::None,
+            refinement: PoseRefinement::ScanToMap,
             voxel_size_m: refine.voxel_size_m,
+            planar_voxel_size_m: refine.planar_voxel_size_m,
             max_correction_m: refine.max_correction_m,
             max_correction_deg: refine.max_correction_deg,
             prior_weight: refine.prior_weight,
@@ -1173,9 +1181,9 @@ impl Default for LocalisationParams {
 #[serde(rename_all = "snake_case")]
 pub enum PoseRefinement {
     /// The pose given with the scan, as it is (the paper).
-    #[default]
     None,
     /// The pose given refined by registering the scan against the previous scans.
+    #[default]
     ScanToMap,
 }
 
@@ -1186,6 +1194,7 @@ impl LocalisationParams {
             max_range_m: sensor.max_range_m,
             min_range_m: sensor.min_range_m,
             voxel_size_m: self.voxel_size_m,
+            planar_voxel_size_m: self.planar_voxel_size_m,
             max_correction_m: self.max_correction_m,
             max_correction_deg: self.max_correction_deg,
             prior_weight: self.prior_weight,
@@ -1198,14 +1207,19 @@ impl LocalisationParams {
     /// # Errors
     /// The first offending parameter by its TOML path (`localisation.…`).
     pub fn validate(&self, sensor: &SensorParams) -> Result<(), ParamsError> {
-        positive("localisation.voxel_size_m", self.voxel_size_m)?;
-        if sensor.max_range_m / self.voxel_size_m > 1.0e6 {
-            return Err(ParamsError::Misordered {
-                low_name: "sensor.max_range_m / 1e6",
-                low: sensor.max_range_m / 1.0e6,
-                high_name: "localisation.voxel_size_m",
-                high: self.voxel_size_m,
-            });
+        for (name, voxel) in [
+            ("localisation.voxel_size_m", self.voxel_size_m),
+            ("localisation.planar_voxel_size_m", self.planar_voxel_size_m),
+        ] {
+            positive(name, voxel)?;
+            if sensor.max_range_m / voxel > 1.0e6 {
+                return Err(ParamsError::Misordered {
+                    low_name: "sensor.max_range_m / 1e6",
+                    low: sensor.max_range_m / 1.0e6,
+                    high_name: name,
+                    high: voxel,
+                });
+            }
         }
         positive("localisation.max_correction_m", self.max_correction_m)?;
         positive("localisation.max_correction_deg", self.max_correction_deg)?;

@@ -898,9 +898,10 @@ mod tests {
     fn refinement_brings_noisy_poses_back_towards_the_truth() -> Result<(), PipelineError> {
         let mut on = params();
         on.localisation.refinement = PoseRefinement::ScanToMap;
-        on.localisation.voxel_size_m = 0.25;
         let mut refined = FrontEnd::new(&on, None)?;
-        let mut given = FrontEnd::new(&params(), None)?;
+        let mut off = params();
+        off.localisation.refinement = PoseRefinement::None;
+        let mut given = FrontEnd::new(&off, None)?;
         // Driving east at 0.8 m a scan; the reported pose off by a fixed pattern of errors of
         // the size of a good GNSS/INS's (0.1 m, 0.2°).
         let errors: [(f64, f64, f64); 4] = [
@@ -952,7 +953,9 @@ mod tests {
 
     #[test]
     fn refinement_off_uses_the_pose_given_and_reports_off() -> Result<(), PipelineError> {
-        let mut front_end = FrontEnd::new(&params(), None)?;
+        let mut off = params();
+        off.localisation.refinement = PoseRefinement::None;
+        let mut front_end = FrontEnd::new(&off, None)?;
         let pose = Isometry3::from_xyz_rpy(1.0, 2.0, 0.0, 0.0, 0.0, 0.3);
         let stats = front_end.process(&street_scan((0.0, 0.0, 0.0)), &pose, 0.0)?;
         assert_eq!(front_end.world_from_sensor(), &pose);

@@ -42,4 +42,6 @@ mod voxel;
 pub use error::OdometryError;
 pub use params::OdometryParams;
 pub use pipeline::{FrameOutcome, FrameReport, Odometry};
-pub use refine::{KeptReason, PoseRefiner, RefineOutcome, RefineParams, Refinement};
+pub use refine::{
+    KeptReason, PLANAR_SPREAD_M, PoseRefiner, RefineOutcome, RefineParams, Refinement,
+};

@@ -11,7 +11,8 @@
 //!
 //! The map holds the scans at their refined poses and forgets what lies beyond the range, so
 //! memory does not grow with the drive. Planar scans (all points at one height, level poses)
-//! work: the plane pins height, roll and pitch, and its in-plane structure the rest.
+//! work: the plane pins height, roll and pitch, and its in-plane structure the rest; they get
+//! finer voxels (`planar_voxel_size_m`) than a 3-D scan's.
 
 use nalgebra::{Isometry3, Vector3};
 
@@ -32,11 +33,14 @@ pub struct RefineParams {
     pub max_range_m: f64,
     /// Points closer than this to the sensor are not registered (metres, default 2).
     pub min_range_m: f64,
-    /// Edge of a local-map voxel (metres, default 0.25: a sparse planar scanner needs fine
-    /// voxels, or point-to-point ICP settles on the map's sampling along a façade). A scan is
-    /// downsampled at half of it for the map and at 1.5 times it for registration, as in
-    /// [`crate::Odometry`].
+    /// Edge of a local-map voxel for 3-D scans (metres, default 1, KISS-ICP's choice for an
+    /// outdoor lidar). A scan is downsampled at half of it for the map and at 1.5 times it for
+    /// registration, as in [`crate::Odometry`].
     pub voxel_size_m: f64,
+    /// The same for planar scans, whose points all lie within [`PLANAR_SPREAD_M`] of one height
+    /// (metres, default 0.25: a sparse planar scanner needs fine voxels, or point-to-point ICP
+    /// settles on the map's sampling along a façade). The first scan with points decides.
+    pub planar_voxel_size_m: f64,
     /// At most this many points are kept per map voxel (default 20).
     pub max_points_per_voxel: usize,
     /// Correspondence threshold before any correction has been observed (metres, default 1);
@@ -67,7 +71,8 @@ impl Default for RefineParams {
         Self {
             max_range_m: 80.0,
             min_range_m: 2.0,
-            voxel_size_m: 0.25,
+            voxel_size_m: 1.0,
+            planar_voxel_size_m: 0.25,
             max_points_per_voxel: 20,
             initial_threshold_m: 1.0,
             max_iterations: 100,
@@ -86,14 +91,27 @@ impl RefineParams {
     /// # Errors
     /// [`OdometryError::InvalidParameter`].
     pub fn validate(&self) -> Result<(), OdometryError> {
-        check_registration(&Registration {
+        let registration = |voxel_size_m| Registration {
             max_range_m: self.max_range_m,
             min_range_m: self.min_range_m,
-            voxel_size_m: self.voxel_size_m,
+            voxel_size_m,
             max_points_per_voxel: self.max_points_per_voxel,
             initial_threshold_m: self.initial_threshold_m,
             max_iterations: self.max_iterations,
             convergence_tolerance: self.convergence_tolerance,
+        };
+        check_registration(&registration(self.voxel_size_m))?;
+        check_registration(&registration(self.planar_voxel_size_m)).map_err(|e| match e {
+            OdometryError::InvalidParameter {
+                name: "voxel_size_m",
+                value,
+                expected,
+            } => OdometryError::InvalidParameter {
+                name: "planar_voxel_size_m",
+                value,
+                expected,
+            },
+            other => other,
         })?;
         let unit = |name: &'static str, value: f64| {
             if (0.0..=1.0).contains(&value) {
@@ -147,6 +165,10 @@ pub enum RefineOutcome {
     KeptPrior(KeptReason),
 }
 
+/// A scan is planar when all its points lie within this height band (metres): a 2-D scanner's
+/// points have one height, a 3-D scanner's spread over metres.
+pub const PLANAR_SPREAD_M: f64 = 0.05;
+
 /// The refinement of one scan, from [`PoseRefiner::refine`]; hand it to
 /// [`PoseRefiner::insert`] to add the scan to the map.
 #[derive(Debug, Clone)]
@@ -163,6 +185,8 @@ pub struct Refinement {
     pub source_points: usize,
     /// Gauss–Newton iterations run.
     pub iterations: usize,
+    /// The map's voxel edge (metres): `planar_voxel_size_m` or `voxel_size_m`.
+    pub voxel_size_m: f64,
     /// The scan downsampled for the map, sensor frame.
     frame: Vec<Vector3<f64>>,
 }
@@ -171,7 +195,8 @@ pub struct Refinement {
 #[derive(Debug, Clone)]
 pub struct PoseRefiner {
     params: RefineParams,
-    map: VoxelMap,
+    /// Created by the first scan with points, whose shape decides the voxel edge.
+    map: Option<VoxelMap>,
     threshold: AdaptiveThreshold,
 }
 
@@ -183,7 +208,7 @@ impl PoseRefiner {
     pub fn new(params: RefineParams) -> Result<Self, OdometryError> {
         params.validate()?;
         Ok(Self {
-            map: VoxelMap::new(params.voxel_size_m, params.max_points_per_voxel),
+            map: None,
             // As KISS-ICP: corrections under 0.1 m (bound at the range) are sampling noise, and
             // would shrink the threshold below the map's point spacing.
             threshold: AdaptiveThreshold::new(params.initial_threshold_m, 0.1, params.max_range_m),
@@ -198,7 +223,7 @@ impl PoseRefiner {
 
     /// Voxels in the local map.
     pub fn map_voxels(&self) -> usize {
-        self.map.voxel_count()
+        self.map.as_ref().map_or(0, VoxelMap::voxel_count)
     }
 
     /// Registers `points` (sensor frame; NaN, infinite and out-of-range points are skipped)
@@ -213,8 +238,13 @@ impl PoseRefiner {
             .map(|raw| Vector3::new(f64::from(raw[0]), f64::from(raw[1]), f64::from(raw[2])))
             .filter(|point| (min_sq..=max_sq).contains(&point.norm_squared()))
             .collect();
-        let frame = downsampled(&kept, 0.5 * p.voxel_size_m);
-        let source = downsampled(&frame, 1.5 * p.voxel_size_m);
+        let voxel_size_m = match &self.map {
+            Some(map) => map.voxel_size(),
+            None if is_planar(&kept) => p.planar_voxel_size_m,
+            None => p.voxel_size_m,
+        };
+        let frame = downsampled(&kept, 0.5 * voxel_size_m);
+        let source = downsampled(&frame, 1.5 * voxel_size_m);
         let mut refinement = Refinement {
             world_from_sensor: *prior,
             outcome: RefineOutcome::KeptPrior(KeptReason::NoData),
@@ -222,15 +252,16 @@ impl PoseRefiner {
             correspondences: 0,
             source_points: source.len(),
             iterations: 0,
+            voxel_size_m,
             frame,
         };
         if refinement.frame.is_empty() {
             return refinement;
         }
-        if self.map.is_empty() {
+        let Some(map) = self.map.as_ref().filter(|map| !map.is_empty()) else {
             refinement.outcome = RefineOutcome::First;
             return refinement;
-        }
+        };
         let sigma = self.threshold.sigma();
         let settings = IcpSettings {
             max_correspondence_m: 3.0 * sigma,
@@ -238,7 +269,7 @@ impl PoseRefiner {
             max_iterations: p.max_iterations,
             tolerance: p.convergence_tolerance,
         };
-        let outcome = icp::register(&source, &self.map, prior, &settings);
+        let outcome = icp::register(&source, map, prior, &settings);
         refinement.correspondences = outcome.correspondences;
         refinement.iterations = outcome.iterations;
         let correction = prior.inverse() * outcome.world_from_sensor;
@@ -274,9 +305,12 @@ impl PoseRefiner {
             self.threshold.observe(&refinement.correction);
         }
         let pose = &refinement.world_from_sensor;
-        self.map.add(&refinement.frame, pose);
-        self.map
-            .remove_far(&pose.translation.vector, self.params.max_range_m);
+        let max_points = self.params.max_points_per_voxel;
+        let map = self
+            .map
+            .get_or_insert_with(|| VoxelMap::new(refinement.voxel_size_m, max_points));
+        map.add(&refinement.frame, pose);
+        map.remove_far(&pose.translation.vector, self.params.max_range_m);
     }
 
     /// [`PoseRefiner::refine`] then [`PoseRefiner::insert`]: the pose to use for this scan.
@@ -285,6 +319,16 @@ impl PoseRefiner {
         self.insert(&refinement);
         refinement
     }
+}
+
+/// All points within [`PLANAR_SPREAD_M`] of one height.
+fn is_planar(points: &[Vector3<f64>]) -> bool {
+    let (low, high) = points
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(low, high), p| {
+            (low.min(p.z), high.max(p.z))
+        });
+    high - low <= PLANAR_SPREAD_M
 }
 
 #[cfg(test)]
@@ -368,7 +412,6 @@ mod tests {
     fn a_noisy_planar_pose_is_pulled_back_to_the_truth() {
         let params = RefineParams {
             prior_weight: 0.0,
-            voxel_size_m: 0.25,
             ..RefineParams::default()
         };
         let mut refiner = PoseRefiner::new(params).expect("valid");
@@ -381,6 +424,7 @@ mod tests {
         let truth = (1.6, 0.0, 0.0);
         let prior = level(1.6 + 0.15, -0.12, 0.3_f64.to_radians());
         let refinement = refiner.refine(&planar_scan(truth), &prior);
+        assert_eq!(refinement.voxel_size_m, 0.25);
         assert_eq!(refinement.outcome, RefineOutcome::Refined);
         let truth = level(truth.0, truth.1, truth.2);
         let (before_m, before_rad) = errors(&prior, &truth);
@@ -460,6 +504,27 @@ mod tests {
     }
 
     #[test]
+    fn the_first_scan_chooses_planar_or_3d_voxels_for_the_drive() {
+        let planar = planar_scan((0.0, 0.0, 0.0));
+        // The same outline as a 3-D scanner sees it: each return also 1 m higher.
+        let solid: Vec<[f32; 3]> = planar
+            .iter()
+            .flat_map(|&[x, y, _]| [[x, y, 0.0], [x, y, 1.0]])
+            .collect();
+        let params = RefineParams::default();
+        let mut refiner = PoseRefiner::new(params.clone()).expect("valid");
+        let first = refiner.refine_and_insert(&solid, &level(0.0, 0.0, 0.0));
+        assert_eq!(first.voxel_size_m, params.voxel_size_m);
+        // The map's voxels stay what the first scan chose.
+        let next = refiner.refine(&planar, &level(0.0, 0.0, 0.0));
+        assert_eq!(next.voxel_size_m, params.voxel_size_m);
+        let mut flat = PoseRefiner::new(params.clone()).expect("valid");
+        let first = flat.refine_and_insert(&planar, &level(0.0, 0.0, 0.0));
+        assert_eq!(first.voxel_size_m, params.planar_voxel_size_m);
+        assert!(flat.map_voxels() > refiner.map_voxels());
+    }
+
+    #[test]
     fn the_map_stays_local() {
         let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
         refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0));
@@ -478,10 +543,11 @@ mod tests {
     #[test]
     fn errors_name_the_parameter() {
         type Spoil = fn(&mut RefineParams);
-        let cases: [(&str, Spoil); 6] = [
+        let cases: [(&str, Spoil); 7] = [
             ("max_range_m", |p| p.max_range_m = 0.0),
             ("min_range_m", |p| p.min_range_m = 100.0),
             ("voxel_size_m", |p| p.voxel_size_m = f64::NAN),
+            ("planar_voxel_size_m", |p| p.planar_voxel_size_m = 0.0),
             ("max_correction_m", |p| p.max_correction_m = -1.0),
             ("max_correction_deg", |p| p.max_correction_deg = 200.0),
             ("prior_weight", |p| p.prior_weight = 1.5),

@@ -152,6 +152,11 @@ impl VoxelMap {
         }
     }
 
+    /// The voxel edge, metres.
+    pub(crate) fn voxel_size(&self) -> f64 {
+        self.voxel_size
+    }
+
     pub(crate) fn is_empty(&self) -> bool {
         self.voxels.is_empty()
     }
