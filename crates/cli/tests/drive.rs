@@ -405,6 +405,17 @@ fn odometry_poses_round_trip_and_feed_a_run() {
     );
     assert_eq!(by_itself["poses"], "lidar odometry");
     assert_eq!(by_itself["pose_matching"], "odometry");
+    // The odometry's poses are registrations already: not refined again. Poses from a file are.
+    assert_eq!(by_itself["params"]["localisation"]["refinement"], "none");
+    assert_eq!(
+        with_file["params"]["localisation"]["refinement"],
+        "scan_to_map"
+    );
+    let outcome = |summary: &serde_json::Value, frame: usize| {
+        summary["per_frame"][frame]["stats"]["pose_refinement"]["outcome"].clone()
+    };
+    assert_eq!(outcome(&by_itself, 3), "off");
+    assert_eq!(outcome(&with_file, 0), "first");
     assert_close(&positions(&with_file), &positions(&by_itself), 1e-9);
 }
 

@@ -304,7 +304,7 @@ const FRAMES_FILE: &str = "frames.jsonl";
 pub fn run(args: RunArgs) -> Result<()> {
     let started = Instant::now();
     // Validated as it is read: the defaults are valid by construction.
-    let params = read_params(args.config.as_deref())?;
+    let mut params = read_params(args.config.as_deref())?;
     let origin = args.origin.as_deref().map(parse_origin).transpose()?;
     let pose_format = args
         .pose_format
@@ -516,6 +516,11 @@ pub fn run(args: RunArgs) -> Result<()> {
         nalgebra_poses.truncate(n);
     }
     let poses: Vec<evigrid::Isometry3> = nalgebra_poses.iter().map(to_pipeline).collect();
+    // Poses from the lidar odometry are already registrations of these scans: refining them
+    // against a second map of the same scans would spend a registration to change nothing.
+    if pose_matching == "odometry" {
+        params.localisation.refinement = evigrid::PoseRefinement::None;
+    }
 
     if let Some(loaded) = &loaded {
         check_poses_on_map(&poses, &loaded.map.extent).map_err(|e| {
