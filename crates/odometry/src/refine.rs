@@ -550,6 +550,34 @@ mod tests {
         assert!(flat.map_voxels() > refiner.map_voxels());
     }
 
+    proptest::proptest! {
+        /// Whatever the scan and the given pose (finite: the front end refuses others), the
+        /// refiner returns a finite pose and keeps working.
+        #[test]
+        fn hostile_scans_and_poses_give_finite_poses(
+            raw in proptest::collection::vec(
+                proptest::array::uniform3(proptest::prop_oneof![
+                    -100.0_f32..100.0,
+                    proptest::num::f32::ANY,
+                    proptest::strategy::Just(0.0_f32),
+                ]),
+                0..300,
+            ),
+            x in proptest::prop_oneof![-1e3_f64..1e3, -1e12_f64..1e12],
+            y in -1e6_f64..1e6,
+            heading in -10.0_f64..10.0,
+        ) {
+            let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
+            for k in 0..3 {
+                let prior = level(x + f64::from(k) * 0.5, y, heading);
+                let refinement = refiner.refine_and_insert(&raw, &prior);
+                let pose = refinement.world_from_sensor;
+                proptest::prop_assert!(pose.translation.vector.iter().all(|v| v.is_finite()));
+                proptest::prop_assert!(pose.rotation.coords.iter().all(|v| v.is_finite()));
+            }
+        }
+    }
+
     #[test]
     fn the_map_stays_local() {
         let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
