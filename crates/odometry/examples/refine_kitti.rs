@@ -4,13 +4,14 @@
 //! ```text
 //! cargo run --release -p evigrid-odometry --example refine_kitti -- \
 //!     <shared>/data/lidar/kitti-raw-0013/2011_09_26/2011_09_26_drive_0013_sync \
-//!     [--sigma-m 0.1] [--sigma-deg 0.2] [--seed 1]
+//!     [--sigma-m 0.1] [--sigma-deg 0.2] [--seed 1] [--write-tum noisy.tum]
 //! ```
 //!
 //! Per setting it prints the RMS horizontal position and heading error against OXTS, the RMS
 //! change of that error from one scan to the next (what makes a static object jump between
 //! grids), the refiner's outcomes and its time per scan. The noise is independent per scan,
 //! horizontal position `sigma_m` per axis and heading `sigma_deg`, as the simulator's.
+//! `--write-tum` writes the noisy poses as a TUM file, for `evigrid run --drive DIR --poses`.
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -77,14 +78,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let dir = args
         .next()
-        .ok_or("usage: refine_kitti <drive_sync dir> [--sigma-m M] [--sigma-deg D] [--seed N]")?;
+        .ok_or("usage: refine_kitti <drive_sync dir> [--sigma-m M] [--sigma-deg D] [--seed N] [--write-tum FILE]")?;
     let (mut sigma_m, mut sigma_deg, mut seed) = (0.1_f64, 0.2_f64, 1_u64);
+    let mut tum: Option<std::path::PathBuf> = None;
     while let Some(flag) = args.next() {
         let value = args.next().ok_or(format!("{flag} needs a value"))?;
         match flag.as_str() {
             "--sigma-m" => sigma_m = value.parse()?,
             "--sigma-deg" => sigma_deg = value.parse()?,
             "--seed" => seed = value.parse()?,
+            "--write-tum" => tum = Some(value.into()),
             other => return Err(format!("unknown flag {other}").into()),
         }
     }
@@ -112,6 +115,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         })
         .collect();
 
+    if let Some(path) = &tum {
+        let track = drive::poses::PoseTrack::new(drive.scan_times().to_vec(), noisy.clone())?;
+        let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+        drive::poses::write_tum(&mut out, &track)?;
+    }
     println!(
         "{} scans; noise {sigma_m} m per axis, {sigma_deg}° heading, seed {seed}",
         scans.len()
