@@ -15,9 +15,10 @@
 //! the first scans and undo the pull, leaving the first prior's error as a lasting bias (0.15 m
 //! across the street on the simulated monaco drive with 0.1 m of pose noise).
 //!
-//! The map forgets what lies beyond the range, so memory does not grow with the drive. Planar scans (all points at one height, level poses)
-//! work: the plane pins height, roll and pitch, and its in-plane structure the rest; they get
-//! finer voxels (`planar_voxel_size_m`) than a 3-D scan's.
+//! The map forgets what lies beyond the range, so memory does not grow with the drive. Planar
+//! scans (all points at one height, level poses) work: the plane pins height, roll and pitch,
+//! and its in-plane structure the rest; they get finer voxels (`planar_voxel_size_m`) than a
+//! 3-D scan's.
 
 use nalgebra::{Isometry3, Vector3};
 
@@ -323,6 +324,10 @@ impl PoseRefiner {
         if refinement.outcome == RefineOutcome::Refined {
             self.threshold.observe(&refinement.correction);
         }
+        // Nothing to add; and the map's voxels are chosen by the first scan with points.
+        if refinement.frame.is_empty() {
+            return;
+        }
         let pose = &refinement.map_from_sensor;
         let max_points = self.params.max_points_per_voxel;
         let map = self
@@ -544,6 +549,12 @@ mod tests {
         // The map's voxels stay what the first scan chose.
         let next = refiner.refine(&planar, &level(0.0, 0.0, 0.0));
         assert_eq!(next.voxel_size_m, params.voxel_size_m);
+        // A first scan without points decides nothing.
+        let mut late = PoseRefiner::new(params.clone()).expect("valid");
+        late.refine_and_insert(&[], &level(0.0, 0.0, 0.0));
+        assert_eq!(late.map_voxels(), 0);
+        let first = late.refine_and_insert(&solid, &level(0.0, 0.0, 0.0));
+        assert_eq!(first.voxel_size_m, params.voxel_size_m);
         let mut flat = PoseRefiner::new(params.clone()).expect("valid");
         let first = flat.refine_and_insert(&planar, &level(0.0, 0.0, 0.0));
         assert_eq!(first.voxel_size_m, params.planar_voxel_size_m);
