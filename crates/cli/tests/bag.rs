@@ -103,8 +103,8 @@ fn run_reads_a_recording_with_each_pose_source() -> Result<(), Box<dyn std::erro
     for (a, b) in tf_frames.iter().zip(&odom_frames) {
         for axis in 0..3 {
             let (p, q) = (
-                a["position"][axis].as_f64().ok_or("x")?,
-                b["position"][axis].as_f64().ok_or("x")?,
+                a["given_position"][axis].as_f64().ok_or("x")?,
+                b["given_position"][axis].as_f64().ok_or("x")?,
             );
             assert!((p - q).abs() < 1e-3, "tf {p} vs odom {q}");
         }

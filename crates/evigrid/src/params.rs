@@ -887,7 +887,7 @@ mod tests {
                 Err(e) => assert!(e.to_string().contains(name), "{text}: {e}"),
             }
         }
-        // Every value the section accepts is one the refiner accepts.
+        // The section's defaults are values the refiner accepts.
         let refine = p.localisation.refine_params(&p.sensor);
         assert!(odometry::PoseRefiner::new(refine).is_ok());
     }
@@ -1148,7 +1148,7 @@ pub struct LocalisationParams {
     /// choice; on KITTI's 64-beam scans 0.25 m takes 131 ms a frame against 22 ms for the same
     /// corrections, `docs/motion.md`).
     pub voxel_size_m: f64,
-    /// The same for planar scans (every point within 5 cm of one height): by default 0.25,
+    /// The same for planar scans (every point in a band of heights 5 cm wide): by default 0.25,
     /// measured on the simulated planar scanner. The drive's first scan decides which applies.
     pub planar_voxel_size_m: f64,
     /// A registration that moves the position farther than this from the given pose is refused

@@ -914,7 +914,7 @@ mod tests {
         // used, position (m) and heading (rad).
         let (mut before_sq, mut after_sq) = (0.0, 0.0);
         let mut last: Option<((f64, f64, f64), [f64; 3])> = None;
-        // The used pose's error summed over the last 12 scans (three cycles of the pattern).
+        // The used pose's mean error over the last 12 scans (three cycles of the pattern).
         let mut late_sum = [0.0; 3];
         for k in 0..24_u32 {
             let x = f64::from(k) * 0.8;

@@ -108,10 +108,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|pose| {
             let (dx, dy) = (sigma_m * normal(&mut state), sigma_m * normal(&mut state));
             let dh = sigma_deg.to_radians() * normal(&mut state);
+            // Position off in the world's axes, heading turned about the sensor itself.
             Isometry3::from_parts(
-                Translation3::new(dx, dy, 0.0),
-                UnitQuaternion::from_euler_angles(0.0, 0.0, dh),
-            ) * pose
+                Translation3::from(pose.translation.vector + nalgebra::Vector3::new(dx, dy, 0.0)),
+                UnitQuaternion::from_euler_angles(0.0, 0.0, dh) * pose.rotation,
+            )
         })
         .collect();
 

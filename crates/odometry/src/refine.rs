@@ -60,8 +60,8 @@ pub struct RefineParams {
     /// A registration that moves the position farther than this from the prior is refused and
     /// the prior kept (metres, default 0.5: five times a good GNSS/INS's 0.1 m).
     pub max_correction_m: f64,
-    /// A registration that turns the pose by more than this from the prior is refused and the
-    /// prior kept (degrees, default 1: five times a good INS's 0.2°).
+    /// A registration that turns the pose by more than this from the prior (about any axis) is
+    /// refused and the prior kept (degrees, default 1: five times a good INS's 0.2°).
     pub max_correction_deg: f64,
     /// Fraction of the way from the registered pose back to the prior, in `[0, 1]` (default
     /// 0.1): keeps the map frame on the priors' average instead of drifting with the first
@@ -171,9 +171,18 @@ pub enum RefineOutcome {
     KeptPrior(KeptReason),
 }
 
-/// A scan is planar when all its points lie within this height band (metres): a 2-D scanner's
-/// points have one height, a 3-D scanner's spread over metres.
+/// A scan is planar when all its points lie within a band of heights this wide (metres): a 2-D
+/// scanner's points have one height, a 3-D scanner's spread over metres.
 pub const PLANAR_SPREAD_M: f64 = 0.05;
+
+/// The first scan decides planar or 3-D only with at least this many usable points: two
+/// points of a 3-D scan can share a height, and the choice holds for the whole drive.
+const POINTS_TO_DECIDE: usize = 100;
+
+/// After this many refused registrations in a row the map is dropped and started again from the
+/// given pose: the given poses and the map disagree for good (a GNSS jump, a relocalisation), and
+/// the map, not the poses, is what can be rebuilt.
+const REFUSALS_TO_RESTART: usize = 10;
 
 /// The refinement of one scan, from [`PoseRefiner::refine`]; hand it to
 /// [`PoseRefiner::insert`] to add the scan to the map.
@@ -205,10 +214,13 @@ pub struct PoseRefiner {
     params: RefineParams,
     /// Created by the first scan with points, whose shape decides the voxel edge.
     map: Option<VoxelMap>,
-    /// `world_from_map`: the map keeps its own frame (the first scan's prior), in which scans
-    /// join it at their registered poses; this offset carries the slow pull towards the priors.
+    /// `world_from_map`: the map keeps its own frame (the world's, until the first pull), in
+    /// which scans join it at their registered poses; this offset carries the slow pull towards
+    /// the priors.
     world_from_map: Isometry3<f64>,
     threshold: AdaptiveThreshold,
+    /// Registrations refused since the last accepted one.
+    refused_in_a_row: usize,
 }
 
 impl PoseRefiner {
@@ -221,6 +233,7 @@ impl PoseRefiner {
         Ok(Self {
             map: None,
             world_from_map: Isometry3::identity(),
+            refused_in_a_row: 0,
             // As KISS-ICP: corrections under 0.1 m (bound at the range) are sampling noise, and
             // would shrink the threshold below the map's point spacing.
             threshold: AdaptiveThreshold::new(params.initial_threshold_m, 0.1, params.max_range_m),
@@ -254,6 +267,12 @@ impl PoseRefiner {
             Some(map) => map.voxel_size(),
             None if is_planar(&kept) => p.planar_voxel_size_m,
             None => p.voxel_size_m,
+        };
+        // Too few points to tell a planar scan from a 3-D one: no map starts from this scan.
+        let kept = if self.map.is_none() && kept.len() < POINTS_TO_DECIDE {
+            Vec::new()
+        } else {
+            kept
         };
         let frame = downsampled(&kept, 0.5 * voxel_size_m);
         let source = downsampled(&frame, 1.5 * voxel_size_m);
@@ -319,16 +338,37 @@ impl PoseRefiner {
 
     /// Adds the scan of `refinement` to the map at its pose, moves the map's frame by the pull
     /// towards the prior, feeds the adaptive threshold with the correction and forgets the map
-    /// beyond the range.
+    /// beyond the range. A scan whose registration was refused is left out of the map (its only
+    /// pose is the prior the map disagrees with), and after [`REFUSALS_TO_RESTART`] refusals in
+    /// a row the map starts again from the given pose.
     pub fn insert(&mut self, refinement: &Refinement) {
-        if refinement.outcome == RefineOutcome::Refined {
-            self.threshold.observe(&refinement.correction);
+        match refinement.outcome {
+            RefineOutcome::Refined => {
+                self.threshold.observe(&refinement.correction);
+                self.refused_in_a_row = 0;
+            }
+            RefineOutcome::KeptPrior(KeptReason::NoData) | RefineOutcome::First => {}
+            RefineOutcome::KeptPrior(_) => {
+                self.refused_in_a_row += 1;
+                if self.refused_in_a_row < REFUSALS_TO_RESTART {
+                    return;
+                }
+                self.map = None;
+                self.world_from_map = Isometry3::identity();
+                self.refused_in_a_row = 0;
+            }
         }
         // Nothing to add; and the map's voxels are chosen by the first scan with points.
         if refinement.frame.is_empty() {
             return;
         }
-        let pose = &refinement.map_from_sensor;
+        // A restarted map starts from this scan at its given pose.
+        let restarted = self.map.is_none();
+        let pose = if restarted {
+            &refinement.world_from_sensor
+        } else {
+            &refinement.map_from_sensor
+        };
         let max_points = self.params.max_points_per_voxel;
         let map = self
             .map
@@ -514,6 +554,51 @@ mod tests {
         );
         assert!(refinement.correction.translation.vector.norm() > 0.2);
         assert_eq!(refinement.world_from_sensor, prior);
+    }
+
+    #[test]
+    fn refused_scans_stay_out_of_the_map_until_the_map_restarts() {
+        let mut refiner = PoseRefiner::new(RefineParams {
+            max_correction_m: 0.1,
+            ..RefineParams::default()
+        })
+        .expect("valid");
+        let scan = planar_scan((0.0, 0.0, 0.0));
+        refiner.refine_and_insert(&scan, &level(0.0, 0.0, 0.0));
+        let voxels = refiner.map_voxels();
+        // The given pose jumps 0.3 m for good (a relocalised GNSS): refused, left out.
+        let jumped = level(0.3, 0.0, 0.0);
+        for _ in 1..REFUSALS_TO_RESTART {
+            let refinement = refiner.refine_and_insert(&scan, &jumped);
+            assert_eq!(
+                refinement.outcome,
+                RefineOutcome::KeptPrior(KeptReason::TooFar)
+            );
+            assert_eq!(refiner.map_voxels(), voxels);
+        }
+        // The last refusal in a row restarts the map from the given pose, which then holds.
+        refiner.refine_and_insert(&scan, &jumped);
+        let next = refiner.refine(&scan, &jumped);
+        assert_eq!(next.outcome, RefineOutcome::Refined);
+        assert!(next.correction.translation.vector.norm() < 0.02);
+        assert!((next.world_from_sensor.translation.x - 0.3).abs() < 0.02);
+    }
+
+    #[test]
+    fn a_first_scan_of_a_few_points_does_not_choose_the_voxels() {
+        let planar = planar_scan((0.0, 0.0, 0.0));
+        let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
+        // Two 3-D points at one height: not enough to call the drive planar.
+        let few = [[5.0_f32, 0.0, 1.0], [0.0, 6.0, 1.0]];
+        let first = refiner.refine_and_insert(&few, &level(0.0, 0.0, 0.0));
+        assert_eq!(first.outcome, RefineOutcome::KeptPrior(KeptReason::NoData));
+        assert_eq!(refiner.map_voxels(), 0);
+        let solid: Vec<[f32; 3]> = planar
+            .iter()
+            .flat_map(|&[x, y, _]| [[x, y, 0.0], [x, y, 1.0]])
+            .collect();
+        let next = refiner.refine_and_insert(&solid, &level(0.0, 0.0, 0.0));
+        assert_eq!(next.voxel_size_m, RefineParams::default().voxel_size_m);
     }
 
     #[test]

@@ -21,7 +21,7 @@ use evigrid::ego_path::{
     EGO_PATH_LENGTH_M, EGO_PATH_RADIUS_M, EgoPathCheck, ShareSpread, ShareTracker, cells_near_path,
     path_ahead,
 };
-use evigrid::{FrameStats, Pipeline};
+use evigrid::{FrameStats, Pipeline, PoseRefinement};
 use odometry::OdometryParams;
 use output::mcap::{GnssFix, McapFrame, McapRecorder};
 use output::{
@@ -168,8 +168,11 @@ Outputs (in --out):
 struct FrameRecord {
     scan: String,
     time_s: f64,
-    /// The sensor's position in the world frame, metres.
+    /// The sensor's position in the world frame, metres: the pose the grids were built with
+    /// (after the `[localisation]` refinement).
     position: [f64; 3],
+    /// The position as given (pose file, bag, OXTS, odometry), metres.
+    given_position: [f64; 3],
     read_ms: f64,
     process_ms: f64,
     render_ms: f64,
@@ -518,8 +521,9 @@ pub fn run(args: RunArgs) -> Result<()> {
     let poses: Vec<evigrid::Isometry3> = nalgebra_poses.iter().map(to_pipeline).collect();
     // Poses from the lidar odometry are already registrations of these scans: refining them
     // against a second map of the same scans would spend a registration to change nothing.
-    if pose_matching == "odometry" {
-        params.localisation.refinement = evigrid::PoseRefinement::None;
+    if pose_matching == "odometry" && params.localisation.refinement != PoseRefinement::None {
+        params.localisation.refinement = PoseRefinement::None;
+        tracing::info!("poses from the lidar odometry: [localisation] refinement is not applied");
     }
 
     if let Some(loaded) = &loaded {
@@ -665,7 +669,8 @@ pub fn run(args: RunArgs) -> Result<()> {
         let record = FrameRecord {
             scan: file_name(path),
             time_s,
-            position: pose.translation,
+            position: pipeline.front_end().world_from_sensor().translation,
+            given_position: pose.translation,
             read_ms: ms(t1 - t0),
             process_ms: ms(t2 - t1),
             render_ms: ms(t3 - t2),
