@@ -83,7 +83,7 @@ impl OutDir {
     /// Bad input naming `path`: not a folder, a folder of someone else's files without `force`,
     /// cannot be created or written.
     pub fn prepare(path: &Path, force: bool, command: &str) -> Result<Self> {
-        let started = std::time::SystemTime::now();
+        let clock = std::time::SystemTime::now();
         let bad = |why: &str| BadInput::new(format!("--out {}: {why}", path.display()));
         match fs::symlink_metadata(path) {
             Ok(meta) if meta.is_dir() => {
@@ -110,8 +110,15 @@ impl OutDir {
         }
         // Writable? Find out now, not after the work: write the marker (it says which command
         // owns the folder, and is rewritten with the file list at the end).
-        fs::write(path.join(MARKER), format!("command: {command}\n"))
+        let marker = path.join(MARKER);
+        fs::write(&marker, format!("command: {command}\n"))
             .map_err(|e| bad(&format!("cannot write here: {e}")))?;
+        // The run's files are those modified since the marker, by the filesystem's own clock:
+        // its timestamps are coarser than `SystemTime::now()` (a kernel tick), so a file written
+        // right after a `now()` can carry an earlier time and be missed.
+        let started = fs::metadata(&marker)
+            .and_then(|m| m.modified())
+            .map_or(clock, |written| written.min(clock));
         Ok(Self {
             path: path.to_path_buf(),
             command: command.to_string(),

@@ -339,8 +339,8 @@ impl PoseRefiner {
     /// Adds the scan of `refinement` to the map at its pose, moves the map's frame by the pull
     /// towards the prior, feeds the adaptive threshold with the correction and forgets the map
     /// beyond the range. A scan whose registration was refused is left out of the map (its only
-    /// pose is the prior the map disagrees with), and after 10 refusals in
-    /// a row the map starts again from the given pose.
+    /// pose is the prior the map disagrees with), and after 10 refusals in a row the map starts
+    /// again from the given pose.
     pub fn insert(&mut self, refinement: &Refinement) {
         match refinement.outcome {
             RefineOutcome::Refined => {
