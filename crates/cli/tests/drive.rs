@@ -145,6 +145,19 @@ fn a_kitti_raw_drive_without_a_map_keeps_the_ego_path_free() {
         .collect();
     assert!(moved.iter().all(|&m| m <= 0.5), "{moved:?}");
     assert!(moved.iter().filter(|&&m| m > 0.0).count() > 30, "{moved:?}");
+    // The summary says so: 39 of 40 refined (the first starts the map), median 0.066 m.
+    let refinement = &summary["pose_refinement"];
+    assert!(
+        refinement["outcomes"]["refined"].as_u64().unwrap() > 30,
+        "{refinement}"
+    );
+    assert_eq!(refinement["outcomes"]["first"], 1, "{refinement}");
+    let median = refinement["median_correction_m"].as_f64().unwrap();
+    let largest = refinement["largest_correction_m"].as_f64().unwrap();
+    assert!(
+        0.0 < median && median <= largest && largest <= 0.5,
+        "{refinement}"
+    );
     // About 1.2 m per frame (43 km/h), heading roughly one way.
     let p = positions(&summary);
     let travelled = ((p[39][0] - p[0][0]).powi(2) + (p[39][1] - p[0][1]).powi(2)).sqrt();
@@ -423,6 +436,7 @@ fn odometry_poses_round_trip_and_feed_a_run() {
     assert_eq!(by_itself["pose_matching"], "odometry");
     // The odometry's poses are registrations already: not refined again. Poses from a file are.
     assert_eq!(by_itself["params"]["localisation"]["refinement"], "none");
+    assert!(by_itself["pose_refinement"].is_null());
     assert_eq!(
         with_file["params"]["localisation"]["refinement"],
         "scan_to_map"

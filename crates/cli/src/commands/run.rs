@@ -9,6 +9,7 @@
 //! Wiring only: reading files, the progress bar, writing pictures and the summary. The work is
 //! `evigrid::Pipeline`'s; poses are matched to scans in `crate::drive_input`.
 
+use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -21,7 +22,7 @@ use evigrid::ego_path::{
     EGO_PATH_LENGTH_M, EGO_PATH_RADIUS_M, EgoPathCheck, ShareSpread, ShareTracker, cells_near_path,
     path_ahead,
 };
-use evigrid::{FrameStats, Pipeline, PoseRefinement};
+use evigrid::{FrameStats, Pipeline, PoseRefinement, RefinementOutcome};
 use odometry::OdometryParams;
 use output::mcap::{GnssFix, McapFrame, McapRecorder};
 use output::{
@@ -262,11 +263,26 @@ struct Summary {
     obstacle_share_in_range: Option<ShareSpread>,
     /// The same for `obstacle_cell_share`.
     obstacle_cell_share: Option<ShareSpread>,
+    /// What the pose refinement did (`[localisation]`); `null` when it is off.
+    pose_refinement: Option<RefinementTotals>,
     /// The per-frame records, one JSON object per line, written as the run goes (so that an
     /// interrupted run keeps them, and memory does not grow with the drive).
     frames_file: &'static str,
     /// The output folder.
     out: String,
+}
+
+/// The pose refinement over the drive.
+#[derive(Debug, Serialize)]
+struct RefinementTotals {
+    /// Frames per outcome: `refined`, `first`, or why the pose was kept as given
+    /// (`kept_too_far`, `kept_failed`, `kept_low_overlap`, `kept_no_data`).
+    outcomes: BTreeMap<String, usize>,
+    /// Over the refined frames: the median horizontal correction, metres, the largest and its
+    /// frame (0-based).
+    median_correction_m: Option<f64>,
+    largest_correction_m: Option<f64>,
+    largest_correction_frame: Option<usize>,
 }
 
 /// What the summary adds up over the frames, kept as the run goes (constant memory).
@@ -282,10 +298,28 @@ struct RunningTotals {
     obstacle_share: ShareTracker,
     obstacle_share_in_range: ShareTracker,
     obstacle_cell_share: ShareTracker,
+    refinement_outcomes: BTreeMap<String, usize>,
+    /// Corrections as a fraction of `max_correction_m` (the gate bounds them), NaN for frames
+    /// not refined.
+    refinement_corrections: ShareTracker,
+    /// `[localisation] max_correction_m`.
+    max_correction_m: f64,
 }
 
 impl RunningTotals {
     fn add(&mut self, f: &FrameRecord) {
+        let refinement = &f.stats.pose_refinement;
+        let outcome = serde_json::to_value(refinement.outcome)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default();
+        self.refinement_corrections
+            .push(if refinement.outcome == RefinementOutcome::Refined {
+                refinement.correction_m / self.max_correction_m
+            } else {
+                f64::NAN
+            });
+        *self.refinement_outcomes.entry(outcome).or_default() += 1;
         let s = &f.stats.sensor;
         self.frames += 1;
         self.points += s.points;
@@ -565,7 +599,10 @@ pub fn run(args: RunArgs) -> Result<()> {
         )?)
     };
     let progress = crate::progress::bar(scans.paths.len() as u64, "run");
-    let mut totals = RunningTotals::default();
+    let mut totals = RunningTotals {
+        max_correction_m: params.localisation.max_correction_m,
+        ..RunningTotals::default()
+    };
     let frames_path = args.out.join(FRAMES_FILE);
     let mut frames_log = std::io::BufWriter::new(
         fs::File::create(&frames_path)
@@ -754,6 +791,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
 
     let ego_total = &totals.ego_path;
+    let refining = params.localisation.refinement != PoseRefinement::None;
     let summary = Summary {
         complete: stopped.is_none(),
         stopped: stopped.as_ref().map(|(why, _)| why.clone()),
@@ -796,6 +834,16 @@ pub fn run(args: RunArgs) -> Result<()> {
         obstacle_share: totals.obstacle_share.spread(),
         obstacle_share_in_range: totals.obstacle_share_in_range.spread(),
         obstacle_cell_share: totals.obstacle_cell_share.spread(),
+        pose_refinement: refining.then(|| {
+            let spread = totals.refinement_corrections.spread();
+            let scale = totals.max_correction_m;
+            RefinementTotals {
+                outcomes: totals.refinement_outcomes.clone(),
+                median_correction_m: spread.map(|s| s.median * scale),
+                largest_correction_m: spread.map(|s| s.worst * scale),
+                largest_correction_frame: spread.map(|s| s.worst_frame),
+            }
+        }),
         frames_file: FRAMES_FILE,
         out: args.out.display().to_string(),
     };
@@ -859,6 +907,36 @@ pub fn run(args: RunArgs) -> Result<()> {
             e.occupied,
             e.moving
         );
+        if let Some(r) = &summary.pose_refinement {
+            let refined = r.outcomes.get("refined").copied().unwrap_or(0);
+            let kept: Vec<String> = r
+                .outcomes
+                .iter()
+                .filter(|(name, _)| name.starts_with("kept_"))
+                .map(|(name, n)| {
+                    format!("{n} {}", name.trim_start_matches("kept_").replace('_', " "))
+                })
+                .collect();
+            let kept = if kept.is_empty() {
+                String::new()
+            } else {
+                format!(", kept as given: {}", kept.join(", "))
+            };
+            let corrections = match (
+                r.median_correction_m,
+                r.largest_correction_m,
+                r.largest_correction_frame,
+            ) {
+                (Some(median), Some(largest), Some(frame)) => format!(
+                    "; correction median {median:.3} m, largest {largest:.3} m (frame {frame})"
+                ),
+                _ => String::new(),
+            };
+            println!(
+                "pose refinement: {refined} of {} poses refined{kept}{corrections}",
+                summary.frames
+            );
+        }
         for (spread, what) in [
             (&summary.obstacle_share, "of a scan's points are obstacles"),
             (
