@@ -10,27 +10,20 @@
 //! velocity this frame. SEEDS is a comma-separated list (default: the scenario's seed and the
 //! next, as `evigrid eval --seeds 2`).
 
+mod common;
+
 use std::collections::BTreeMap;
 
-use eval::{EvalConfig, Variant, evaluate_observed};
-use evigrid::{Label, Params};
-use sim::Scenario;
+use eval::{Variant, evaluate_observed};
+use evigrid::Label;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let (Some(map_path), Some(scenario_path)) = (args.first(), args.get(1)) else {
-        return Err("usage: diagnose_moving MAP SCENARIO.toml [SEEDS] [CONFIG.toml]".into());
-    };
-    let map = geodata::load_map(map_path, &geodata::LoadOptions::default())?.map;
-    let scenario = Scenario::from_toml(&std::fs::read_to_string(scenario_path)?)?;
-    let seeds: Vec<u64> = match args.get(2) {
-        Some(list) => list.split(',').map(str::parse).collect::<Result<_, _>>()?,
-        None => vec![scenario.seed, scenario.seed + 1],
-    };
-    let mut config = EvalConfig::default();
-    if let Some(path) = args.get(3) {
-        config.params = Params::from_toml_str(&std::fs::read_to_string(path)?)?;
-    }
+    let common::Inputs {
+        map,
+        scenario,
+        seeds,
+        config,
+    } = common::inputs("diagnose_moving")?;
     let detail = std::env::var_os("DIAGNOSE_DETAIL").is_some();
     let mut counts: BTreeMap<String, u64> = BTreeMap::new();
     evaluate_observed(

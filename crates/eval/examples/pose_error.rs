@@ -10,27 +10,20 @@
 //! a cell), with the refinement outcomes. SEEDS as in `diagnose_moving` (default: the
 //! scenario's seed and the next).
 
+mod common;
+
 use std::collections::BTreeMap;
 
-use eval::EvalConfig;
-use evigrid::{FrontEnd, Params, PoseRefinement};
+use evigrid::{FrontEnd, PoseRefinement};
 use sim::{Drive, Scenario};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let (Some(map_path), Some(scenario_path)) = (args.first(), args.get(1)) else {
-        return Err("usage: pose_error MAP SCENARIO.toml [SEEDS] [CONFIG.toml]".into());
-    };
-    let map = geodata::load_map(map_path, &geodata::LoadOptions::default())?.map;
-    let scenario = Scenario::from_toml(&std::fs::read_to_string(scenario_path)?)?;
-    let seeds: Vec<u64> = match args.get(2) {
-        Some(list) => list.split(',').map(str::parse).collect::<Result<_, _>>()?,
-        None => vec![scenario.seed, scenario.seed + 1],
-    };
-    let mut config = EvalConfig::default();
-    if let Some(path) = args.get(3) {
-        config.params = Params::from_toml_str(&std::fs::read_to_string(path)?)?;
-    }
+    let common::Inputs {
+        map,
+        scenario,
+        seeds,
+        config,
+    } = common::inputs("pose_error")?;
     for refinement in [PoseRefinement::None, PoseRefinement::ScanToMap] {
         let mut params = config.params_for(&scenario);
         params.localisation.refinement = refinement;

@@ -7,10 +7,10 @@
 //!     [--azimuth-times] [--vertical-offset DEG] [--min-range M]
 //! ```
 
+mod common;
+
 use std::time::Instant;
 
-use drive::kitti_raw::KittiRawDrive;
-use drive::oxts::KittiMercator;
 use odometry::metrics::relative_errors;
 use odometry::{Odometry, OdometryParams};
 
@@ -31,17 +31,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             other => return Err(format!("unknown flag {other}").into()),
         }
     }
-    let drive = KittiRawDrive::open(std::path::Path::new(&dir))?;
-    let frames = drive.frames();
-    let first = frames.first().ok_or("no frames")?;
-    let projection = KittiMercator::centered(first.oxts.lat_deg, first.oxts.lon_deg);
-    let reference =
-        drive.world_from_velodyne(&|lat: f64, lon: f64| projection.project(lat, lon))?;
-
-    let scans = frames
-        .iter()
-        .map(|f| drive::read_scan(&f.scan_path).map(|s| (s.points_in_sensor, f.time_s)))
-        .collect::<Result<Vec<_>, _>>()?;
+    let common::KittiDrive {
+        reference, scans, ..
+    } = common::read_drive(&dir)?;
     let mut odometry = Odometry::new(params)?;
     let start = Instant::now();
     for (points, time_s) in &scans {

@@ -13,11 +13,11 @@
 //! horizontal position `sigma_m` per axis and heading `sigma_deg`, as the simulator's.
 //! `--write-tum` writes the noisy poses as a TUM file, for `evigrid run --drive DIR --poses`.
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use drive::kitti_raw::KittiRawDrive;
-use drive::oxts::KittiMercator;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use odometry::{PoseRefiner, RefineParams};
 
@@ -47,8 +47,14 @@ fn error(pose: &Isometry3<f64>, reference: &Isometry3<f64>) -> [f64; 3] {
     [d.x, d.y, turn]
 }
 
-/// RMS error and RMS scan-to-scan change of the error: `(m, deg, step m, step deg)`.
-fn summary(errors: &[[f64; 3]]) -> (f64, f64, f64, f64) {
+/// RMS error of `poses` against `reference` and RMS scan-to-scan change of the error:
+/// `(m, deg, step m, step deg)`.
+fn summary(poses: &[Isometry3<f64>], reference: &[Isometry3<f64>]) -> (f64, f64, f64, f64) {
+    let errors: Vec<[f64; 3]> = poses
+        .iter()
+        .zip(reference)
+        .map(|(p, r)| error(p, r))
+        .collect();
     let n = errors.len().max(1) as f64;
     let rms_m = (errors
         .iter()
@@ -91,16 +97,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             other => return Err(format!("unknown flag {other}").into()),
         }
     }
-    let drive = KittiRawDrive::open(std::path::Path::new(&dir))?;
-    let frames = drive.frames();
-    let first = frames.first().ok_or("no frames")?;
-    let projection = KittiMercator::centered(first.oxts.lat_deg, first.oxts.lon_deg);
-    let reference =
-        drive.world_from_velodyne(&|lat: f64, lon: f64| projection.project(lat, lon))?;
-    let scans = frames
-        .iter()
-        .map(|f| drive::read_scan(&f.scan_path).map(|s| (s.points_in_sensor, f.time_s)))
-        .collect::<Result<Vec<_>, _>>()?;
+    let common::KittiDrive { reference, scans } = common::read_drive(&dir)?;
 
     let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(1);
     let noisy: Vec<Isometry3<f64>> = reference
@@ -117,7 +114,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect();
 
     if let Some(path) = &tum {
-        let track = drive::poses::PoseTrack::new(drive.scan_times().to_vec(), noisy.clone())?;
+        let track =
+            drive::poses::PoseTrack::new(scans.iter().map(|s| s.1).collect(), noisy.clone())?;
         let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
         drive::poses::write_tum(&mut out, &track)?;
     }
@@ -126,12 +124,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         scans.len()
     );
     for (name, priors) in [("OXTS", &reference), ("OXTS + noise", &noisy)] {
-        let given: Vec<[f64; 3]> = priors
-            .iter()
-            .zip(&reference)
-            .map(|(p, r)| error(p, r))
-            .collect();
-        let (m, deg, step_m, step_deg) = summary(&given);
+        let (m, deg, step_m, step_deg) = summary(priors, &reference);
         println!(
             "{name:>13}, as given: RMS {m:.3} m, {deg:.3}°; scan to scan {step_m:.3} m, {step_deg:.3}°"
         );
@@ -147,12 +140,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             used.push(refinement.world_from_sensor);
         }
         let ms = start.elapsed().as_secs_f64() * 1e3 / scans.len().max(1) as f64;
-        let refined: Vec<[f64; 3]> = used
-            .iter()
-            .zip(&reference)
-            .map(|(p, r)| error(p, r))
-            .collect();
-        let (m, deg, step_m, step_deg) = summary(&refined);
+        let (m, deg, step_m, step_deg) = summary(&used, &reference);
         println!(
             "{name:>13}, refined:  RMS {m:.3} m, {deg:.3}°; scan to scan {step_m:.3} m, {step_deg:.3}°; {ms:.1} ms a scan; {outcomes:?}"
         );

@@ -28,6 +28,19 @@ pub(crate) struct IcpSettings {
     pub tolerance: f64,
 }
 
+impl IcpSettings {
+    /// KISS-ICP's settings for the adaptive threshold's `sigma`: pairs up to 3σ apart, the
+    /// kernel at σ/3.
+    pub(crate) fn adaptive(sigma: f64, max_iterations: usize, tolerance: f64) -> Self {
+        Self {
+            max_correspondence_m: 3.0 * sigma,
+            kernel_scale_m: sigma / 3.0,
+            max_iterations,
+            tolerance,
+        }
+    }
+}
+
 /// What a registration found.
 #[derive(Debug, Clone)]
 pub(crate) struct IcpOutcome {

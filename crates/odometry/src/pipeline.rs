@@ -247,13 +247,11 @@ impl Odometry {
             }
             prediction
         } else {
-            let sigma = self.threshold.sigma();
-            let settings = IcpSettings {
-                max_correspondence_m: 3.0 * sigma,
-                kernel_scale_m: sigma / 3.0,
-                max_iterations: params.max_iterations,
-                tolerance: params.convergence_tolerance,
-            };
+            let settings = IcpSettings::adaptive(
+                self.threshold.sigma(),
+                params.max_iterations,
+                params.convergence_tolerance,
+            );
             let outcome = icp::register(&source, &self.map, &prediction, &settings);
             report.correspondences = outcome.correspondences;
             report.iterations = outcome.iterations;

@@ -295,13 +295,11 @@ impl PoseRefiner {
             refinement.outcome = RefineOutcome::First;
             return refinement;
         };
-        let sigma = self.threshold.sigma();
-        let settings = IcpSettings {
-            max_correspondence_m: 3.0 * sigma,
-            kernel_scale_m: sigma / 3.0,
-            max_iterations: p.max_iterations,
-            tolerance: p.convergence_tolerance,
-        };
+        let settings = IcpSettings::adaptive(
+            self.threshold.sigma(),
+            p.max_iterations,
+            p.convergence_tolerance,
+        );
         let outcome = icp::register(&source, map, &guess, &settings);
         refinement.correspondences = outcome.correspondences;
         refinement.iterations = outcome.iterations;
