@@ -7,7 +7,8 @@
 //! U or S decided M) and a missed M (truth M decided otherwise) are counted by what the scan
 //! saw in the cell now (a return, or a ray through it), whether a truth-M cell is among its
 //! 8 neighbours (partial cover of an object), and whether the motion stage gave the cell a
-//! velocity this frame. SEEDS is a comma-separated list (default: the scenario's seed and the
+//! velocity this frame. A false M in the object outline band, which the evaluation leaves
+//! unscored, is listed as truth "void (unscored)". SEEDS is a comma-separated list (default: the scenario's seed and the
 //! next, as `evigrid eval --seeds 2`).
 
 mod common;
@@ -74,10 +75,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 });
                 let has_velocity = velocity.is_some_and(|v| v[idx] != 0.0)
                     || speed_north.is_some_and(|v| v[idx] != 0.0);
+                // The object outline band is truth F but scored as no class: say so.
+                let truth_name = if f.outline.get(idx) == Some(&true) {
+                    "void (unscored)".to_owned()
+                } else {
+                    format!("{truth:?}")
+                };
                 let key = if false_moving {
                     format!(
-                        "false M  truth {:?} | {seen} | {} | {} | {}",
-                        truth,
+                        "false M  truth {truth_name} | {seen} | {} | {} | {}",
                         states
                             .get(&(idx as u32))
                             .map_or("-".to_owned(), |s| format!("{:?}", s.state)),

@@ -98,6 +98,9 @@ pub struct FusionFrame<'a> {
     /// ([`IGNORED`](sim::truth::IGNORED) where the ego's own sensor cannot see), for pictures
     /// of truth beside prediction.
     pub truth: &'a [evigrid::Label],
+    /// The object outline band over the window, in storage order: cells an actor overlaps at
+    /// none of their 3 × 3 samples, scored as no class (see `docs/evaluation.md`).
+    pub outline: &'a [bool],
     /// The sensor's position (x east, y north, metres) as the method was given it this frame.
     pub ego_position: [f64; 2],
     /// The frame's scan, sensor frame.
@@ -386,6 +389,7 @@ fn run_drive(
                     front_end,
                     fusion,
                     truth: &truth_storage,
+                    outline: &outline_storage,
                     ego_position: [pose.translation[0], pose.translation[1]],
                     points_in_sensor: &points,
                     world_from_sensor: &pose,

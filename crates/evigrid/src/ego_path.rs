@@ -64,6 +64,24 @@ fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
     (b[0] - a[0]).hypot(b[1] - a[1])
 }
 
+/// Unit direction of the segment of `path` nearest to `p` (the first, on ties); `None` when the
+/// path has no segment of non-zero length.
+fn nearest_segment_direction(path: &[[f64; 2]], p: [f64; 2]) -> Option<[f64; 2]> {
+    let mut best: Option<(f64, [f64; 2])> = None;
+    for w in path.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let length = distance(a, b);
+        if !(length > 0.0 && length.is_finite()) {
+            continue;
+        }
+        let d = distance_to_segment(p, a, b);
+        if best.is_none_or(|(nearest, _)| d < nearest) {
+            best = Some((d, [(b[0] - a[0]) / length, (b[1] - a[1]) / length]));
+        }
+    }
+    best.map(|(_, direction)| direction)
+}
+
 /// Distance from `p` to the segment `a`–`b` (a point when `a == b`).
 fn distance_to_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
@@ -130,6 +148,21 @@ pub struct EgoPathCheck {
     pub occupied_cells: usize,
     /// Observed path cells decided M (moving).
     pub moving_cells: usize,
+    /// Of those, the cells the motion stage gave a velocity this frame that points along the
+    /// path, within 45° of its nearest segment: traffic ahead going the ego's way, which the
+    /// path may hold (see [`EgoPathCheck::count_traffic_ahead`]). Oncoming or crossing motion,
+    /// and moving cells without a velocity, are not counted here.
+    pub moving_along_path: usize,
+}
+
+/// The per-cell velocity the motion stage gave this frame (m/s east and north, 0 where it gave
+/// none), in the window's storage order.
+#[derive(Clone, Copy, Debug)]
+pub struct CellVelocity<'a> {
+    /// Velocity east, m/s.
+    pub east: &'a [f32],
+    /// Velocity north, m/s.
+    pub north: &'a [f32],
 }
 
 impl EgoPathCheck {
@@ -160,6 +193,49 @@ impl EgoPathCheck {
         check
     }
 
+    /// Counts [`Self::moving_along_path`]: of `cells` (as given to [`Self::count`]) those
+    /// observed, decided M, and whose velocity lies within 45° of the direction of the nearest
+    /// segment of `path` (the polyline the cells were taken from). A path of one vertex has no
+    /// direction and counts none.
+    pub fn count_traffic_ahead(
+        &mut self,
+        cells: &[usize],
+        sensor: &SensorGrid,
+        decisions: &[Label],
+        window: &Window,
+        path: &[[f64; 2]],
+        velocity: CellVelocity<'_>,
+    ) {
+        let (free, occupied) = (sensor.m_free(), sensor.m_occupied());
+        self.moving_along_path = 0;
+        for &i in cells {
+            let observed = free
+                .get(i)
+                .zip(occupied.get(i))
+                .is_some_and(|(f, o)| f + o > 0.0);
+            if !observed || decisions.get(i) != Some(&Label::M) {
+                continue;
+            }
+            let (Some(&ve), Some(&vn), Some(cell)) = (
+                velocity.east.get(i),
+                velocity.north.get(i),
+                window.cell_of_storage(i),
+            ) else {
+                continue;
+            };
+            let (x, y) = window.cell_centre(cell.col, cell.row);
+            let Some([dx, dy]) = nearest_segment_direction(path, [x, y]) else {
+                continue;
+            };
+            let (ve, vn) = (f64::from(ve), f64::from(vn));
+            let speed = ve.hypot(vn);
+            // cos 45° = √½: along the path, not across it or against it.
+            if speed > 0.0 && (ve * dx + vn * dy) >= std::f64::consts::FRAC_1_SQRT_2 * speed {
+                self.moving_along_path += 1;
+            }
+        }
+    }
+
     /// Observed path cells decided occupied or moving.
     pub fn decided_occupied_or_moving(&self) -> usize {
         self.occupied_cells + self.moving_cells
@@ -178,6 +254,7 @@ impl EgoPathCheck {
         self.observed_cells += other.observed_cells;
         self.occupied_cells += other.occupied_cells;
         self.moving_cells += other.moving_cells;
+        self.moving_along_path += other.moving_along_path;
     }
 }
 
@@ -357,6 +434,7 @@ mod tests {
                 observed_cells: 5,
                 occupied_cells: 2,
                 moving_cells: 1,
+                moving_along_path: 0,
             }
         );
         assert_eq!(check.share(), Some(0.6));
@@ -366,9 +444,49 @@ mod tests {
             observed_cells: 5,
             occupied_cells: 0,
             moving_cells: 0,
+            moving_along_path: 0,
         });
         assert_eq!(total.share(), Some(0.3));
         assert_eq!(EgoPathCheck::default().share(), None);
+    }
+
+    #[test]
+    fn traffic_ahead_is_moving_cells_whose_velocity_follows_the_path() {
+        // 1 m cells, a path east along y = 0.5; cells (0..5, 0) all observed and decided M,
+        // with velocities: east (along), north-east at 40° (along), north (across), west
+        // (oncoming), none (moving by past evidence only).
+        let mut window = Window::new(10, 10, 1.0).unwrap();
+        let _ = window.move_to(-5, -5);
+        let path = [[0.5, 0.5], [8.5, 0.5]];
+        let cells: Vec<usize> = (0..5)
+            .map(|col| window.storage_index(col, 0).unwrap())
+            .collect();
+        let mut sensor = SensorGrid::new(10, 10);
+        let mut decisions = vec![Label::F; window.len()];
+        let (mut east, mut north) = (vec![0.0f32; window.len()], vec![0.0f32; window.len()]);
+        let angle = 40f32.to_radians();
+        for (&i, v) in cells.iter().zip([
+            [10.0, 0.0],
+            [10.0 * angle.cos(), 10.0 * angle.sin()],
+            [0.0, 8.0],
+            [-10.0, 0.0],
+            [0.0, 0.0],
+        ]) {
+            sensor.m_occupied_mut()[i] = 0.8;
+            decisions[i] = Label::M;
+            (east[i], north[i]) = (v[0], v[1]);
+        }
+        let mut check = EgoPathCheck::count(&cells, &sensor, &decisions);
+        assert_eq!(check.moving_cells, 5);
+        let velocity = CellVelocity {
+            east: &east,
+            north: &north,
+        };
+        check.count_traffic_ahead(&cells, &sensor, &decisions, &window, &path, velocity);
+        assert_eq!(check.moving_along_path, 2);
+        // A path of one vertex has no direction.
+        check.count_traffic_ahead(&cells, &sensor, &decisions, &window, &path[..1], velocity);
+        assert_eq!(check.moving_along_path, 0);
     }
 
     #[test]

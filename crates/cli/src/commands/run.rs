@@ -19,8 +19,8 @@ use clap::Args;
 use drive::poses::{Mounting, PoseFormat};
 use evigrid::Params;
 use evigrid::ego_path::{
-    EGO_PATH_LENGTH_M, EGO_PATH_RADIUS_M, EgoPathCheck, ShareSpread, ShareTracker, cells_near_path,
-    path_ahead,
+    CellVelocity, EGO_PATH_LENGTH_M, EGO_PATH_RADIUS_M, EgoPathCheck, ShareSpread, ShareTracker,
+    cells_near_path, path_ahead,
 };
 use evigrid::{FrameStats, Pipeline, PoseRefinement, RefinementOutcome};
 use odometry::OdometryParams;
@@ -207,6 +207,9 @@ struct EgoPathTotals {
     cell_frames: usize,
     occupied: usize,
     moving: usize,
+    /// Of `moving`, the cells whose velocity this frame points along the path (within 45°):
+    /// traffic ahead going the ego's way.
+    moving_along_path: usize,
     /// `occupied + moving`.
     decided_occupied_or_moving: usize,
     /// `decided_occupied_or_moving / cell_frames`.
@@ -680,13 +683,23 @@ pub fn run(args: RunArgs) -> Result<()> {
                 break;
             }
         }
-        let path_cells = cells_near_path(
-            pipeline.window(),
-            &path_ahead(&positions, k, EGO_PATH_LENGTH_M),
-            EGO_PATH_RADIUS_M,
-        );
-        let ego_path =
+        let path_ahead = path_ahead(&positions, k, EGO_PATH_LENGTH_M);
+        let path_cells = cells_near_path(pipeline.window(), &path_ahead, EGO_PATH_RADIUS_M);
+        let mut ego_path =
             EgoPathCheck::count(&path_cells, pipeline.sensor_grid(), pipeline.decisions());
+        if let Some(motion) = pipeline.fusion().motion() {
+            ego_path.count_traffic_ahead(
+                &path_cells,
+                pipeline.sensor_grid(),
+                pipeline.decisions(),
+                pipeline.window(),
+                &path_ahead,
+                CellVelocity {
+                    east: motion.velocity_east(),
+                    north: motion.velocity_north(),
+                },
+            );
+        }
         let written = decision_image(
             pipeline.window(),
             pipeline.decisions(),
@@ -828,6 +841,7 @@ pub fn run(args: RunArgs) -> Result<()> {
             cell_frames: ego_total.observed_cells,
             occupied: ego_total.occupied_cells,
             moving: ego_total.moving_cells,
+            moving_along_path: ego_total.moving_along_path,
             decided_occupied_or_moving: ego_total.decided_occupied_or_moving(),
             share: ego_total.share(),
         },
@@ -898,14 +912,16 @@ pub fn run(args: RunArgs) -> Result<()> {
         let e = &summary.ego_path;
         println!(
             "ego path ({} m ahead, {} m either side): {} of {} observed cell-frames decided \
-             occupied or moving ({}; {} occupied, {} moving)",
+             occupied or moving ({}; {} occupied, {} moving, {} of them traffic moving along \
+             the path)",
             e.length_m,
             e.radius_m,
             e.decided_occupied_or_moving,
             e.cell_frames,
             percent(e.share),
             e.occupied,
-            e.moving
+            e.moving,
+            e.moving_along_path
         );
         if let Some(r) = &summary.pose_refinement {
             let refined = r.outcomes.get("refined").copied().unwrap_or(0);

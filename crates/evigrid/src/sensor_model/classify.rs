@@ -1,5 +1,5 @@
-//! Points into sectors: each levelled point is told ground, obstacle or neither, and every
-//! sector keeps the range of its nearest obstacle and of its farthest ground return.
+//! Points into sectors: each levelled point is told ground, obstacle or neither; every sector
+//! keeps the range of its farthest ground return, and every return its cell, sector and range.
 
 use ground::PointLabel;
 
@@ -28,12 +28,12 @@ pub(super) struct Classified {
     pub(super) ground_points: usize,
     pub(super) unclassified_points: usize,
     pub(super) dropped_outside_window: usize,
-    /// Farthest ground return and nearest obstacle return per sector.
+    /// Farthest ground return per sector.
     pub(super) ground_range: Vec<f64>,
-    pub(super) obstacle_range: Vec<f64>,
-    /// (cell, sector, range) of each ground return in the window; cell of each obstacle return.
+    /// (cell, sector, range) of each ground and each obstacle return in the window. Obstacle
+    /// returns are kept apart because a cell's count decides whether they count at all.
     pub(super) ground_cells: Vec<(usize, u32, f64)>,
-    pub(super) obstacle_cells: Vec<usize>,
+    pub(super) obstacle_cells: Vec<(usize, u32, f64)>,
 }
 
 impl PointClassifier<'_> {
@@ -64,8 +64,6 @@ impl PointClassifier<'_> {
         out.dropped_outside_window = 0;
         out.ground_range.clear();
         out.ground_range.resize(self.sectors, 0.0);
-        out.obstacle_range.clear();
-        out.obstacle_range.resize(self.sectors, f64::INFINITY);
         out.ground_cells.clear();
         out.obstacle_cells.clear();
         let (sensor_x, sensor_y) = self.sensor_xy;
@@ -98,9 +96,9 @@ impl PointClassifier<'_> {
                 .storage_index_of_point(sensor_x + q[0], sensor_y + q[1])
             {
                 Some(idx) => {
-                    out.obstacle_cells.push(idx);
                     let s = sector_of(q, self.sectors_per_radian, self.sectors);
-                    out.obstacle_range[s] = out.obstacle_range[s].min(horizontal_range(q));
+                    out.obstacle_cells
+                        .push((idx, s as u32, horizontal_range(q)));
                 }
                 None => out.dropped_outside_window += 1,
             }

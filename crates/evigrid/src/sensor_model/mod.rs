@@ -48,6 +48,9 @@ pub struct SensorStats {
     pub dropped_out_of_range: usize,
     /// Obstacle points whose cell lies outside the window.
     pub dropped_outside_window: usize,
+    /// Obstacle points dropped as stray: their cell and its eight neighbours held fewer than
+    /// `min_neighbourhood_returns` obstacle returns (3-D ground models only).
+    pub stray_obstacle_points: usize,
     /// Points used as obstacle returns.
     pub obstacle_points: usize,
     /// Points used as ground returns.
@@ -77,6 +80,13 @@ pub struct SensorModel {
     /// What each chunk of the current scan's points gave, in point order; kept between scans
     /// so that the chunks' buffers are not allocated again.
     classified: Vec<Classified>,
+    /// Obstacle returns per cell of the current scan; zero outside the cells it touches (they
+    /// are reset after use, so a scan costs its returns, not the window).
+    returns_per_cell: Vec<u16>,
+    /// The cells holding obstacle returns in the current scan, each once, and whether each is
+    /// stray ([`SensorModel::mark_stray_cells`]).
+    obstacle_cells: Vec<usize>,
+    stray: Vec<bool>,
     /// The plane fit of [`GroundModel::Plane`], with its buffers.
     plane_fitter: ground::PlaneFitter,
     /// The local ground model ([`GroundModel::Local`] only), with its buffers.
@@ -101,6 +111,9 @@ impl SensorModel {
             obstacle_range: Vec::new(),
             ground_range: Vec::new(),
             classified: Vec::new(),
+            returns_per_cell: Vec::new(),
+            obstacle_cells: Vec::new(),
+            stray: Vec::new(),
             plane_fitter: ground::PlaneFitter::default(),
         }
     }
@@ -230,21 +243,39 @@ impl SensorModel {
                 .zip(self.classified.par_iter_mut())
                 .for_each(|(points, out)| classify.chunk(points, None, out)),
         }
-        self.obstacle_range.clear();
-        self.obstacle_range.resize(sectors, f64::INFINITY);
         self.ground_range.clear();
         self.ground_range.resize(sectors, 0.0);
         for chunk in &self.classified {
             stats.ground_points += chunk.ground_points;
             stats.unclassified_points += chunk.unclassified_points;
-            stats.obstacle_points += chunk.obstacle_cells.len();
             stats.dropped_outside_window += chunk.dropped_outside_window;
             for (all, this) in self.ground_range.iter_mut().zip(&chunk.ground_range) {
                 *all = all.max(*this);
             }
-            for (all, this) in self.obstacle_range.iter_mut().zip(&chunk.obstacle_range) {
-                *all = all.min(*this);
+        }
+        // A 3-D lidar puts many returns on anything solid, and a surface continues into the
+        // cells around; a return with few others around it is stray (the HDL-64E's phantom
+        // returns at 2 m height in mid-road, spray, dust). It must neither occupy its cell nor
+        // stop the free space of its sector.
+        let min_returns = match self.params.ground_model {
+            GroundModel::None => 1,
+            GroundModel::Plane | GroundModel::Local => self.params.min_neighbourhood_returns,
+        };
+        let filter = min_returns > 1;
+        if filter {
+            self.mark_stray_cells(window, min_returns);
+        }
+        self.obstacle_range.clear();
+        self.obstacle_range.resize(sectors, f64::INFINITY);
+        let obstacles = self.classified.iter().flat_map(|c| &c.obstacle_cells);
+        for &(idx, s, range_m) in obstacles {
+            if filter && self.returns_per_cell[idx] == STRAY {
+                stats.stray_obstacle_points += 1;
+                continue;
             }
+            stats.obstacle_points += 1;
+            let range = &mut self.obstacle_range[s as usize];
+            *range = range.min(range_m);
         }
 
         let mu_free = self.params.mu_free as f32;
@@ -291,7 +322,10 @@ impl SensorModel {
             }
         }
         let mut occupied_cells = 0;
-        for &idx in self.classified.iter().flat_map(|c| &c.obstacle_cells) {
+        for &(idx, _, _) in self.classified.iter().flat_map(|c| &c.obstacle_cells) {
+            if filter && self.returns_per_cell[idx] == STRAY {
+                continue;
+            }
             if out.m_occupied()[idx] != mu_occupied {
                 occupied_cells += 1;
                 free_cells -= usize::from(out.m_free()[idx] == mu_free && mu_free != 0.0);
@@ -299,9 +333,60 @@ impl SensorModel {
             out.set_free(idx, 0.0);
             out.set_occupied(idx, mu_occupied);
         }
+        if filter {
+            for &idx in &self.obstacle_cells {
+                self.returns_per_cell[idx] = 0;
+            }
+        }
         stats.free_cells = free_cells;
         stats.occupied_cells = occupied_cells;
         stats
+    }
+}
+
+/// The value [`SensorModel::mark_stray_cells`] leaves in `returns_per_cell` for a stray cell
+/// (any other obstacle cell holds [`KEPT`]).
+const STRAY: u16 = 1;
+const KEPT: u16 = 2;
+
+impl SensorModel {
+    /// Counts the scan's obstacle returns per cell, then marks each obstacle cell [`STRAY`] when
+    /// it and its eight neighbours hold fewer than `min_returns` of them, [`KEPT`] otherwise.
+    /// Costs the returns and nine reads per obstacle cell, not the window; `build` resets the
+    /// cells listed in `obstacle_cells` to zero at the end.
+    fn mark_stray_cells(&mut self, window: &Window, min_returns: u32) {
+        self.returns_per_cell.resize(window.len(), 0);
+        self.obstacle_cells.clear();
+        for &(idx, _, _) in self.classified.iter().flat_map(|c| &c.obstacle_cells) {
+            let count = &mut self.returns_per_cell[idx];
+            if *count == 0 {
+                self.obstacle_cells.push(idx);
+            }
+            *count = count.saturating_add(1);
+        }
+        self.stray.clear();
+        for &idx in &self.obstacle_cells {
+            let mut near = u32::from(self.returns_per_cell[idx]);
+            // Most cells of a surface hold enough returns on their own.
+            if near >= min_returns {
+                self.stray.push(false);
+                continue;
+            }
+            near = 0;
+            if let Some(cell) = window.cell_of_storage(idx) {
+                for dr in -1..=1 {
+                    for dc in -1..=1 {
+                        if let Some(n) = window.storage_index(cell.col + dc, cell.row + dr) {
+                            near += u32::from(self.returns_per_cell[n]);
+                        }
+                    }
+                }
+            }
+            self.stray.push(near < min_returns);
+        }
+        for (&idx, &stray) in self.obstacle_cells.iter().zip(&self.stray) {
+            self.returns_per_cell[idx] = if stray { STRAY } else { KEPT };
+        }
     }
 }
 

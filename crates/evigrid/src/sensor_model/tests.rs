@@ -284,6 +284,7 @@ fn a_real_scan_into_a_large_window() {
             + stats.dropped_out_of_range
             + stats.dropped_outside_window
             + stats.obstacle_points
+            + stats.stray_obstacle_points
             + stats.ground_points
             + stats.unclassified_points
     );
@@ -298,6 +299,125 @@ fn a_real_scan_into_a_large_window() {
     // The sensor's own cell is seen free (the road under the car), not occupied.
     let own = window.storage_index_of_point(0.0, 0.0).unwrap();
     assert_eq!(grid.m_occupied()[own], 0.0);
+}
+
+/// A flat ground 1.5 m below the sensor out to 8 m, and a wall across the east at x = 7.8 m,
+/// 1 m high: the scene of the stray-return tests.
+fn ground_and_wall_east() -> Vec<[f32; 3]> {
+    let mut points = Vec::new();
+    for i in 0..400 {
+        let angle = i as f32 * std::f32::consts::TAU / 400.0;
+        for r in [3.0f32, 4.0, 5.0, 6.0, 7.0, 8.0] {
+            points.push([r * angle.cos(), r * angle.sin(), -1.5]);
+        }
+    }
+    for dy in 0..=150 {
+        for dz in 0..5 {
+            points.push([7.8, -1.5 + dy as f32 * 0.02, -1.0 + dz as f32 * 0.2]);
+        }
+    }
+    points
+}
+
+#[test]
+fn a_stray_return_neither_occupies_its_cell_nor_stops_the_free_space() {
+    let window = small_window();
+    // 30° sectors: a sector's rays stop at its nearest obstacle, so one wide sector shows it.
+    let params = SensorParams {
+        ground_model: GroundModel::Plane,
+        angular_resolution_deg: 30.0,
+        ..planar_params()
+    };
+    // One return 2 m above the road, 4 m ahead, alone (an HDL-64E phantom): by default it is
+    // stray; with `min_neighbourhood_returns = 1` (SPEC §3's rule) it occupies its cell and
+    // its sector's rays stop there.
+    let mut points = ground_and_wall_east();
+    points.push([4.2, 0.3, 0.5]);
+    let mut grid = SensorGrid::new(21, 21);
+    let stats =
+        SensorModel::new(params.clone()).build(&points, &Isometry3::IDENTITY, &window, &mut grid);
+    assert_eq!(stats.stray_obstacle_points, 1);
+    assert_eq!(stats.obstacle_points, 151 * 5);
+    assert_eq!(at(&window, grid.m_occupied(), 4.2, 0.3), 0.0);
+    assert_eq!(at(&window, grid.m_free(), 4.2, 0.3), 0.7);
+    // Bearing 21°, only the 0–30° sector's rays reach it: free up to the wall (7.8 m).
+    assert_eq!(at(&window, grid.m_free(), 6.5, 2.5), 0.7);
+    assert_eq!(at(&window, grid.m_occupied(), 7.8, 0.5), 0.8);
+
+    let spec = SensorParams {
+        min_neighbourhood_returns: 1,
+        ..params
+    };
+    let stats = SensorModel::new(spec).build(&points, &Isometry3::IDENTITY, &window, &mut grid);
+    assert_eq!(stats.stray_obstacle_points, 0);
+    assert_eq!(at(&window, grid.m_occupied(), 4.2, 0.3), 0.8);
+    assert_eq!(at(&window, grid.m_free(), 6.5, 2.5), 0.0);
+}
+
+#[test]
+fn a_thin_pole_or_a_planar_scanner_s_single_return_is_kept() {
+    let window = small_window();
+    // A pole 4 m ahead: four returns stacked 0.4 m apart (a 64-beam lidar's beams at 60 m),
+    // the fewest `min_neighbourhood_returns` keeps by default.
+    let mut points = ground_and_wall_east();
+    points.extend((0..4).map(|k| [4.2f32, 0.3, -1.0 + 0.4 * k as f32]));
+    let mut grid = SensorGrid::new(21, 21);
+    let params = SensorParams {
+        ground_model: GroundModel::Plane,
+        ..planar_params()
+    };
+    let stats = SensorModel::new(params).build(&points, &Isometry3::IDENTITY, &window, &mut grid);
+    assert_eq!(stats.stray_obstacle_points, 0);
+    assert_eq!(at(&window, grid.m_occupied(), 4.2, 0.3), 0.8);
+    // A planar scanner (ground model `none`): one return is an obstacle, as SPEC §3 says.
+    let stats = SensorModel::new(planar_params()).build(
+        &[[4.2, 0.3, 0.0]],
+        &Isometry3::IDENTITY,
+        &window,
+        &mut grid,
+    );
+    assert_eq!((stats.obstacle_points, stats.stray_obstacle_points), (1, 0));
+    assert_eq!(at(&window, grid.m_occupied(), 4.2, 0.3), 0.8);
+}
+
+#[test]
+fn kitti_s_phantom_returns_in_mid_road_are_stray() {
+    // Frame 0 of drive 0013 holds three zero-intensity returns of the top lasers about 2.2 m
+    // above the road in the lane ahead, at 9.5, 12.9 and 14.1 m (sensor frame, below). With
+    // the SPEC §3 rule they occupy their cells; by default they are stray.
+    let Some(scan) = kitti_raw_scan(0) else {
+        return;
+    };
+    let phantoms = [[9.46, 0.99], [12.92, 1.32], [14.05, 1.53]];
+    let mut window = Window::new(200, 200, 0.5).unwrap();
+    window.recentre(0.0, 0.0).unwrap();
+    let pose = Isometry3::from_xyz_rpy(0.0, 0.0, 1.73, 0.0, 0.0, 0.0);
+    let occupied_phantom_cells = |min_neighbourhood_returns| {
+        let mut grid = SensorGrid::new(window.width(), window.height());
+        let mut model = SensorModel::new(SensorParams {
+            min_neighbourhood_returns,
+            ..SensorParams::default()
+        });
+        let stats = model.build(&scan.points_in_sensor, &pose, &window, &mut grid);
+        let occupied = phantoms
+            .iter()
+            .filter(|&&[x, y]| {
+                let idx = window.storage_index_of_point(x, y).unwrap();
+                grid.m_occupied()[idx] > 0.0
+            })
+            .count();
+        (occupied, stats)
+    };
+    let (spec_rule, spec_stats) = occupied_phantom_cells(1);
+    assert_eq!(spec_rule, 3, "{spec_stats:?}");
+    let (default, stats) =
+        occupied_phantom_cells(SensorParams::default().min_neighbourhood_returns);
+    assert_eq!(default, 0, "{stats:?}");
+    // Strays are a small share: under 1 % of the obstacle returns.
+    assert!(
+        stats.stray_obstacle_points * 100 < spec_stats.obstacle_points,
+        "{stats:?}"
+    );
 }
 
 /// KITTI raw drive 0013, the frames where one plane per scan no longer fits the road.
