@@ -121,10 +121,19 @@ fn a_kitti_raw_drive_without_a_map_keeps_the_ego_path_free() {
     let ego = &summary["ego_path"];
     let cell_frames = ego["cell_frames"].as_u64().unwrap();
     let decided = ego["decided_occupied_or_moving"].as_u64().unwrap();
-    // Over a hundred path cells per frame are seen; the target is at most 2 %.
+    // Over a hundred path cells per frame are seen; the drive issue's target is at most 2 %.
+    // Measured 73 of 5 592 (1.31 %), all in frames 0–9 on the vehicle ahead; 89 (1.59 %)
+    // before stray returns were dropped, 18 of them the lidar's phantoms 3–17 m ahead.
     assert!(cell_frames > 40 * 100, "{ego}");
-    assert!(decided * 50 <= cell_frames, "{ego}");
-    // Measured 89 of 5 592 (1.59 %), all in frames 0–10: the vehicle ahead.
+    assert!(decided * 1000 <= cell_frames * 14, "{ego}");
+    // Moving path cells are traffic going the ego's way: measured 62 of 63 with a velocity
+    // along the path; at most 0.1 % of the path cells move otherwise.
+    let moving = ego["moving"].as_u64().unwrap();
+    let along = ego["moving_along_path"].as_u64().unwrap();
+    assert!(
+        along <= moving && (moving - along) * 1000 <= cell_frames,
+        "{ego}"
+    );
     assert_eq!(summary["params"]["sensor"]["ground_model"], "local");
     // The ground model holds: no frame's share of occupied cells far above the drive's median
     // (measured 1.17×).

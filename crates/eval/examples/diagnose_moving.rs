@@ -8,8 +8,8 @@
 //! saw in the cell now (a return, or a ray through it), whether a truth-M cell is among its
 //! 8 neighbours (partial cover of an object), and whether the motion stage gave the cell a
 //! velocity this frame. A false M in the object outline band, which the evaluation leaves
-//! unscored, is listed as truth "void (unscored)". SEEDS is a comma-separated list (default: the scenario's seed and the
-//! next, as `evigrid eval --seeds 2`).
+//! unscored, is listed as truth "void (unscored)". SEEDS is a comma-separated list (default:
+//! the scenario's seed and the next, as `evigrid eval --seeds 2`).
 
 mod common;
 

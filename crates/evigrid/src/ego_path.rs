@@ -452,38 +452,47 @@ mod tests {
 
     #[test]
     fn traffic_ahead_is_moving_cells_whose_velocity_follows_the_path() {
-        // 1 m cells, a path east along y = 0.5; cells (0..5, 0) all observed and decided M,
-        // with velocities: east (along), north-east at 40° (along), north (across), west
-        // (oncoming), none (moving by past evidence only).
-        let mut window = Window::new(10, 10, 1.0).unwrap();
+        // 1 m cells; an L-shaped path: east along y = 0.5 to x = 8.5, then north. Cells
+        // (0..6, 0) lie along the first leg, (9, 3) beside the second; all observed and decided
+        // M, with velocities: east (along), 40° (along), 50° (not: beyond 45°), north (across),
+        // west (oncoming), none (moving by past evidence only), and north at (9, 3) (along the
+        // second leg, across the first).
+        let mut window = Window::new(20, 20, 1.0).unwrap();
         let _ = window.move_to(-5, -5);
-        let path = [[0.5, 0.5], [8.5, 0.5]];
-        let cells: Vec<usize> = (0..5)
-            .map(|col| window.storage_index(col, 0).unwrap())
+        let path = [[0.5, 0.5], [8.5, 0.5], [8.5, 10.5]];
+        let cells: Vec<usize> = (0..6)
+            .map(|col| (col, 0))
+            .chain([(9, 3)])
+            .map(|(col, row)| window.storage_index(col, row).unwrap())
             .collect();
-        let mut sensor = SensorGrid::new(10, 10);
+        let mut sensor = SensorGrid::new(20, 20);
         let mut decisions = vec![Label::F; window.len()];
         let (mut east, mut north) = (vec![0.0f32; window.len()], vec![0.0f32; window.len()]);
-        let angle = 40f32.to_radians();
+        let at = |degrees: f32| {
+            let a = degrees.to_radians();
+            [10.0 * a.cos(), 10.0 * a.sin()]
+        };
         for (&i, v) in cells.iter().zip([
-            [10.0, 0.0],
-            [10.0 * angle.cos(), 10.0 * angle.sin()],
-            [0.0, 8.0],
-            [-10.0, 0.0],
+            at(0.0),
+            at(40.0),
+            at(50.0),
+            at(90.0),
+            at(180.0),
             [0.0, 0.0],
+            at(90.0),
         ]) {
             sensor.m_occupied_mut()[i] = 0.8;
             decisions[i] = Label::M;
             (east[i], north[i]) = (v[0], v[1]);
         }
         let mut check = EgoPathCheck::count(&cells, &sensor, &decisions);
-        assert_eq!(check.moving_cells, 5);
+        assert_eq!(check.moving_cells, 7);
         let velocity = CellVelocity {
             east: &east,
             north: &north,
         };
         check.count_traffic_ahead(&cells, &sensor, &decisions, &window, &path, velocity);
-        assert_eq!(check.moving_along_path, 2);
+        assert_eq!(check.moving_along_path, 3);
         // A path of one vertex has no direction.
         check.count_traffic_ahead(&cells, &sensor, &decisions, &window, &path[..1], velocity);
         assert_eq!(check.moving_along_path, 0);

@@ -154,7 +154,9 @@ impl Params {
     /// # Errors
     /// The first offending parameter, by its TOML path: [`ParamsError::OutOfUnitRange`] for
     /// μ, β, α, δ, γ and the unknown threshold outside `[0, 1]`; [`ParamsError::NotPositive`] for
-    /// a non-positive cell size or sensor length; [`ParamsError::EmptyWindow`];
+    /// a non-positive cell size, sensor length or `sensor.min_neighbourhood_returns`;
+    /// [`ParamsError::EmptyWindow`]; [`ParamsError::Misordered`] for a count above its largest
+    /// value;
     /// [`ParamsError::Misordered`] when the obstacle height band is empty.
     pub fn validate(&self) -> Result<(), ParamsError> {
         positive("grid.cell_size_m", self.grid.cell_size_m)?;
@@ -174,6 +176,12 @@ impl Params {
         positive(
             "sensor.min_neighbourhood_returns",
             f64::from(s.min_neighbourhood_returns),
+        )?;
+        // Above nine cells' worth of 16-bit counts no cell could ever be kept.
+        at_most(
+            "sensor.min_neighbourhood_returns",
+            s.min_neighbourhood_returns as usize,
+            MAX_NEIGHBOURHOOD_RETURNS,
         )?;
         if !(s.min_range_m >= 0.0 && s.min_range_m < s.max_range_m) {
             return Err(ParamsError::Misordered {
@@ -281,6 +289,9 @@ fn positive(name: &'static str, value: f64) -> Result<(), ParamsError> {
 }
 
 /// A count above its largest value, reported as misordered against that value.
+/// The largest `sensor.min_neighbourhood_returns`: nine cells of 65,535 returns each.
+const MAX_NEIGHBOURHOOD_RETURNS: usize = 9 * u16::MAX as usize;
+
 fn at_most(name: &'static str, value: usize, high: usize) -> Result<(), ParamsError> {
     if value <= high {
         Ok(())
@@ -1108,6 +1119,10 @@ unknown_threshold = 0.7
             ("[sensor]\nmax_range_m = -1", "sensor.max_range_m"),
             (
                 "[sensor]\nmin_neighbourhood_returns = 0",
+                "sensor.min_neighbourhood_returns",
+            ),
+            (
+                "[sensor]\nmin_neighbourhood_returns = 1000000",
                 "sensor.min_neighbourhood_returns",
             ),
             (

@@ -208,8 +208,8 @@ struct EgoPathTotals {
     occupied: usize,
     moving: usize,
     /// Of `moving`, the cells whose velocity this frame points along the path (within 45°):
-    /// traffic ahead going the ego's way.
-    moving_along_path: usize,
+    /// traffic ahead going the ego's way. `null` for `kurdej2013`, which estimates no velocity.
+    moving_along_path: Option<usize>,
     /// `occupied + moving`.
     decided_occupied_or_moving: usize,
     /// `decided_occupied_or_moving / cell_frames`.
@@ -683,8 +683,8 @@ pub fn run(args: RunArgs) -> Result<()> {
                 break;
             }
         }
-        let path_ahead = path_ahead(&positions, k, EGO_PATH_LENGTH_M);
-        let path_cells = cells_near_path(pipeline.window(), &path_ahead, EGO_PATH_RADIUS_M);
+        let ego_polyline = path_ahead(&positions, k, EGO_PATH_LENGTH_M);
+        let path_cells = cells_near_path(pipeline.window(), &ego_polyline, EGO_PATH_RADIUS_M);
         let mut ego_path =
             EgoPathCheck::count(&path_cells, pipeline.sensor_grid(), pipeline.decisions());
         if let Some(motion) = pipeline.fusion().motion() {
@@ -693,7 +693,7 @@ pub fn run(args: RunArgs) -> Result<()> {
                 pipeline.sensor_grid(),
                 pipeline.decisions(),
                 pipeline.window(),
-                &path_ahead,
+                &ego_polyline,
                 CellVelocity {
                     east: motion.velocity_east(),
                     north: motion.velocity_north(),
@@ -841,7 +841,11 @@ pub fn run(args: RunArgs) -> Result<()> {
             cell_frames: ego_total.observed_cells,
             occupied: ego_total.occupied_cells,
             moving: ego_total.moving_cells,
-            moving_along_path: ego_total.moving_along_path,
+            moving_along_path: pipeline
+                .fusion()
+                .motion()
+                .is_some()
+                .then_some(ego_total.moving_along_path),
             decided_occupied_or_moving: ego_total.decided_occupied_or_moving(),
             share: ego_total.share(),
         },
@@ -912,8 +916,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         let e = &summary.ego_path;
         println!(
             "ego path ({} m ahead, {} m either side): {} of {} observed cell-frames decided \
-             occupied or moving ({}; {} occupied, {} moving, {} of them traffic moving along \
-             the path)",
+             occupied or moving ({}; {} occupied, {} moving{})",
             e.length_m,
             e.radius_m,
             e.decided_occupied_or_moving,
@@ -922,6 +925,8 @@ pub fn run(args: RunArgs) -> Result<()> {
             e.occupied,
             e.moving,
             e.moving_along_path
+                .map(|n| format!(", {n} of them traffic moving along the path"))
+                .unwrap_or_default()
         );
         if let Some(r) = &summary.pose_refinement {
             let refined = r.outcomes.get("refined").copied().unwrap_or(0);

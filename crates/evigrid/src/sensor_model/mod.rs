@@ -4,9 +4,10 @@
 //! The scan's points are moved into a *levelled* frame — world axes, origin at the sensor — with
 //! the sensor's pose. They are split into obstacle and ground points: for a planar or multi-layer
 //! scanner every return is an obstacle ([`GroundModel::None`]); for a 3-D lidar a ground plane is
-//! fitted to the scan ([`GroundModel::Plane`]: the ground crate's [`ground::PlaneFitter`], RANSAC
-//! with a fixed seed, then least squares on the inliers) and obstacle points are those between `min_obstacle_height_m` and
-//! `max_obstacle_height_m` above it, ground points those within `ground_band_m` of it.
+//! fitted to the scan ([`GroundModel::Plane`]: the ground crate's [`ground::PlaneFitter`],
+//! RANSAC with a fixed seed, then least squares on the inliers) and obstacle points are those
+//! between `min_obstacle_height_m` and `max_obstacle_height_m` above it, ground points those
+//! within `ground_band_m` of it.
 //!
 //! Around the sensor the plane is cut into angular sectors of `angular_resolution_deg`. Each
 //! sector keeps only two numbers, the range of its nearest obstacle return and that of its
@@ -16,12 +17,18 @@
 //! their far end. Then every obstacle point marks its own cell occupied, which also settles the
 //! SPEC §3 decision that a cell both crossed and holding a return is occupied.
 //!
+//! Beyond SPEC §3, for a 3-D lidar only: an obstacle return with fewer than
+//! `min_neighbourhood_returns` returns in its cell's 3 × 3 neighbourhood is *stray* (`stray`):
+//! it is dropped before the sectors' nearest ranges are taken, so it neither occupies its cell
+//! nor stops the free space behind it.
+//!
 //! Free cells are those a ray crosses *entirely* before the first obstacle range ("strictly
 //! before"); where a sector has no obstacle, the cells it enters before its farthest ground
 //! return (that return's own cell included: the ground was seen there).
 
 mod classify;
 mod ray;
+mod stray;
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -31,6 +38,7 @@ use crate::params::SensorParams;
 use crate::window::Window;
 use classify::{CLASSIFY_CHUNK, Classified, PointClassifier, horizontal_range};
 use ray::walk_ray;
+use stray::StrayFilter;
 
 use crate::params::GroundModel;
 use crate::pose::Isometry3;
@@ -80,13 +88,8 @@ pub struct SensorModel {
     /// What each chunk of the current scan's points gave, in point order; kept between scans
     /// so that the chunks' buffers are not allocated again.
     classified: Vec<Classified>,
-    /// Obstacle returns per cell of the current scan; zero outside the cells it touches (they
-    /// are reset after use, so a scan costs its returns, not the window).
-    returns_per_cell: Vec<u16>,
-    /// The cells holding obstacle returns in the current scan, each once, and whether each is
-    /// stray ([`SensorModel::mark_stray_cells`]).
-    obstacle_cells: Vec<usize>,
-    stray: Vec<bool>,
+    /// Which cells hold only stray returns ([`GroundModel::Local`] and [`GroundModel::Plane`]).
+    stray: StrayFilter,
     /// The plane fit of [`GroundModel::Plane`], with its buffers.
     plane_fitter: ground::PlaneFitter,
     /// The local ground model ([`GroundModel::Local`] only), with its buffers.
@@ -111,9 +114,7 @@ impl SensorModel {
             obstacle_range: Vec::new(),
             ground_range: Vec::new(),
             classified: Vec::new(),
-            returns_per_cell: Vec::new(),
-            obstacle_cells: Vec::new(),
-            stray: Vec::new(),
+            stray: StrayFilter::default(),
             plane_fitter: ground::PlaneFitter::default(),
         }
     }
@@ -140,7 +141,8 @@ impl SensorModel {
     /// storage of `out`, which must have the window's size.
     ///
     /// Points with a NaN or infinite coordinate, or beyond `max_range_m`, are dropped and
-    /// counted; so are obstacle points outside the window. A non-finite pose gives an empty
+    /// counted; so are obstacle points outside the window, and stray obstacle points of a 3-D
+    /// lidar (`stray_obstacle_points`). A non-finite pose gives an empty
     /// (vacuous) grid and counts every point as non-finite.
     pub fn build(
         &mut self,
@@ -253,23 +255,22 @@ impl SensorModel {
                 *all = all.max(*this);
             }
         }
-        // A 3-D lidar puts many returns on anything solid, and a surface continues into the
-        // cells around; a return with few others around it is stray (the HDL-64E's phantom
-        // returns at 2 m height in mid-road, spray, dust). It must neither occupy its cell nor
-        // stop the free space of its sector.
+        // Stray returns (`stray`) neither occupy their cell nor stop their sector's rays.
         let min_returns = match self.params.ground_model {
             GroundModel::None => 1,
             GroundModel::Plane | GroundModel::Local => self.params.min_neighbourhood_returns,
         };
         let filter = min_returns > 1;
         if filter {
-            self.mark_stray_cells(window, min_returns);
+            let returns = self.classified.iter().flat_map(|c| &c.obstacle_cells);
+            self.stray
+                .mark(window, returns.map(|&(idx, _, _)| idx), min_returns);
         }
         self.obstacle_range.clear();
         self.obstacle_range.resize(sectors, f64::INFINITY);
         let obstacles = self.classified.iter().flat_map(|c| &c.obstacle_cells);
         for &(idx, s, range_m) in obstacles {
-            if filter && self.returns_per_cell[idx] == STRAY {
+            if filter && self.stray.is_stray(idx) {
                 stats.stray_obstacle_points += 1;
                 continue;
             }
@@ -323,7 +324,7 @@ impl SensorModel {
         }
         let mut occupied_cells = 0;
         for &(idx, _, _) in self.classified.iter().flat_map(|c| &c.obstacle_cells) {
-            if filter && self.returns_per_cell[idx] == STRAY {
+            if filter && self.stray.is_stray(idx) {
                 continue;
             }
             if out.m_occupied()[idx] != mu_occupied {
@@ -333,60 +334,9 @@ impl SensorModel {
             out.set_free(idx, 0.0);
             out.set_occupied(idx, mu_occupied);
         }
-        if filter {
-            for &idx in &self.obstacle_cells {
-                self.returns_per_cell[idx] = 0;
-            }
-        }
         stats.free_cells = free_cells;
         stats.occupied_cells = occupied_cells;
         stats
-    }
-}
-
-/// The value [`SensorModel::mark_stray_cells`] leaves in `returns_per_cell` for a stray cell
-/// (any other obstacle cell holds [`KEPT`]).
-const STRAY: u16 = 1;
-const KEPT: u16 = 2;
-
-impl SensorModel {
-    /// Counts the scan's obstacle returns per cell, then marks each obstacle cell [`STRAY`] when
-    /// it and its eight neighbours hold fewer than `min_returns` of them, [`KEPT`] otherwise.
-    /// Costs the returns and nine reads per obstacle cell, not the window; `build` resets the
-    /// cells listed in `obstacle_cells` to zero at the end.
-    fn mark_stray_cells(&mut self, window: &Window, min_returns: u32) {
-        self.returns_per_cell.resize(window.len(), 0);
-        self.obstacle_cells.clear();
-        for &(idx, _, _) in self.classified.iter().flat_map(|c| &c.obstacle_cells) {
-            let count = &mut self.returns_per_cell[idx];
-            if *count == 0 {
-                self.obstacle_cells.push(idx);
-            }
-            *count = count.saturating_add(1);
-        }
-        self.stray.clear();
-        for &idx in &self.obstacle_cells {
-            let mut near = u32::from(self.returns_per_cell[idx]);
-            // Most cells of a surface hold enough returns on their own.
-            if near >= min_returns {
-                self.stray.push(false);
-                continue;
-            }
-            near = 0;
-            if let Some(cell) = window.cell_of_storage(idx) {
-                for dr in -1..=1 {
-                    for dc in -1..=1 {
-                        if let Some(n) = window.storage_index(cell.col + dc, cell.row + dr) {
-                            near += u32::from(self.returns_per_cell[n]);
-                        }
-                    }
-                }
-            }
-            self.stray.push(near < min_returns);
-        }
-        for (&idx, &stray) in self.obstacle_cells.iter().zip(&self.stray) {
-            self.returns_per_cell[idx] = if stray { STRAY } else { KEPT };
-        }
     }
 }
 

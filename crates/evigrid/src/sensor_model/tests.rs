@@ -380,6 +380,94 @@ fn a_thin_pole_or_a_planar_scanner_s_single_return_is_kept() {
     assert_eq!(at(&window, grid.m_occupied(), 4.2, 0.3), 0.8);
 }
 
+/// [`ground_and_wall_east`] with `returns` added at 1 m above the ground, and the 3-D plane
+/// model.
+fn stray_test_build(
+    model: &mut SensorModel,
+    window: &Window,
+    returns: &[[f32; 2]],
+) -> (SensorStats, SensorGrid) {
+    let mut points = ground_and_wall_east();
+    points.extend(returns.iter().map(|&[x, y]| [x, y, -0.5]));
+    let mut grid = SensorGrid::new(window.width(), window.height());
+    let stats = model.build(&points, &Isometry3::IDENTITY, window, &mut grid);
+    (stats, grid)
+}
+
+fn plane_params() -> SensorParams {
+    SensorParams {
+        ground_model: GroundModel::Plane,
+        ..planar_params()
+    }
+}
+
+#[test]
+fn neighbours_keep_a_sparse_surface_and_not_scattered_returns() {
+    let window = small_window();
+    let mut model = SensorModel::new(plane_params());
+    // One return in each cell of a 2 × 2 block: every cell's 3 × 3 neighbourhood holds 4.
+    let block = [[4.5, 0.5], [5.5, 0.5], [4.5, 1.5], [5.5, 1.5]];
+    let (stats, grid) = stray_test_build(&mut model, &window, &block);
+    assert_eq!(stats.stray_obstacle_points, 0);
+    assert!(
+        block
+            .iter()
+            .all(|&[x, y]| at(&window, grid.m_occupied(), f64::from(x), f64::from(y)) == 0.8)
+    );
+    // The same four returns two cells apart along a diagonal: each neighbourhood holds 1.
+    let scattered = [[-3.5, -3.5], [-5.5, -5.5], [-3.5, 3.5], [-5.5, 5.5]];
+    let (stats, _) = stray_test_build(&mut model, &window, &scattered);
+    assert_eq!(stats.stray_obstacle_points, 4);
+}
+
+#[test]
+fn a_model_reused_over_scans_forgets_the_last_scan_s_counts() {
+    let window = small_window();
+    let mut model = SensorModel::new(plane_params());
+    // A pole of four returns in one cell, then a single return in that cell: stray, exactly
+    // as a fresh model says (the counts of the first scan must not linger).
+    let pole = [[4.2, 0.3]; 4];
+    let (first, _) = stray_test_build(&mut model, &window, &pole);
+    assert_eq!(first.stray_obstacle_points, 0);
+    let (again, grid) = stray_test_build(&mut model, &window, &[[4.2, 0.3]]);
+    let (fresh, fresh_grid) = stray_test_build(
+        &mut SensorModel::new(plane_params()),
+        &window,
+        &[[4.2, 0.3]],
+    );
+    assert_eq!(again, fresh);
+    assert_eq!(again.stray_obstacle_points, 1);
+    assert!(grid.m_occupied() == fresh_grid.m_occupied() && grid.m_free() == fresh_grid.m_free());
+}
+
+#[test]
+fn returns_at_opposite_edges_of_a_moved_window_are_not_neighbours() {
+    // After a move the storage wraps: the east edge's cells sit beside the west edge's in
+    // storage. Two returns on each edge, in the same row, must stay two each (stray), not four.
+    let mut window = Window::new(21, 21, 1.0).unwrap();
+    window.recentre(7.5, 3.5).unwrap();
+    window.recentre(0.5, 0.5).unwrap();
+    let (first_col, first_row) = (window.first_col(), window.first_row());
+    let east = window.cell_centre(first_col + 20, first_row + 10);
+    let west = window.cell_centre(first_col, first_row + 10);
+    assert_eq!(
+        window
+            .storage_index(first_col + 20, first_row + 10)
+            .unwrap()
+            % 21
+            + 1,
+        window.storage_index(first_col, first_row + 10).unwrap() % 21,
+        "the test needs the two edges side by side in storage"
+    );
+    let returns = [east, east, west, west].map(|(x, y)| [x as f32, y as f32]);
+    let params = SensorParams {
+        max_range_m: 50.0,
+        ..plane_params()
+    };
+    let (stats, _) = stray_test_build(&mut SensorModel::new(params), &window, &returns);
+    assert_eq!(stats.stray_obstacle_points, 4, "{stats:?}");
+}
+
 #[test]
 fn kitti_s_phantom_returns_in_mid_road_are_stray() {
     // Frame 0 of drive 0013 holds three zero-intensity returns of the top lasers about 2.2 m
