@@ -134,6 +134,9 @@ fn a_kitti_raw_drive_without_a_map_keeps_the_ego_path_free() {
         along <= moving && (moving - along) * 1000 <= cell_frames,
         "{ego}"
     );
+    // The stray returns dropped are totalled (measured about 180 a frame).
+    let stray = summary["stray_obstacle_points"].as_u64().unwrap();
+    assert!((40..40 * 1000).contains(&stray), "{stray}");
     assert_eq!(summary["params"]["sensor"]["ground_model"], "local");
     // The ground model holds: no frame's share of occupied cells far above the drive's median
     // (measured 1.17×).

@@ -252,6 +252,8 @@ struct Summary {
     dropped_non_finite: usize,
     dropped_out_of_range: usize,
     dropped_outside_window: usize,
+    /// Obstacle returns of a 3-D lidar dropped as stray (`sensor.min_neighbourhood_returns`).
+    stray_obstacle_points: usize,
     total_seconds: f64,
     /// Seconds of the odometry's first pass (0 when poses were given).
     odometry_seconds: f64,
@@ -296,6 +298,7 @@ struct RunningTotals {
     dropped_non_finite: usize,
     dropped_out_of_range: usize,
     dropped_outside_window: usize,
+    stray_obstacle_points: usize,
     process_ms: f64,
     ego_path: EgoPathCheck,
     obstacle_share: ShareTracker,
@@ -329,6 +332,7 @@ impl RunningTotals {
         self.dropped_non_finite += s.dropped_non_finite;
         self.dropped_out_of_range += s.dropped_out_of_range;
         self.dropped_outside_window += s.dropped_outside_window;
+        self.stray_obstacle_points += s.stray_obstacle_points;
         self.process_ms += f.process_ms;
         self.ego_path.add(&f.ego_path);
         self.obstacle_share.push(f.obstacle_share);
@@ -826,6 +830,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         dropped_non_finite: totals.dropped_non_finite,
         dropped_out_of_range: totals.dropped_out_of_range,
         dropped_outside_window: totals.dropped_outside_window,
+        stray_obstacle_points: totals.stray_obstacle_points,
         total_seconds: started.elapsed().as_secs_f64(),
         odometry_seconds,
         mean_process_ms: if totals.frames == 0 {
