@@ -371,9 +371,10 @@ pub struct SensorParams {
     /// Fewest obstacle returns a cell and its eight neighbours must hold together for the cell
     /// to be occupied, with a 3-D ground model (`local` or `plane`; with `none`, a planar
     /// scanner's, every return counts as SPEC §3 says). Fewer are stray returns: dropped, and
-    /// they do not stop the free space of their sector. By default 4: a 64-beam lidar puts
-    /// dozens of returns around a cell of a car or a wall, four or more on a 2 m pole at 60 m
-    /// (0.4° between beams), while the HDL-64E's phantom returns in KITTI (top lasers, zero
+    /// they do not stop the free space of their sector. By default 4: on KITTI 0013 half the
+    /// occupied cells hold three returns or more on their own, and a surface continues into
+    /// the cells around; a 2 m pole at 60 m gets four of a 64-beam lidar (0.4° between beams);
+    /// while the HDL-64E's phantom returns in KITTI (top lasers, zero
     /// intensity, about 2 m up in mid-road 4–15 m ahead) come one to three together (README,
     /// "Stray returns"). 1 is the SPEC §3 rule; a 16-beam lidar may want 2 (its beams are 2°
     /// apart: a pedestrian at 60 m gets two or three returns).

@@ -260,8 +260,7 @@ impl SensorModel {
             GroundModel::None => 1,
             GroundModel::Plane | GroundModel::Local => self.params.min_neighbourhood_returns,
         };
-        let filter = min_returns > 1;
-        if filter {
+        if min_returns > 1 {
             let returns = self.classified.iter().flat_map(|c| &c.obstacle_cells);
             self.stray
                 .mark(window, returns.map(|&(idx, _, _)| idx), min_returns);
@@ -270,7 +269,7 @@ impl SensorModel {
         self.obstacle_range.resize(sectors, f64::INFINITY);
         let obstacles = self.classified.iter().flat_map(|c| &c.obstacle_cells);
         for &(idx, s, range_m) in obstacles {
-            if filter && self.stray.is_stray(idx) {
+            if self.stray.is_stray(idx) {
                 stats.stray_obstacle_points += 1;
                 continue;
             }
@@ -324,7 +323,7 @@ impl SensorModel {
         }
         let mut occupied_cells = 0;
         for &(idx, _, _) in self.classified.iter().flat_map(|c| &c.obstacle_cells) {
-            if filter && self.stray.is_stray(idx) {
+            if self.stray.is_stray(idx) {
                 continue;
             }
             if out.m_occupied()[idx] != mu_occupied {

@@ -127,13 +127,7 @@ fn ground_returns_make_free_space_up_to_the_farthest_one() {
     });
     // A flat ground 1.5 m below the sensor, sampled densely to 8 m, plus one box at
     // (−4, 0) rising 1 m.
-    let mut points = Vec::new();
-    for i in 0..400 {
-        let angle = i as f32 * std::f32::consts::TAU / 400.0;
-        for r in [3.0f32, 4.0, 5.0, 6.0, 7.0, 8.0] {
-            points.push([r * angle.cos(), r * angle.sin(), -1.5]);
-        }
-    }
+    let mut points = flat_ground_to_8_m();
     // The box's face: x = −3.8 m, y from −1 to 1.5 m, heights 0.5 to 1.3 m above ground.
     // 2 cm apart, so that every 1° sector across the face holds some of its points.
     for dy in 0..=125 {
@@ -301,16 +295,20 @@ fn a_real_scan_into_a_large_window() {
     assert_eq!(grid.m_occupied()[own], 0.0);
 }
 
-/// A flat ground 1.5 m below the sensor out to 8 m, and a wall across the east at x = 7.8 m,
-/// 1 m high: the scene of the stray-return tests.
+/// A flat ground 1.5 m below the sensor: rings of 400 returns at 3, 4, …, 8 m.
+fn flat_ground_to_8_m() -> Vec<[f32; 3]> {
+    (0..400)
+        .flat_map(|i| {
+            let angle = i as f32 * std::f32::consts::TAU / 400.0;
+            [3.0f32, 4.0, 5.0, 6.0, 7.0, 8.0].map(|r| [r * angle.cos(), r * angle.sin(), -1.5])
+        })
+        .collect()
+}
+
+/// [`flat_ground_to_8_m`] and a wall across the east at x = 7.8 m, 1 m high: the scene of the
+/// stray-return tests.
 fn ground_and_wall_east() -> Vec<[f32; 3]> {
-    let mut points = Vec::new();
-    for i in 0..400 {
-        let angle = i as f32 * std::f32::consts::TAU / 400.0;
-        for r in [3.0f32, 4.0, 5.0, 6.0, 7.0, 8.0] {
-            points.push([r * angle.cos(), r * angle.sin(), -1.5]);
-        }
-    }
+    let mut points = flat_ground_to_8_m();
     for dy in 0..=150 {
         for dz in 0..5 {
             points.push([7.8, -1.5 + dy as f32 * 0.02, -1.0 + dz as f32 * 0.2]);
@@ -324,9 +322,8 @@ fn a_stray_return_neither_occupies_its_cell_nor_stops_the_free_space() {
     let window = small_window();
     // 30° sectors: a sector's rays stop at its nearest obstacle, so one wide sector shows it.
     let params = SensorParams {
-        ground_model: GroundModel::Plane,
         angular_resolution_deg: 30.0,
-        ..planar_params()
+        ..plane_params()
     };
     // One return 2 m above the road, 4 m ahead, alone (an HDL-64E phantom): by default it is
     // stray; with `min_neighbourhood_returns = 1` (SPEC §3's rule) it occupies its cell and
@@ -362,11 +359,8 @@ fn a_thin_pole_or_a_planar_scanner_s_single_return_is_kept() {
     let mut points = ground_and_wall_east();
     points.extend((0..4).map(|k| [4.2f32, 0.3, -1.0 + 0.4 * k as f32]));
     let mut grid = SensorGrid::new(21, 21);
-    let params = SensorParams {
-        ground_model: GroundModel::Plane,
-        ..planar_params()
-    };
-    let stats = SensorModel::new(params).build(&points, &Isometry3::IDENTITY, &window, &mut grid);
+    let stats =
+        SensorModel::new(plane_params()).build(&points, &Isometry3::IDENTITY, &window, &mut grid);
     assert_eq!(stats.stray_obstacle_points, 0);
     assert_eq!(at(&window, grid.m_occupied(), 4.2, 0.3), 0.8);
     // A planar scanner (ground model `none`): one return is an obstacle, as SPEC §3 says.
