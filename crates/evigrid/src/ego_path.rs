@@ -248,6 +248,22 @@ impl EgoPathCheck {
             .then(|| self.decided_occupied_or_moving() as f64 / self.observed_cells as f64)
     }
 
+    /// Observed path cells decided moving over the observed path cells; `None` when none was
+    /// observed.
+    pub fn moving_share(&self) -> Option<f64> {
+        (self.observed_cells > 0).then(|| self.moving_cells as f64 / self.observed_cells as f64)
+    }
+
+    /// Observed path cells decided moving that are not traffic moving along the path, over the
+    /// observed path cells: what the check forbids ("apart from traffic ahead, the path must be
+    /// free"). `None` when none was observed.
+    pub fn moving_apart_from_traffic_share(&self) -> Option<f64> {
+        (self.observed_cells > 0).then(|| {
+            self.moving_cells.saturating_sub(self.moving_along_path) as f64
+                / self.observed_cells as f64
+        })
+    }
+
     /// Adds another frame's counts (totals over a drive are sums of cell-frames).
     pub fn add(&mut self, other: &EgoPathCheck) {
         self.path_cells += other.path_cells;
@@ -438,6 +454,8 @@ mod tests {
             }
         );
         assert_eq!(check.share(), Some(0.6));
+        assert_eq!(check.moving_share(), Some(0.2));
+        assert_eq!(check.moving_apart_from_traffic_share(), Some(0.2));
         let mut total = check;
         total.add(&EgoPathCheck {
             path_cells: 10,
@@ -448,6 +466,11 @@ mod tests {
         });
         assert_eq!(total.share(), Some(0.3));
         assert_eq!(EgoPathCheck::default().share(), None);
+        assert_eq!(EgoPathCheck::default().moving_share(), None);
+        assert_eq!(
+            EgoPathCheck::default().moving_apart_from_traffic_share(),
+            None
+        );
     }
 
     #[test]
@@ -493,6 +516,9 @@ mod tests {
         };
         check.count_traffic_ahead(&cells, &sensor, &decisions, &window, &path, velocity);
         assert_eq!(check.moving_along_path, 3);
+        // 7 of 7 observed cells moving, 4 of them not traffic along the path.
+        assert_eq!(check.moving_share(), Some(1.0));
+        assert_eq!(check.moving_apart_from_traffic_share(), Some(4.0 / 7.0));
         // A path of one vertex has no direction.
         check.count_traffic_ahead(&cells, &sensor, &decisions, &window, &path[..1], velocity);
         assert_eq!(check.moving_along_path, 0);

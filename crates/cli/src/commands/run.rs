@@ -214,6 +214,11 @@ struct EgoPathTotals {
     decided_occupied_or_moving: usize,
     /// `decided_occupied_or_moving / cell_frames`.
     share: Option<f64>,
+    /// `moving / cell_frames`.
+    moving_share: Option<f64>,
+    /// `(moving - moving_along_path) / cell_frames`: cells decided moving that are not traffic
+    /// ahead, which the path must not hold. `null` for `kurdej2013`.
+    moving_apart_from_traffic_share: Option<f64>,
 }
 
 /// A scan the run skipped, and why.
@@ -853,6 +858,11 @@ pub fn run(args: RunArgs) -> Result<()> {
                 .then_some(ego_total.moving_along_path),
             decided_occupied_or_moving: ego_total.decided_occupied_or_moving(),
             share: ego_total.share(),
+            moving_share: ego_total.moving_share(),
+            moving_apart_from_traffic_share: pipeline
+                .fusion()
+                .motion()
+                .and(ego_total.moving_apart_from_traffic_share()),
         },
         obstacle_share: totals.obstacle_share.spread(),
         obstacle_share_in_range: totals.obstacle_share_in_range.spread(),
@@ -921,7 +931,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         let e = &summary.ego_path;
         println!(
             "ego path ({} m ahead, {} m either side): {} of {} observed cell-frames decided \
-             occupied or moving ({}; {} occupied, {} moving{})",
+             occupied or moving ({}; {} occupied, {} moving ({}){})",
             e.length_m,
             e.radius_m,
             e.decided_occupied_or_moving,
@@ -929,8 +939,13 @@ pub fn run(args: RunArgs) -> Result<()> {
             percent(e.share),
             e.occupied,
             e.moving,
+            percent(e.moving_share),
             e.moving_along_path
-                .map(|n| format!(", {n} of them traffic moving along the path"))
+                .zip(e.moving_apart_from_traffic_share)
+                .map(|(n, rest)| format!(
+                    ", {n} of them traffic moving along the path, the rest {}",
+                    percent(Some(rest))
+                ))
                 .unwrap_or_default()
         );
         if let Some(r) = &summary.pose_refinement {
