@@ -82,6 +82,9 @@ pub struct Driving {
     wait_left_s: f64,
     /// Junction stops on or off (the ego never stops on its own).
     stops: bool,
+    /// How far ahead of its centre the car reaches, metres: half its length, or for the ego
+    /// the sensor on its front when that sits further out. Gaps ahead are kept from there.
+    front_m: f64,
 }
 
 /// A pedestrian walking back and forth along a pavement.
@@ -164,7 +167,45 @@ impl Actor {
                 stop_at_m: None,
                 wait_left_s: 0.0,
                 stops,
+                front_m: CAR_HALF_LENGTH_M,
             })),
+        }
+    }
+
+    /// This car with whatever it carries reaching `front_m` ahead of its centre (the ego's
+    /// sensor): it keeps its gaps from there, so that it never stops with the sensor inside
+    /// the car ahead. A reach shorter than the car changes nothing.
+    pub fn with_front_reach(mut self, front_m: f64) -> Self {
+        if let Motion::Driving(d) = &mut self.motion {
+            d.front_m = front_m.max(CAR_HALF_LENGTH_M);
+        }
+        self
+    }
+
+    /// What this actor holds clear of: its footprint, stretched forward to its front reach
+    /// (the ego's sensor), at its pose.
+    pub fn clearance(&self) -> (Pose2, Footprint) {
+        match (&self.motion, self.footprint) {
+            (
+                Motion::Driving(d),
+                Footprint::Rect {
+                    half_length_m,
+                    half_width_m,
+                },
+            ) if d.front_m > half_length_m => {
+                let half = (d.front_m + half_length_m) / 2.0;
+                let centre = self
+                    .pose
+                    .world_from_body(Vec2::new((d.front_m - half_length_m) / 2.0, 0.0));
+                (
+                    Pose2::new(centre, self.pose.heading_rad),
+                    Footprint::Rect {
+                        half_length_m: half,
+                        half_width_m,
+                    },
+                )
+            }
+            _ => (self.pose, self.footprint),
         }
     }
 
@@ -217,7 +258,10 @@ impl Actor {
     /// (bumper to bumper, metres), looking `horizon_m` ahead.
     fn gap_ahead(&self, others: &[Obstacle], horizon_m: f64) -> f64 {
         let mut gap = f64::INFINITY;
-        let my_half = self.footprint.bounding_radius_m().min(CAR_HALF_LENGTH_M);
+        let my_half = match &self.motion {
+            Motion::Driving(d) => d.front_m,
+            _ => self.footprint.bounding_radius_m().min(CAR_HALF_LENGTH_M),
+        };
         for o in others {
             if o.id == self.id {
                 continue;
@@ -373,7 +417,12 @@ pub fn advance(
 
 /// Places the scenario's actors on the road network. Fewer actors than asked are placed when the
 /// map has no room for them (the count placed is the length of the returned list).
-pub fn populate(net: &RoadNetwork, cfg: &TrafficConfig, rng: &mut impl Rng) -> Vec<Actor> {
+pub fn populate(
+    net: &RoadNetwork,
+    cfg: &TrafficConfig,
+    keep_clear: &[(Pose2, Footprint)],
+    rng: &mut impl Rng,
+) -> Vec<Actor> {
     let mut actors: Vec<Actor> = Vec::new();
     if net.anchor_count() == 0 {
         return actors;
@@ -384,6 +433,13 @@ pub fn populate(net: &RoadNetwork, cfg: &TrafficConfig, rng: &mut impl Rng) -> V
             .filter(|a| a.kind == ActorKind::Car)
             .all(|a| a.pose.position_m.minus(p).norm() >= min_m)
     };
+    // A car placed on the ego (or over its sensor) would be one its sensor sits in and cannot
+    // see, while truth counts it.
+    let clear = |car: &Actor| {
+        keep_clear
+            .iter()
+            .all(|(pose, shape)| !car.footprint.overlaps(&car.pose, shape, pose))
+    };
     // Moving cars.
     for _ in 0..cfg.moving_cars {
         for _attempt in 0..20 {
@@ -393,7 +449,7 @@ pub fn populate(net: &RoadNetwork, cfg: &TrafficConfig, rng: &mut impl Rng) -> V
             let start = rng.random_range(0.0..=route.path.length_m() * 0.5);
             let cruise = uniform(rng, cfg.car_speed_mps);
             let car = Actor::driving_car(actors.len() as u32, &route, start, cruise, true);
-            if far_from_cars(&actors, car.pose.position_m, 10.0) {
+            if far_from_cars(&actors, car.pose.position_m, 10.0) && clear(&car) {
                 actors.push(car);
                 break;
             }
@@ -422,8 +478,12 @@ pub fn populate(net: &RoadNetwork, cfg: &TrafficConfig, rng: &mut impl Rng) -> V
             let pose = Pose2::new(centre, wrap_angle(heading));
             let corners = [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
                 .map(|(a, b)| pose.world_from_body(Vec2::new(a * CAR_HALF_LENGTH_M, b * 0.9)));
-            if corners.iter().all(|&c| net.is_road(c)) && far_from_cars(&actors, centre, 5.5) {
-                actors.push(Actor::fixed(actors.len() as u32, ActorKind::Car, pose));
+            let car = Actor::fixed(actors.len() as u32, ActorKind::Car, pose);
+            if corners.iter().all(|&c| net.is_road(c))
+                && far_from_cars(&actors, centre, 5.5)
+                && clear(&car)
+            {
+                actors.push(car);
                 break;
             }
         }

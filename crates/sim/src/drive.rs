@@ -93,15 +93,19 @@ impl Drive {
         let mut traffic_rng = StdRng::seed_from_u64(scenario.seed);
         let ego_route = ego_route(&net, scenario, &mut traffic_rng)?;
         net.set_focus(&ego_route.path, scenario.traffic.spawn_within_m);
-        let mut actors = actors::populate(&net, &scenario.traffic, &mut traffic_rng);
+        // The ego keeps its gaps from its sensor when that sits beyond its bumper (the IBEO's
+        // mount), and no car starts where the ego or its sensor is.
+        let mut ego = Actor::driving_car(0, &ego_route, 0.0, scenario.ego.speed_mps, false)
+            .with_front_reach(scenario.sensor.mount_forward());
+        let mut actors = actors::populate(
+            &net,
+            &scenario.traffic,
+            &[ego.clearance()],
+            &mut traffic_rng,
+        );
         let ego_id = actors.len() as u32;
-        actors.push(Actor::driving_car(
-            ego_id,
-            &ego_route,
-            0.0,
-            scenario.ego.speed_mps,
-            false,
-        ));
+        ego.id = ego_id;
+        actors.push(ego);
 
         // Map errors, on the buildings nearest the ego route.
         let errors = &scenario.errors;

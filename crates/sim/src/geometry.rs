@@ -140,6 +140,69 @@ impl Footprint {
         }
     }
 
+    /// Whether this footprint placed at `world_from_body` and `other` placed at
+    /// `world_from_other` share an area (touching does not count). Exact: discs by their
+    /// distance, a disc against a rectangle's nearest point, two rectangles by separating axes.
+    pub fn overlaps(
+        &self,
+        world_from_body: &Pose2,
+        other: &Footprint,
+        world_from_other: &Pose2,
+    ) -> bool {
+        match (*self, *other) {
+            (Footprint::Circle { radius_m: a }, Footprint::Circle { radius_m: b }) => {
+                let d = world_from_body
+                    .position_m
+                    .minus(world_from_other.position_m);
+                d.dot(d) < (a + b) * (a + b)
+            }
+            (
+                Footprint::Circle { radius_m },
+                Footprint::Rect {
+                    half_length_m,
+                    half_width_m,
+                },
+            ) => {
+                let c = world_from_other.body_from_world(world_from_body.position_m);
+                let nearest = Vec2::new(
+                    c.x.clamp(-half_length_m, half_length_m),
+                    c.y.clamp(-half_width_m, half_width_m),
+                );
+                let d = c.minus(nearest);
+                d.dot(d) < radius_m * radius_m
+            }
+            (Footprint::Rect { .. }, Footprint::Circle { .. }) => {
+                other.overlaps(world_from_other, self, world_from_body)
+            }
+            (
+                Footprint::Rect {
+                    half_length_m: al,
+                    half_width_m: aw,
+                },
+                Footprint::Rect {
+                    half_length_m: bl,
+                    half_width_m: bw,
+                },
+            ) => {
+                let (ua, ub) = (
+                    Vec2::from_angle(world_from_body.heading_rad),
+                    Vec2::from_angle(world_from_other.heading_rad),
+                );
+                let (va, vb) = (ua.perp_left(), ub.perp_left());
+                let between = world_from_other
+                    .position_m
+                    .minus(world_from_body.position_m);
+                // Separated along an axis when the centres lie further apart along it than the
+                // two half-extents projected on it.
+                [ua, va, ub, vb].into_iter().all(|axis| {
+                    let reach_a = al * ua.dot(axis).abs() + aw * va.dot(axis).abs();
+                    let reach_b = bl * ub.dot(axis).abs() + bw * vb.dot(axis).abs();
+                    between.dot(axis).abs() < reach_a + reach_b
+                })
+            }
+        }
+    }
+
     /// Whether the footprint placed at `world_from_body` and the axis-aligned rectangle
     /// `[min.x, max.x] × [min.y, max.y]` share an area (touching along an edge or at a corner
     /// does not count). Exact: a disc against the rectangle's nearest point, a rectangle by
@@ -414,6 +477,42 @@ impl Polyline {
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+
+    #[test]
+    fn footprints_overlap_each_other_exactly() {
+        let v = Vec2::new;
+        let car = Footprint::Rect {
+            half_length_m: 2.0,
+            half_width_m: 1.0,
+        };
+        let here = Pose2::new(v(0.0, 0.0), 0.0);
+        // Side by side: 2.1 m apart clears two 1 m half-widths, 1.9 m does not.
+        assert!(!car.overlaps(&here, &car, &Pose2::new(v(0.0, 2.1), 0.0)));
+        assert!(car.overlaps(&here, &car, &Pose2::new(v(0.0, 1.9), 0.0)));
+        // Across at 90°, its end 0.1 m into the first one's side; then 0.1 m short of it.
+        let across = |y: f64| Pose2::new(v(0.0, y), std::f64::consts::FRAC_PI_2);
+        assert!(car.overlaps(&here, &car, &across(2.9)));
+        assert!(!car.overlaps(&here, &car, &across(3.1)));
+        // A 4 × 0.2 m bar turned −45° across the corner (2, 1), on the line x + y = 4.2: the
+        // boxes around the two overlap, but the bar passes 0.85 m from the corner. Turned +45°
+        // at (2.5, 1.5), its end (1.09, 0.09) is inside the car.
+        let bar = Footprint::Rect {
+            half_length_m: 2.0,
+            half_width_m: 0.1,
+        };
+        let quarter = std::f64::consts::FRAC_PI_4;
+        assert!(!car.overlaps(&here, &bar, &Pose2::new(v(2.6, 1.6), -quarter)));
+        assert!(!bar.overlaps(&Pose2::new(v(2.6, 1.6), -quarter), &car, &here));
+        assert!(car.overlaps(&here, &bar, &Pose2::new(v(2.5, 1.5), quarter)));
+        // A disc against a rectangle's corner and against another disc; order does not matter.
+        let disc = Footprint::Circle { radius_m: 0.5 };
+        let off_corner = |d: f64| Pose2::new(v(2.0 + d, 1.0 + d), 0.0);
+        assert!(disc.overlaps(&off_corner(0.3), &car, &here));
+        assert!(car.overlaps(&here, &disc, &off_corner(0.3)));
+        assert!(!disc.overlaps(&off_corner(0.4), &car, &here));
+        assert!(disc.overlaps(&here, &disc, &Pose2::new(v(0.99, 0.0), 0.0)));
+        assert!(!disc.overlaps(&here, &disc, &Pose2::new(v(1.0, 0.0), 0.0)));
+    }
 
     #[test]
     fn footprints_overlap_rectangles_exactly() {
