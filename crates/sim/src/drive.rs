@@ -214,12 +214,24 @@ impl Drive {
         Some(Frame { index, scan })
     }
 
+    /// The actors the sensor cannot see now: the ego, and any other whose footprint holds the
+    /// sensor (placement and the ego's gaps keep that from happening, see `actors::populate`).
+    fn unseen(&self) -> Vec<u32> {
+        let mount = Pose2::new(Vec2::new(self.scenario.sensor.mount_forward(), 0.0), 0.0);
+        let sensor = self.ego_pose().compose(&mount).position_m;
+        self.actors
+            .iter()
+            .filter(|a| a.id == self.ego_id || a.footprint.contains(&a.pose, sensor))
+            .map(|a| a.id)
+            .collect()
+    }
+
     /// Truth labels of `window` now (see [`truth::label_window`]).
     pub fn truth(&self, window: &CellWindow, out: &mut Vec<Label>) {
         truth::label_window(
             &self.world,
             &self.actors,
-            Some(self.ego_id),
+            &self.unseen(),
             window,
             truth::DEFAULT_SAMPLES_PER_AXIS,
             out,
@@ -237,7 +249,7 @@ impl Drive {
         truth::label_window_with_outline(
             &self.world,
             &self.actors,
-            Some(self.ego_id),
+            &self.unseen(),
             window,
             truth::DEFAULT_SAMPLES_PER_AXIS,
             out,
@@ -447,5 +459,33 @@ mod tests {
         assert_eq!(pm.buildings.len(), 3);
         assert_eq!(pm.extent.min().x, 1.0);
         assert_eq!(pm.extent.min().y, -2.0);
+    }
+
+    #[test]
+    fn an_object_holding_the_sensor_is_not_scored() {
+        let mut drive = Drive::new(&town(), &small_scenario(3)).unwrap();
+        let frame = drive.next_frame().unwrap();
+        let sensor = frame.scan.world_from_sensor_true.position_m;
+        // A car put over the sensor (placement no longer does this): its cells are ignored,
+        // like the ego's, and it is the only one besides the ego.
+        let other = (0..drive.actors.len() as u32)
+            .find(|&id| {
+                id != drive.ego_id
+                    && drive.actors[id as usize].kind == crate::actors::ActorKind::Car
+            })
+            .unwrap();
+        drive.actors[other as usize].pose = Pose2::new(sensor.plus(Vec2::new(0.0, 0.5)), 0.0);
+        assert_eq!(drive.unseen(), vec![other, drive.ego_id]);
+        let window = CellWindow {
+            first_col: (sensor.x / 0.5).floor() as i64 - 10,
+            first_row: (sensor.y / 0.5).floor() as i64 - 10,
+            width: 21,
+            height: 21,
+            cell_size_m: 0.5,
+        };
+        let mut truth = Vec::new();
+        drive.truth(&window, &mut truth);
+        assert_eq!(truth[10 * 21 + 10], truth::IGNORED);
+        assert!(!truth.contains(&Label::S) && !truth.contains(&Label::M));
     }
 }

@@ -34,6 +34,9 @@
 //! street furniture and for buildings missing from that map; S for a road user slower than
 //! [`STOPPED_BELOW_MPS`]; M for one at or above it. Cells under the ego vehicle are
 //! [`IGNORED`]: its own sensor cannot see them, so scoring them would only measure the blind spot.
+//! So are the cells of any object that holds the sensor (a sensor inside an object sees nothing
+//! of it); the simulator keeps that from happening, and the rule keeps a collision it missed
+//! from being scored as the method's error.
 
 use crate::actors::Actor;
 use crate::geometry::Vec2;
@@ -75,14 +78,15 @@ fn claim(cell: &mut Label, claim: Label) {
 }
 
 /// Labels every cell of `window` into `out` (row-major, `out[row * width + col]`, rows from the
-/// south): one of F, I, U, S, M, or [`IGNORED`] under the actor `ego_id`.
+/// south): one of F, I, U, S, M, or [`IGNORED`] under the actors in `unseen`: the ego, and any
+/// object that holds the sensor (a sensor inside an object sees nothing of it).
 ///
 /// `out` is resized to the window. `samples_per_axis` is clamped to 1..=7 and rounded up to an
 /// odd number, so that the cell centre is a sample.
 pub fn label_window(
     world: &World,
     actors: &[Actor],
-    ego_id: Option<u32>,
+    unseen: &[u32],
     window: &CellWindow,
     samples_per_axis: usize,
     out: &mut Vec<Label>,
@@ -91,7 +95,7 @@ pub fn label_window(
     label_window_with_outline(
         world,
         actors,
-        ego_id,
+        unseen,
         window,
         samples_per_axis,
         out,
@@ -100,14 +104,14 @@ pub fn label_window(
 }
 
 /// [`label_window`], and in `outline` (same layout) the object outline band: cells an actor
-/// other than the ego overlaps, by any area, but at none of their samples, and that nothing
+/// not in `unseen` overlaps, by any area, but at none of their samples, and that nothing
 /// else claims (they are F in `out`). There the object covers a sliver of the cell, less than
 /// half a sample spacing deep: a ray may end on it or cross the cell beside it, so free and the
 /// object's class are both defensible, and the evaluation scores neither (`eval::metrics`).
 pub fn label_window_with_outline(
     world: &World,
     actors: &[Actor],
-    ego_id: Option<u32>,
+    unseen: &[u32],
     window: &CellWindow,
     samples_per_axis: usize,
     out: &mut Vec<Label>,
@@ -185,7 +189,7 @@ pub fn label_window_with_outline(
 
     // Actors: test the samples of the cells under each footprint's bounding box.
     for a in actors {
-        let code = if Some(a.id) == ego_id {
+        let code = if unseen.contains(&a.id) {
             IGNORED
         } else {
             actor_class(a)
@@ -355,13 +359,13 @@ mod tests {
         .unwrap();
         let world = World::new(vec![b], vec![], (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)));
         let mut out = Vec::new();
-        label_window(&world, &[], None, &window(), 3, &mut out);
+        label_window(&world, &[], &[], &window(), 3, &mut out);
         assert_eq!(
             rows(&out, 8),
             vec!["........", "........", "eIe.....", "eIe....."]
         );
         // With one sample (the centre), the same: the band does not depend on the samples.
-        label_window(&world, &[], None, &window(), 1, &mut out);
+        label_window(&world, &[], &[], &window(), 1, &mut out);
         assert_eq!(
             rows(&out, 8),
             vec!["........", "........", "eIe.....", "eIe....."]
@@ -379,7 +383,7 @@ mod tests {
             vec![],
             (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)),
         );
-        label_window(&world, &[], None, &window(), 3, &mut out);
+        label_window(&world, &[], &[], &window(), 3, &mut out);
         assert_eq!(
             rows(&out, 8),
             vec!["........", "........", ".Ie.....", ".Ie....."]
@@ -410,7 +414,7 @@ mod tests {
         label_window(
             &world,
             &[bollard, thin, car, ped],
-            None,
+            &[],
             &window(),
             3,
             &mut out,
@@ -434,7 +438,7 @@ mod tests {
         car.speed_mps = 5.0;
         let (mut out, mut outline) = (Vec::new(), Vec::new());
         let w = window();
-        label_window_with_outline(&world, &[car.clone()], None, &w, 3, &mut out, &mut outline);
+        label_window_with_outline(&world, &[car.clone()], &[], &w, 3, &mut out, &mut outline);
         assert_eq!(
             rows(&out, 8),
             vec!["........", ".MMMMMM.", ".MMMMMM.", "........"]
@@ -442,7 +446,7 @@ mod tests {
         let band: Vec<usize> = (0..out.len()).filter(|&k| outline[k]).collect();
         assert_eq!(band, vec![1, 2, 3, 4, 5, 6]);
         // The ego's own sliver is no band: its cells are not scored at all.
-        label_window_with_outline(&world, &[car], Some(0), &w, 3, &mut out, &mut outline);
+        label_window_with_outline(&world, &[car], &[0], &w, 3, &mut out, &mut outline);
         assert!(outline.iter().all(|&b| !b));
         assert_eq!(out[8 + 1], IGNORED);
     }
@@ -464,7 +468,7 @@ mod tests {
             Pose2::new(Vec2::new(5.5, 2.5), 0.0),
         );
         let mut out = Vec::new();
-        label_window(&world, &[ego], Some(5), &window(), 3, &mut out);
+        label_window(&world, &[ego], &[5], &window(), 3, &mut out);
         assert_eq!(out[0], Label::U);
         assert_eq!(out[8 * 2 + 5], IGNORED);
         // Shifted window: global cells from (−2, −1); the building cell (0, 0) is now (2, 1).
@@ -473,7 +477,7 @@ mod tests {
             first_row: -1,
             ..window()
         };
-        label_window(&world, &[], None, &shifted, 3, &mut out);
+        label_window(&world, &[], &[], &shifted, 3, &mut out);
         assert_eq!(out[8 + 2], Label::U);
         assert_eq!(out[8 + 3], Label::U);
         assert_eq!(out.iter().filter(|&&c| c != Label::F).count(), 2);
@@ -513,7 +517,7 @@ mod tests {
         let mut contexts = vec![geodata::MapContext::Unknown; window.len()];
         geodata::ContextRaster::new(&map).fill(&window, &mut contexts);
         let mut out = Vec::new();
-        label_window(&world, &[], None, &window, 3, &mut out);
+        label_window(&world, &[], &[], &window, 3, &mut out);
         let (mut i_cells, mut edge_cells) = (0, 0);
         for (k, (&t, &c)) in out.iter().zip(&contexts).enumerate() {
             let building = c == geodata::MapContext::Building;
