@@ -255,8 +255,8 @@ impl EgoPathCheck {
     }
 
     /// Observed path cells decided moving that are not traffic moving along the path, over the
-    /// observed path cells: what the check forbids ("apart from traffic ahead, the path must be
-    /// free"). `None` when none was observed.
+    /// observed path cells: the moving cells the check forbids ("apart from traffic ahead, the
+    /// path must be free"; occupied cells are counted apart). `None` when none was observed.
     pub fn moving_apart_from_traffic_share(&self) -> Option<f64> {
         (self.observed_cells > 0).then(|| {
             self.moving_cells.saturating_sub(self.moving_along_path) as f64

@@ -279,7 +279,7 @@ impl Actor {
 /// What a driver looks at: another road user's position and half length along the lane.
 #[derive(Clone, Copy, Debug)]
 pub struct Obstacle {
-    /// Actor id (the ego uses `u32::MAX`).
+    /// Actor id.
     pub id: u32,
     /// Centre, world metres.
     pub position: Vec2,
@@ -617,5 +617,45 @@ mod tests {
         let gap = 60.0 - car.pose.position_m.x - 2.0 * CAR_HALF_LENGTH_M;
         assert!(car.speed_mps < 0.01);
         assert!((0.5..=STANDSTILL_GAP_M + 0.5).contains(&gap), "gap {gap}");
+    }
+
+    #[test]
+    fn a_car_carrying_a_sensor_ahead_keeps_its_gap_from_the_sensor() {
+        use rand::SeedableRng;
+        let cfg = TrafficConfig::default();
+        let net = net();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let route = straight_route(500.0, None);
+        // The sensor 3.7 m ahead of the centre, 1.45 m beyond the bumper.
+        let mut car = Actor::driving_car(0, &route, 0.0, 10.0, false).with_front_reach(3.7);
+        let leader = Obstacle {
+            id: 9,
+            position: Vec2::new(60.0, -1.75),
+            half_length_m: CAR_HALF_LENGTH_M,
+        };
+        for _ in 0..200 {
+            advance(&mut car, &[leader], 0.1, &cfg, &net, &mut rng);
+        }
+        let sensor_gap = 60.0 - CAR_HALF_LENGTH_M - (car.pose.position_m.x + 3.7);
+        assert!(car.speed_mps < 0.01);
+        assert!(
+            (0.5..=STANDSTILL_GAP_M + 0.5).contains(&sensor_gap),
+            "gap {sensor_gap}"
+        );
+        // What it holds clear: from its rear bumper to the sensor, as wide as the car.
+        let (pose, shape) = car.clearance();
+        let rear = car.pose.position_m.x - CAR_HALF_LENGTH_M;
+        let touching = |x: f64| Pose2::new(Vec2::new(x, car.pose.position_m.y), 0.0);
+        let pole = Footprint::Circle { radius_m: 0.05 };
+        assert!(pole.overlaps(&touching(car.pose.position_m.x + 3.65), &shape, &pose));
+        assert!(!pole.overlaps(&touching(car.pose.position_m.x + 3.76), &shape, &pose));
+        assert!(pole.overlaps(&touching(rear + 0.04), &shape, &pose));
+        assert!(!pole.overlaps(&touching(rear - 0.06), &shape, &pose));
+        // A reach shorter than the car changes nothing.
+        let plain = Actor::driving_car(0, &route, 0.0, 10.0, false);
+        assert_eq!(
+            plain.clone().with_front_reach(1.0).clearance(),
+            plain.clearance()
+        );
     }
 }

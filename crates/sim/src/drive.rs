@@ -95,7 +95,7 @@ impl Drive {
         net.set_focus(&ego_route.path, scenario.traffic.spawn_within_m);
         // The ego keeps its gaps from its sensor when that sits beyond its bumper (the IBEO's
         // mount), and no car starts where the ego or its sensor is.
-        let mut ego = Actor::driving_car(0, &ego_route, 0.0, scenario.ego.speed_mps, false)
+        let mut ego = Actor::driving_car(u32::MAX, &ego_route, 0.0, scenario.ego.speed_mps, false)
             .with_front_reach(scenario.sensor.mount_forward());
         let mut actors = actors::populate(
             &net,
@@ -171,6 +171,12 @@ impl Drive {
     pub fn ego_id(&self) -> u32 {
         self.ego_id
     }
+    /// The sensor's true pose now: the ego's, moved to the mount.
+    fn world_from_sensor(&self) -> Pose2 {
+        let mount = Pose2::new(Vec2::new(self.scenario.sensor.mount_forward(), 0.0), 0.0);
+        self.ego_pose().compose(&mount)
+    }
+
     /// `world_from_ego` now.
     pub fn ego_pose(&self) -> Pose2 {
         self.actors
@@ -198,11 +204,9 @@ impl Drive {
         }
         let index = self.next_index;
         self.next_index += 1;
-        let config = &self.scenario.sensor;
-        let mount = Pose2::new(Vec2::new(config.mount_forward(), 0.0), 0.0);
-        let world_from_sensor = self.ego_pose().compose(&mount);
+        let world_from_sensor = self.world_from_sensor();
         let mut scan = sensor::scan(
-            config,
+            &self.scenario.sensor,
             &self.world,
             &self.actors,
             Some(self.ego_id),
@@ -217,8 +221,7 @@ impl Drive {
     /// The actors the sensor cannot see now: the ego, and any other whose footprint holds the
     /// sensor (placement and the ego's gaps keep that from happening, see `actors::populate`).
     fn unseen(&self) -> Vec<u32> {
-        let mount = Pose2::new(Vec2::new(self.scenario.sensor.mount_forward(), 0.0), 0.0);
-        let sensor = self.ego_pose().compose(&mount).position_m;
+        let sensor = self.world_from_sensor().position_m;
         self.actors
             .iter()
             .filter(|a| a.id == self.ego_id || a.footprint.contains(&a.pose, sensor))

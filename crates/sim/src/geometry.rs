@@ -494,7 +494,7 @@ mod tests {
         assert!(car.overlaps(&here, &car, &across(2.9)));
         assert!(!car.overlaps(&here, &car, &across(3.1)));
         // A 4 × 0.2 m bar turned −45° across the corner (2, 1), on the line x + y = 4.2: the
-        // boxes around the two overlap, but the bar passes 0.85 m from the corner. Turned +45°
+        // boxes around the two overlap, but the bar's edge passes 0.75 m from the corner. Turned +45°
         // at (2.5, 1.5), its end (1.09, 0.09) is inside the car.
         let bar = Footprint::Rect {
             half_length_m: 2.0,

@@ -150,7 +150,8 @@ pub enum ScannerKind {
 
 /// The scanner. By default an IBEO-like 4-layer scanner, 110° field of view, 200 points per layer
 /// (800 per scan), 10 Hz, 80 m range, 3 cm range noise, 2 % dropouts, mounted 3.7 m ahead of the
-/// ego's centre (front bumper), as on the paper's vehicle.
+/// ego's centre, as on the paper's vehicle (measured from its rear axle there; here that is 1.45 m
+/// beyond the bumper of the 4.5 m car, and the ego keeps its gaps from the sensor).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SensorConfig {

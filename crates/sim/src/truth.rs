@@ -44,7 +44,8 @@ use crate::label::Label;
 use crate::world::World;
 use geodata::CellWindow;
 
-/// Truth of a cell excluded from scoring (under the ego): it outranks every class.
+/// Truth of a cell excluded from scoring (under the ego, or under an object holding the sensor):
+/// it outranks every class.
 pub const IGNORED: Label = Label::Unknown;
 /// Speed below which a road user is stopped (S), m/s.
 pub const STOPPED_BELOW_MPS: f64 = 0.5;

@@ -50,7 +50,7 @@ fn the_sensor_is_never_inside_another_actor() -> Result<(), Box<dyn std::error::
         let Some(map) = load(file) else { continue };
         let base = Scenario::from_toml(&std::fs::read_to_string(scenarios.join(name))?)?;
         // The seeds `evigrid eval --seeds 2` drives: the scenario's and the next.
-        for seed in [base.seed, base.seed + 1] {
+        for seed in [base.seed, base.seed.wrapping_add(1)] {
             let scenario = Scenario {
                 seed,
                 ..base.clone()

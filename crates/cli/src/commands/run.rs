@@ -216,8 +216,8 @@ struct EgoPathTotals {
     share: Option<f64>,
     /// `moving / cell_frames`.
     moving_share: Option<f64>,
-    /// `(moving - moving_along_path) / cell_frames`: cells decided moving that are not traffic
-    /// ahead, which the path must not hold. `null` for `kurdej2013`.
+    /// `(moving - moving_along_path) / cell_frames`: the moving cells the path must not hold
+    /// (not traffic ahead). `null` for `kurdej2013`.
     moving_apart_from_traffic_share: Option<f64>,
 }
 
@@ -862,7 +862,9 @@ pub fn run(args: RunArgs) -> Result<()> {
             moving_apart_from_traffic_share: pipeline
                 .fusion()
                 .motion()
-                .and(ego_total.moving_apart_from_traffic_share()),
+                .is_some()
+                .then(|| ego_total.moving_apart_from_traffic_share())
+                .flatten(),
         },
         obstacle_share: totals.obstacle_share.spread(),
         obstacle_share_in_range: totals.obstacle_share_in_range.spread(),
@@ -943,7 +945,8 @@ pub fn run(args: RunArgs) -> Result<()> {
             e.moving_along_path
                 .zip(e.moving_apart_from_traffic_share)
                 .map(|(n, rest)| format!(
-                    ", {n} of them traffic moving along the path, the rest {}",
+                    ", {n} of them traffic moving along the path, {} not ({} of the observed)",
+                    e.moving.saturating_sub(n),
                     percent(Some(rest))
                 ))
                 .unwrap_or_default()
