@@ -77,6 +77,7 @@ impl OdometryParams {
         check_registration(&Registration {
             max_range_m: self.max_range_m,
             min_range_m: self.min_range_m,
+            voxel_name: "voxel_size_m",
             voxel_size_m: self.voxel_size_m,
             max_points_per_voxel: self.max_points_per_voxel,
             initial_threshold_m: self.initial_threshold_m,
@@ -109,6 +110,8 @@ impl OdometryParams {
 pub(crate) struct Registration {
     pub(crate) max_range_m: f64,
     pub(crate) min_range_m: f64,
+    /// The voxel edge's parameter name, for the error.
+    pub(crate) voxel_name: &'static str,
     pub(crate) voxel_size_m: f64,
     pub(crate) max_points_per_voxel: usize,
     pub(crate) initial_threshold_m: f64,
@@ -126,11 +129,11 @@ pub(crate) fn check_registration(r: &Registration) -> Result<(), OdometryError> 
             "must be finite, >= 0 and < max_range_m",
         ));
     }
-    positive("voxel_size_m", r.voxel_size_m)?;
+    positive(r.voxel_name, r.voxel_size_m)?;
     // Voxel indices are i32: a voxel so small that the map's extent overflows them is a typo.
     if r.max_range_m / r.voxel_size_m > 1.0e6 {
         return Err(invalid(
-            "voxel_size_m",
+            r.voxel_name,
             r.voxel_size_m,
             "must be at least max_range_m / 1e6",
         ));

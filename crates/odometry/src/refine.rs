@@ -97,28 +97,21 @@ impl RefineParams {
     /// # Errors
     /// [`OdometryError::InvalidParameter`].
     pub fn validate(&self) -> Result<(), OdometryError> {
-        let registration = |voxel_size_m| Registration {
+        let registration = |voxel_name, voxel_size_m| Registration {
             max_range_m: self.max_range_m,
             min_range_m: self.min_range_m,
+            voxel_name,
             voxel_size_m,
             max_points_per_voxel: self.max_points_per_voxel,
             initial_threshold_m: self.initial_threshold_m,
             max_iterations: self.max_iterations,
             convergence_tolerance: self.convergence_tolerance,
         };
-        check_registration(&registration(self.voxel_size_m))?;
-        check_registration(&registration(self.planar_voxel_size_m)).map_err(|e| match e {
-            OdometryError::InvalidParameter {
-                name: "voxel_size_m",
-                value,
-                expected,
-            } => OdometryError::InvalidParameter {
-                name: "planar_voxel_size_m",
-                value,
-                expected,
-            },
-            other => other,
-        })?;
+        check_registration(&registration("voxel_size_m", self.voxel_size_m))?;
+        check_registration(&registration(
+            "planar_voxel_size_m",
+            self.planar_voxel_size_m,
+        ))?;
         let unit = |name: &'static str, value: f64| {
             if (0.0..=1.0).contains(&value) {
                 Ok(())
@@ -436,6 +429,14 @@ mod tests {
     }
 
     /// A 360° planar scan from `pose` (x, y, heading): the first wall hit per ray, every 0.25°.
+    /// The outline of a planar scan as a 3-D scanner sees it: each return also 1 m higher.
+    fn solid_scan(planar: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        planar
+            .iter()
+            .flat_map(|&[x, y, _]| [[x, y, 0.0], [x, y, 1.0]])
+            .collect()
+    }
+
     fn planar_scan(pose: (f64, f64, f64)) -> Vec<[f32; 3]> {
         let segments = world_segments();
         let mut points = Vec::new();
@@ -591,11 +592,7 @@ mod tests {
         let first = refiner.refine_and_insert(&few, &level(0.0, 0.0, 0.0));
         assert_eq!(first.outcome, RefineOutcome::KeptPrior(KeptReason::NoData));
         assert_eq!(refiner.map_voxels(), 0);
-        let solid: Vec<[f32; 3]> = planar
-            .iter()
-            .flat_map(|&[x, y, _]| [[x, y, 0.0], [x, y, 1.0]])
-            .collect();
-        let next = refiner.refine_and_insert(&solid, &level(0.0, 0.0, 0.0));
+        let next = refiner.refine_and_insert(&solid_scan(&planar), &level(0.0, 0.0, 0.0));
         assert_eq!(next.voxel_size_m, RefineParams::default().voxel_size_m);
     }
 
@@ -620,11 +617,7 @@ mod tests {
     #[test]
     fn the_first_scan_chooses_planar_or_3d_voxels_for_the_drive() {
         let planar = planar_scan((0.0, 0.0, 0.0));
-        // The same outline as a 3-D scanner sees it: each return also 1 m higher.
-        let solid: Vec<[f32; 3]> = planar
-            .iter()
-            .flat_map(|&[x, y, _]| [[x, y, 0.0], [x, y, 1.0]])
-            .collect();
+        let solid = solid_scan(&planar);
         let params = RefineParams::default();
         let mut refiner = PoseRefiner::new(params.clone()).expect("valid");
         let first = refiner.refine_and_insert(&solid, &level(0.0, 0.0, 0.0));

@@ -597,15 +597,13 @@ mod tests {
         assert!(car.pose.position_m.x > 200.0);
     }
 
-    #[test]
-    fn follower_queues_behind_a_stopped_leader() {
+    /// Drives `car` (on a straight lane along y = −1.75 from x = 0) for 20 s towards a
+    /// stopped leader whose centre is at x = 60 in the same lane.
+    fn drive_up_to_a_stopped_leader(mut car: Actor) -> Actor {
         use rand::SeedableRng;
         let cfg = TrafficConfig::default();
         let net = net();
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
-        let route = straight_route(500.0, None);
-        let mut car = Actor::driving_car(0, &route, 0.0, 10.0, true);
-        // A stopped leader at x = 60 in the same lane.
         let leader = Obstacle {
             id: 9,
             position: Vec2::new(60.0, -1.75),
@@ -614,6 +612,13 @@ mod tests {
         for _ in 0..200 {
             advance(&mut car, &[leader], 0.1, &cfg, &net, &mut rng);
         }
+        car
+    }
+
+    #[test]
+    fn follower_queues_behind_a_stopped_leader() {
+        let route = straight_route(500.0, None);
+        let car = drive_up_to_a_stopped_leader(Actor::driving_car(0, &route, 0.0, 10.0, true));
         let gap = 60.0 - car.pose.position_m.x - 2.0 * CAR_HALF_LENGTH_M;
         assert!(car.speed_mps < 0.01);
         assert!((0.5..=STANDSTILL_GAP_M + 0.5).contains(&gap), "gap {gap}");
@@ -621,21 +626,11 @@ mod tests {
 
     #[test]
     fn a_car_carrying_a_sensor_ahead_keeps_its_gap_from_the_sensor() {
-        use rand::SeedableRng;
-        let cfg = TrafficConfig::default();
-        let net = net();
-        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
         let route = straight_route(500.0, None);
         // The sensor 3.7 m ahead of the centre, 1.45 m beyond the bumper.
-        let mut car = Actor::driving_car(0, &route, 0.0, 10.0, false).with_front_reach(3.7);
-        let leader = Obstacle {
-            id: 9,
-            position: Vec2::new(60.0, -1.75),
-            half_length_m: CAR_HALF_LENGTH_M,
-        };
-        for _ in 0..200 {
-            advance(&mut car, &[leader], 0.1, &cfg, &net, &mut rng);
-        }
+        let car = drive_up_to_a_stopped_leader(
+            Actor::driving_car(0, &route, 0.0, 10.0, false).with_front_reach(3.7),
+        );
         let sensor_gap = 60.0 - CAR_HALF_LENGTH_M - (car.pose.position_m.x + 3.7);
         assert!(car.speed_mps < 0.01);
         assert!(

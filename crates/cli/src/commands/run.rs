@@ -814,6 +814,8 @@ pub fn run(args: RunArgs) -> Result<()> {
 
     let ego_total = &totals.ego_path;
     let refining = params.localisation.refinement != PoseRefinement::None;
+    // Only the motion stage (`evigrid`, not `kurdej2013`) gives cells a velocity.
+    let estimates_velocity = pipeline.fusion().motion().is_some();
     let summary = Summary {
         complete: stopped.is_none(),
         stopped: stopped.as_ref().map(|(why, _)| why.clone()),
@@ -851,20 +853,13 @@ pub fn run(args: RunArgs) -> Result<()> {
             cell_frames: ego_total.observed_cells,
             occupied: ego_total.occupied_cells,
             moving: ego_total.moving_cells,
-            moving_along_path: pipeline
-                .fusion()
-                .motion()
-                .is_some()
-                .then_some(ego_total.moving_along_path),
+            moving_along_path: estimates_velocity.then_some(ego_total.moving_along_path),
             decided_occupied_or_moving: ego_total.decided_occupied_or_moving(),
             share: ego_total.share(),
             moving_share: ego_total.moving_share(),
-            moving_apart_from_traffic_share: pipeline
-                .fusion()
-                .motion()
-                .is_some()
-                .then(|| ego_total.moving_apart_from_traffic_share())
-                .flatten(),
+            moving_apart_from_traffic_share: ego_total
+                .moving_apart_from_traffic_share()
+                .filter(|_| estimates_velocity),
         },
         obstacle_share: totals.obstacle_share.spread(),
         obstacle_share_in_range: totals.obstacle_share_in_range.spread(),

@@ -447,6 +447,7 @@ impl MotionStage {
                 state = CellMotion::Static;
             }
             let [vx, vy] = track.velocity.map(|v| v.mean_mps as f32);
+            let sigma_mps = (track.velocity[0].variance + track.velocity[1].variance).sqrt() as f32;
             if let MotionMass::Moving(_) = mass {
                 let cells_moving = moved.iter().filter(|&&m| m).count() as u32;
                 let measured = state != CellMotion::EnteredSeenFree;
@@ -455,9 +456,7 @@ impl MotionStage {
                         id: track.id,
                         position_m: self.observations[k].centroid_m,
                         velocity_mps: measured.then_some([vx, vy]),
-                        sigma_mps: measured.then(|| {
-                            (track.velocity[0].variance + track.velocity[1].variance).sqrt() as f32
-                        }),
+                        sigma_mps: measured.then_some(sigma_mps),
                         cells: cells_moving,
                     });
                 }
@@ -473,8 +472,7 @@ impl MotionStage {
                     cluster_cells: cells.len() as u32,
                     frames: self.cluster_frames.get(k).copied().unwrap_or(0),
                     speed_mps: vx.hypot(vy),
-                    sigma_mps: (track.velocity[0].variance + track.velocity[1].variance).sqrt()
-                        as f32,
+                    sigma_mps,
                     measurements: track.measurements,
                     track_age_s: (time_s - track.first_seen_s) as f32,
                 });
