@@ -31,6 +31,24 @@ fn every_shipped_scenario_is_valid() {
 }
 
 #[test]
+fn every_held_out_scenario_is_valid_and_draws_its_route() {
+    let dir = scenarios_dir().join("held-out");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.ends_with(".toml"))
+        .collect();
+    names.sort();
+    assert!(names.len() >= 6, "{names:?}");
+    for name in &names {
+        let s = read(&format!("held-out/{name}"));
+        assert!(s.frame_count() > 0, "{name}");
+        // A route from the seed: nothing in the file was placed by hand.
+        assert!(s.ego.waypoints.is_empty(), "{name}");
+    }
+}
+
+#[test]
 fn error_scenarios_differ_from_their_base_only_by_their_error() {
     let base = read("helsinki-short.toml");
     let noisy = read("helsinki-short-pose-noise.toml");
