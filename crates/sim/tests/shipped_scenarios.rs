@@ -15,14 +15,21 @@ fn read(name: &str) -> sim::Scenario {
     sim::Scenario::from_toml(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
-#[test]
-fn every_shipped_scenario_is_valid() {
-    let mut names: Vec<String> = std::fs::read_dir(scenarios_dir())
+/// The `.toml` files of `scenarios/<sub>`, as paths relative to `scenarios/`, sorted.
+fn toml_names(sub: &str) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(scenarios_dir().join(sub))
         .unwrap()
         .map(|e| e.unwrap().file_name().into_string().unwrap())
         .filter(|n| n.ends_with(".toml"))
+        .map(|n| PathBuf::from(sub).join(n).to_string_lossy().into_owned())
         .collect();
     names.sort();
+    names
+}
+
+#[test]
+fn every_shipped_scenario_is_valid() {
+    let names = toml_names("");
     assert!(names.len() >= 7, "{names:?}");
     for name in &names {
         let s = read(name);
@@ -32,16 +39,10 @@ fn every_shipped_scenario_is_valid() {
 
 #[test]
 fn every_held_out_scenario_is_valid_and_draws_its_route() {
-    let dir = scenarios_dir().join("held-out");
-    let mut names: Vec<String> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().into_string().unwrap())
-        .filter(|n| n.ends_with(".toml"))
-        .collect();
-    names.sort();
+    let names = toml_names("held-out");
     assert!(names.len() >= 6, "{names:?}");
     for name in &names {
-        let s = read(&format!("held-out/{name}"));
+        let s = read(name);
         assert!(s.frame_count() > 0, "{name}");
         // A route from the seed: nothing in the file was placed by hand.
         assert!(s.ego.waypoints.is_empty(), "{name}");
