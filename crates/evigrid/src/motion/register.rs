@@ -28,6 +28,10 @@ const CHANGE_CELLS: f64 = 1.5;
 /// Cells of a cluster counted at most: a long façade is sampled evenly.
 const MAX_COUNTED_CELLS: usize = 256;
 
+/// A cluster of at least this many counted cells, matched in the newest frame, may take a
+/// shift of two cells or more on the counts alone, without the seen test (see `register`).
+const UNSEEN_MOVE_MIN_CELLS: u32 = 8;
+
 /// A cluster's velocity measured against the past frames.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Registration {
@@ -75,6 +79,8 @@ pub(crate) struct Registrar {
     heres: Vec<usize>,
     /// As `counts`, only the cells whose move is seen (see `register`).
     seen_counts: Vec<[u32; SLOTS]>,
+    /// Per past frame, the counted cells of the cluster that were seen free then.
+    entered: [u32; SLOTS],
     counts: Vec<[u32; SLOTS]>,
     /// Patch geometry of the last cluster: width, first column and row (radius included).
     patch_origin: (usize, i64, i64),
@@ -190,6 +196,15 @@ impl Registrar {
             }
         }
 
+        self.entered = [0; SLOTS];
+        for chunk in self.heres.chunks(255) {
+            let mut lanes = 0u64;
+            for &here in chunk {
+                lanes += SPREAD[usize::from(self.free[here])];
+            }
+            flush(&mut lanes, &mut self.entered);
+        }
+
         let zero = (radius * side + radius) as usize;
         let needed = (params.match_fraction * f64::from(counted)).max(1.0);
         let margin = (params.shift_margin_fraction * f64::from(counted))
@@ -201,6 +216,10 @@ impl Registrar {
         // Whether every frame kept so far read zero only for want of margin: a non-zero shift
         // explained more of the cluster, not clearly more (see below).
         let mut unresolved = true;
+        // The slot and time span of each frame in the fit, newest first.
+        let mut fitted = [(0usize, 0.0f64); SLOTS];
+        // Whether the cluster matched the newest frame (it was seen there, as it is now).
+        let mut matched_newest = false;
         for frames_back in 1..=params.history_frames {
             let Some((bit, then_s)) = history.frame_back(frames_back) else {
                 break;
@@ -222,13 +241,23 @@ impl Registrar {
                 }
             }
             let n_zero = self.counts[zero][slot];
+            if frames_back == 1 {
+                matched_newest = f64::from(best.0) >= needed;
+            }
             // A non-zero shift must explain the cluster clearly better than none, and its
             // move must be seen on at least `margin` cells: where neither the cells left nor
             // the cells entered were seen, the match may be a change of what is visible (a
-            // parked car whose visible part slides as the ego passes), not a move.
+            // parked car whose visible part slides as the ego passes), not a move. Except
+            // for a cluster of `UNSEEN_MOVE_MIN_CELLS` or more, matched in the newest frame,
+            // shifted two cells or more: a car passing side-on at range, where no ray crosses
+            // the road around it (a planar scanner's rays that return nothing mark nothing
+            // free), cannot show its move as seen. A small cluster matches a shift by chance,
+            // and one missing from the newest frame is a structure seen in parts.
             let seen =
                 self.seen_counts[((best.2 + radius) * side + best.1 + radius) as usize][slot];
-            let clear = best.0 >= n_zero + margin && seen >= margin;
+            let long_shift = best.1 * best.1 + best.2 * best.2 >= 4;
+            let counts_suffice = counted >= UNSEEN_MOVE_MIN_CELLS && matched_newest && long_shift;
+            let clear = best.0 >= n_zero + margin && (seen >= margin || counts_suffice);
             let (matched, dx, dy) = if clear { best } else { (n_zero, 0, 0) };
             if f64::from(matched) < needed {
                 continue;
@@ -238,18 +267,30 @@ impl Registrar {
             // frames and a long one against older ones); keep the newer frames only. Unless
             // the newer frames could not tell: a face sliding along itself (a car passing
             // side-on) matches itself at zero shift but for its ends, and a shift explains
-            // only those few cells more until it has grown over the older frames.
+            // only those few cells more until it has grown over the older frames. They could
+            // not tell when (a) every one read zero only for want of margin, or some of the
+            // cluster's cells were seen free in one of them (it entered space seen empty: a
+            // stopped object does not), and (b) none is explained better by zero than by the
+            // move this frame's shift predicts for it: a car that stopped matches its newer
+            // frames exactly at zero, its predicted move leaves its ends unmatched.
             if frames > 0 {
                 let off_x = dx as f64 - sum_dt_x / sum_tt * span_s;
                 let off_y = dy as f64 - sum_dt_y / sum_tt * span_s;
                 if off_x.abs().max(off_y.abs()) > CHANGE_CELLS {
-                    if !(clear && unresolved) {
+                    let newer = &fitted[..frames];
+                    let undecided =
+                        unresolved || newer.iter().any(|&(slot, _)| self.entered[slot] > 0);
+                    let restart = clear
+                        && undecided
+                        && !self.zero_fits_better(newer, (dx, dy), span_s, radius);
+                    if !restart {
                         break;
                     }
                     (sum_dt_x, sum_dt_y, sum_tt, sum_t, frames) = (0.0, 0.0, 0.0, 0.0, 0);
                 }
             }
             unresolved &= !clear && best.0 > n_zero;
+            fitted[frames] = (slot, span_s);
             sum_dt_x += dx as f64 * span_s;
             sum_dt_y += dy as f64 * span_s;
             sum_tt += span_s * span_s;
@@ -267,6 +308,33 @@ impl Registrar {
             sum_span_sq: sum_tt,
             sum_span: sum_t,
             frames,
+        })
+    }
+}
+
+impl Registrar {
+    /// Whether one of the `newer` frames (slot, time span) is explained better by zero shift
+    /// than by the shift that `shift`, measured over `span_s`, predicts for it (after the
+    /// counts of the last `register`).
+    fn zero_fits_better(
+        &self,
+        newer: &[(usize, f64)],
+        shift: (i64, i64),
+        span_s: f64,
+        radius: i64,
+    ) -> bool {
+        let side = 2 * radius + 1;
+        let zero = (radius * side + radius) as usize;
+        newer.iter().any(|&(slot, newer_span_s)| {
+            let scale = newer_span_s / span_s;
+            let px = (shift.0 as f64 * scale).round() as i64;
+            let py = (shift.1 as f64 * scale).round() as i64;
+            // Always inside the radius: a newer frame's span is shorter.
+            let predicted = self
+                .counts
+                .get(((py + radius) * side + px + radius) as usize)
+                .map_or(0, |c| c[slot]);
+            self.counts[zero][slot] > predicted
         })
     }
 }
@@ -560,15 +628,15 @@ mod tests {
     fn a_static_side_whose_visible_part_slides_is_static() {
         let (window, params) = (window(), MotionParams::default());
         let mut history = OccupancyHistory::new(window.len());
-        // A parked car's side on row 5: columns 0-8 visible a frame ago, 4-12 now, 0-3 now
-        // hidden (not seen free). Shift 4 matches all nine cells, zero only five; but the
+        // A parked car's side on row 5: columns 0-5 visible a frame ago, 3-8 now, 0-2 now
+        // hidden (not seen free). Shift 3 matches all six cells, zero only three; but the
         // cells it would have come from are hidden now, and the new cells were not seen
         // free then: nothing shows a move.
         let side = |cols: std::ops::Range<i64>| cols.map(|c| (c, 5)).collect::<Vec<_>>();
-        history.push(&indices(&window, &side(0..9)), &[], 0.0);
-        let now = cells(&window, &side(4..13));
+        history.push(&indices(&window, &side(0..6)), &[], 0.0);
+        let now = cells(&window, &side(3..9));
         let mut clusters = Clusters::new(window.len());
-        clusters.label(&window, &indices(&window, &side(4..13)));
+        clusters.label(&window, &indices(&window, &side(3..9)));
         let no_free = vec![0.0; window.len()];
         let now_frame = Now {
             time_s: 0.1,
@@ -578,9 +646,9 @@ mod tests {
         };
         let found = Registrar::default().register(&now, &window, &history, now_frame, &params);
         assert!(found.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));
-        // Had columns 0-3 been seen empty now, the side would have moved.
+        // Had columns 0-2 been seen empty now, the side would have moved.
         let mut free = no_free.clone();
-        for idx in indices(&window, &side(0..4)) {
+        for idx in indices(&window, &side(0..3)) {
             free[idx as usize] = 0.7;
         }
         let seen = Now {
@@ -588,6 +656,102 @@ mod tests {
             ..now_frame
         };
         let moved = Registrar::default().register(&now, &window, &history, seen, &params);
-        assert!(moved.is_some_and(|r| (r.velocity_cells_per_s.0 - 40.0).abs() < 1e-9));
+        assert!(moved.is_some_and(|r| (r.velocity_cells_per_s.0 - 30.0).abs() < 1e-9));
+    }
+
+    #[test]
+    fn a_long_side_at_range_is_measured_on_the_counts_unless_it_was_missing_last_frame() {
+        let (window, params) = (window(), MotionParams::default());
+        // A car's side, ten cells on row 5, passing at two cells a frame where no ray crosses
+        // the road around it: nothing is ever seen free, so no move is seen.
+        let side = |first: i64| (first..first + 10).map(|c| (c, 5)).collect::<Vec<_>>();
+        let no_free = vec![0.0; window.len()];
+        let register = |history: &OccupancyHistory| {
+            let now = cells(&window, &side(8));
+            let mut clusters = Clusters::new(window.len());
+            clusters.label(&window, &indices(&window, &side(8)));
+            let frame = Now {
+                time_s: 0.3,
+                clusters: &clusters,
+                cluster: 0,
+                m_free: &no_free,
+            };
+            Registrar::default().register(&now, &window, history, frame, &params)
+        };
+        let mut history = OccupancyHistory::new(window.len());
+        for (k, first) in [2, 4, 6].into_iter().enumerate() {
+            history.push(&indices(&window, &side(first)), &[], 0.1 * k as f64);
+        }
+        // One frame back, shift 2 explains 10 cells and zero 8: not by the margin of 3. Two
+        // back, 10 against 6, on the counts alone; the newer frame could not tell.
+        let found = register(&history).unwrap_or_else(|| panic!("not registered"));
+        assert_eq!(found.frames, 1);
+        assert!(
+            (found.velocity_cells_per_s.0 - 20.0).abs() < 1e-9,
+            "{found:?}"
+        );
+        // The same side missing from the last frame (a structure seen in parts): its match
+        // further back is not taken without a seen move.
+        let mut gap = OccupancyHistory::new(window.len());
+        for (k, first) in [2, 4].into_iter().enumerate() {
+            gap.push(&indices(&window, &side(first)), &[], 0.1 * k as f64);
+        }
+        gap.push(&[], &[], 0.2);
+        let found = register(&gap);
+        assert!(
+            !found.is_some_and(|r| r.velocity_cells_per_s.0 != 0.0),
+            "{found:?}"
+        );
+    }
+
+    #[test]
+    fn newer_frames_that_cannot_tell_give_way_and_a_stop_does_not() {
+        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
+        let row = |cols: std::ops::Range<i64>| cols.map(|c| (c, 10)).collect::<Vec<_>>();
+        // A side of ten cells moving east a cell a frame, the road ahead of it seen free.
+        // The last frame saw only its front seven cells (the rest hidden): zero and a shift
+        // of one explain 7 each, a tie, and zero wins. But the cell the side entered since
+        // was seen free in that frame.
+        let mut history = OccupancyHistory::new(window.len());
+        for k in 0..8 {
+            let first = 10 + k;
+            let seen = if k == 7 {
+                first + 3..first + 10
+            } else {
+                first..first + 10
+            };
+            history.push(
+                &indices(&window, &row(seen)),
+                &indices(&window, &row(first + 10..36)),
+                0.1 * k as f64,
+            );
+        }
+        let now = cells(&window, &row(18..28));
+        let found = Registrar::default()
+            .register(&now, &window, &history, alone(0.8, &none), &params)
+            .unwrap_or_else(|| panic!("not registered"));
+        // Three cells in 0.3 s: the two newer frames predicted a shift of 1 and 2, which
+        // explain them as well as zero (7 = 7, 10 > 8).
+        assert_eq!(found.frames, 1);
+        assert!(
+            (found.velocity_cells_per_s.0 - 10.0).abs() < 1e-9,
+            "{found:?}"
+        );
+
+        // The same side stopped three frames ago: zero explains the newer frames exactly,
+        // the predicted shift leaves an end unmatched. The stop is kept.
+        let mut stopped = OccupancyHistory::new(window.len());
+        for (k, first) in [10, 11, 12, 13, 14, 15, 15, 15].into_iter().enumerate() {
+            stopped.push(
+                &indices(&window, &row(first..first + 10)),
+                &indices(&window, &row(first + 10..36)),
+                0.1 * k as f64,
+            );
+        }
+        let now = cells(&window, &row(15..25));
+        let found = Registrar::default()
+            .register(&now, &window, &stopped, alone(0.8, &none), &params)
+            .unwrap_or_else(|| panic!("not registered"));
+        assert_eq!(found.velocity_cells_per_s, (0.0, 0.0), "{found:?}");
     }
 }
