@@ -28,10 +28,6 @@ const CHANGE_CELLS: f64 = 1.5;
 /// Cells of a cluster counted at most: a long façade is sampled evenly.
 const MAX_COUNTED_CELLS: usize = 256;
 
-/// A cluster of at least this many counted cells, matched in the newest frame, may take a
-/// shift of two cells or more on the counts alone, without the seen test (see `register`).
-const UNSEEN_MOVE_MIN_CELLS: u32 = 8;
-
 /// A cluster's velocity measured against the past frames.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Registration {
@@ -218,8 +214,6 @@ impl Registrar {
         let mut unresolved = true;
         // The slot and time span of each frame in the fit, newest first.
         let mut fitted = [(0usize, 0.0f64); SLOTS];
-        // Whether the cluster matched the newest frame (it was seen there, as it is now).
-        let mut matched_newest = false;
         for frames_back in 1..=params.history_frames {
             let Some((bit, then_s)) = history.frame_back(frames_back) else {
                 break;
@@ -241,23 +235,13 @@ impl Registrar {
                 }
             }
             let n_zero = self.counts[zero][slot];
-            if frames_back == 1 {
-                matched_newest = f64::from(best.0) >= needed;
-            }
             // A non-zero shift must explain the cluster clearly better than none, and its
             // move must be seen on at least `margin` cells: where neither the cells left nor
             // the cells entered were seen, the match may be a change of what is visible (a
-            // parked car whose visible part slides as the ego passes), not a move. Except
-            // for a cluster of `UNSEEN_MOVE_MIN_CELLS` or more, matched in the newest frame,
-            // shifted two cells or more: a car passing side-on at range, where no ray crosses
-            // the road around it (a planar scanner's rays that return nothing mark nothing
-            // free), cannot show its move as seen. A small cluster matches a shift by chance,
-            // and one missing from the newest frame is a structure seen in parts.
+            // parked car whose visible part slides as the ego passes), not a move.
             let seen =
                 self.seen_counts[((best.2 + radius) * side + best.1 + radius) as usize][slot];
-            let long_shift = best.1 * best.1 + best.2 * best.2 >= 4;
-            let counts_suffice = counted >= UNSEEN_MOVE_MIN_CELLS && matched_newest && long_shift;
-            let clear = best.0 >= n_zero + margin && (seen >= margin || counts_suffice);
+            let clear = best.0 >= n_zero + margin && seen >= margin;
             let (matched, dx, dy) = if clear { best } else { (n_zero, 0, 0) };
             if f64::from(matched) < needed {
                 continue;
@@ -312,6 +296,22 @@ impl Registrar {
     }
 }
 
+impl Registration {
+    /// Variance per axis of the velocity, (cells/s)², for shifts of standard deviation
+    /// `shift_sigma_cells` against one past frame.
+    ///
+    /// A shift d_k = x_now − x_k is quantised at both ends: e_now − e_k, each end of variance
+    /// σ²/2. The error e_now of this frame is the same in every d_k, so the frames are not
+    /// independent: the slope Σ d_k τ_k / Σ τ_k² has variance
+    /// σ²/2 · ((Σ τ_k)² / (Σ τ_k²)² + 1 / Σ τ_k²), which is σ² / τ² for one frame but
+    /// shrinks far less with more frames than σ² / Σ τ_k² would say. A slow object that shows
+    /// no whole-cell shift over a few tenths of a second is not known to stand still.
+    pub(crate) fn variance_cells(&self, shift_sigma_cells: f64) -> f64 {
+        let common = self.sum_span * self.sum_span / (self.sum_span_sq * self.sum_span_sq);
+        0.5 * shift_sigma_cells * shift_sigma_cells * (common + 1.0 / self.sum_span_sq)
+    }
+}
+
 impl Registrar {
     /// Whether one of the `newer` frames (slot, time span) is explained better by zero shift
     /// than by the shift that `shift`, measured over `span_s`, predicts for it (after the
@@ -337,25 +337,7 @@ impl Registrar {
             self.counts[zero][slot] > predicted
         })
     }
-}
 
-impl Registration {
-    /// Variance per axis of the velocity, (cells/s)², for shifts of standard deviation
-    /// `shift_sigma_cells` against one past frame.
-    ///
-    /// A shift d_k = x_now − x_k is quantised at both ends: e_now − e_k, each end of variance
-    /// σ²/2. The error e_now of this frame is the same in every d_k, so the frames are not
-    /// independent: the slope Σ d_k τ_k / Σ τ_k² has variance
-    /// σ²/2 · ((Σ τ_k)² / (Σ τ_k²)² + 1 / Σ τ_k²), which is σ² / τ² for one frame but
-    /// shrinks far less with more frames than σ² / Σ τ_k² would say. A slow object that shows
-    /// no whole-cell shift over a few tenths of a second is not known to stand still.
-    pub(crate) fn variance_cells(&self, shift_sigma_cells: f64) -> f64 {
-        let common = self.sum_span * self.sum_span / (self.sum_span_sq * self.sum_span_sq);
-        0.5 * shift_sigma_cells * shift_sigma_cells * (common + 1.0 / self.sum_span_sq)
-    }
-}
-
-impl Registrar {
     /// After the last registration, whether one of its cells may have moved: false for a cell
     /// that was occupied in the oldest frame used and is not explained by the shift found
     /// there (a static object merged into a moving one's cluster, such as a car waiting
@@ -628,15 +610,15 @@ mod tests {
     fn a_static_side_whose_visible_part_slides_is_static() {
         let (window, params) = (window(), MotionParams::default());
         let mut history = OccupancyHistory::new(window.len());
-        // A parked car's side on row 5: columns 0-5 visible a frame ago, 3-8 now, 0-2 now
-        // hidden (not seen free). Shift 3 matches all six cells, zero only three; but the
+        // A parked car's side on row 5: columns 0-8 visible a frame ago, 4-12 now, 0-3 now
+        // hidden (not seen free). Shift 4 matches all nine cells, zero only five; but the
         // cells it would have come from are hidden now, and the new cells were not seen
         // free then: nothing shows a move.
         let side = |cols: std::ops::Range<i64>| cols.map(|c| (c, 5)).collect::<Vec<_>>();
-        history.push(&indices(&window, &side(0..6)), &[], 0.0);
-        let now = cells(&window, &side(3..9));
+        history.push(&indices(&window, &side(0..9)), &[], 0.0);
+        let now = cells(&window, &side(4..13));
         let mut clusters = Clusters::new(window.len());
-        clusters.label(&window, &indices(&window, &side(3..9)));
+        clusters.label(&window, &indices(&window, &side(4..13)));
         let no_free = vec![0.0; window.len()];
         let now_frame = Now {
             time_s: 0.1,
@@ -646,9 +628,9 @@ mod tests {
         };
         let found = Registrar::default().register(&now, &window, &history, now_frame, &params);
         assert!(found.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));
-        // Had columns 0-2 been seen empty now, the side would have moved.
+        // Had columns 0-3 been seen empty now, the side would have moved.
         let mut free = no_free.clone();
-        for idx in indices(&window, &side(0..3)) {
+        for idx in indices(&window, &side(0..4)) {
             free[idx as usize] = 0.7;
         }
         let seen = Now {
@@ -656,52 +638,7 @@ mod tests {
             ..now_frame
         };
         let moved = Registrar::default().register(&now, &window, &history, seen, &params);
-        assert!(moved.is_some_and(|r| (r.velocity_cells_per_s.0 - 30.0).abs() < 1e-9));
-    }
-
-    #[test]
-    fn a_long_side_at_range_is_measured_on_the_counts_unless_it_was_missing_last_frame() {
-        let (window, params) = (window(), MotionParams::default());
-        // A car's side, ten cells on row 5, passing at two cells a frame where no ray crosses
-        // the road around it: nothing is ever seen free, so no move is seen.
-        let side = |first: i64| (first..first + 10).map(|c| (c, 5)).collect::<Vec<_>>();
-        let no_free = vec![0.0; window.len()];
-        let register = |history: &OccupancyHistory| {
-            let now = cells(&window, &side(8));
-            let mut clusters = Clusters::new(window.len());
-            clusters.label(&window, &indices(&window, &side(8)));
-            let frame = Now {
-                time_s: 0.3,
-                clusters: &clusters,
-                cluster: 0,
-                m_free: &no_free,
-            };
-            Registrar::default().register(&now, &window, history, frame, &params)
-        };
-        let mut history = OccupancyHistory::new(window.len());
-        for (k, first) in [2, 4, 6].into_iter().enumerate() {
-            history.push(&indices(&window, &side(first)), &[], 0.1 * k as f64);
-        }
-        // One frame back, shift 2 explains 10 cells and zero 8: not by the margin of 3. Two
-        // back, 10 against 6, on the counts alone; the newer frame could not tell.
-        let found = register(&history).unwrap_or_else(|| panic!("not registered"));
-        assert_eq!(found.frames, 1);
-        assert!(
-            (found.velocity_cells_per_s.0 - 20.0).abs() < 1e-9,
-            "{found:?}"
-        );
-        // The same side missing from the last frame (a structure seen in parts): its match
-        // further back is not taken without a seen move.
-        let mut gap = OccupancyHistory::new(window.len());
-        for (k, first) in [2, 4].into_iter().enumerate() {
-            gap.push(&indices(&window, &side(first)), &[], 0.1 * k as f64);
-        }
-        gap.push(&[], &[], 0.2);
-        let found = register(&gap);
-        assert!(
-            !found.is_some_and(|r| r.velocity_cells_per_s.0 != 0.0),
-            "{found:?}"
-        );
+        assert!(moved.is_some_and(|r| (r.velocity_cells_per_s.0 - 40.0).abs() < 1e-9));
     }
 
     #[test]
