@@ -75,8 +75,6 @@ pub(crate) struct Registrar {
     heres: Vec<usize>,
     /// As `counts`, only the cells whose move is seen (see `register`).
     seen_counts: Vec<[u32; SLOTS]>,
-    /// Per past frame, the counted cells of the cluster that were seen free then.
-    entered: [u32; SLOTS],
     counts: Vec<[u32; SLOTS]>,
     /// Patch geometry of the last cluster: width, first column and row (radius included).
     patch_origin: (usize, i64, i64),
@@ -192,15 +190,6 @@ impl Registrar {
             }
         }
 
-        self.entered = [0; SLOTS];
-        for chunk in self.heres.chunks(255) {
-            let mut lanes = 0u64;
-            for &here in chunk {
-                lanes += SPREAD[usize::from(self.free[here])];
-            }
-            flush(&mut lanes, &mut self.entered);
-        }
-
         let zero = (radius * side + radius) as usize;
         let needed = (params.match_fraction * f64::from(counted)).max(1.0);
         let margin = (params.shift_margin_fraction * f64::from(counted))
@@ -262,8 +251,9 @@ impl Registrar {
                 let off_y = dy as f64 - sum_dt_y / sum_tt * span_s;
                 if off_x.abs().max(off_y.abs()) > CHANGE_CELLS {
                     let newer = &fitted[..frames];
+                    let newer_bits = newer.iter().fold(0u8, |bits, &(slot, _)| bits | 1 << slot);
                     let undecided =
-                        unresolved || newer.iter().any(|&(slot, _)| self.entered[slot] > 0);
+                        unresolved || self.heres.iter().any(|&h| self.free[h] & newer_bits != 0);
                     let restart = clear
                         && undecided
                         && !self.zero_fits_better(newer, (dx, dy), span_s, radius);
@@ -399,6 +389,21 @@ mod tests {
         }
     }
 
+    /// Frames 0.1 s apart of a side on row 10: each frame's visible columns occupied, the road
+    /// ahead of them (to the window's edge) seen free.
+    fn side_history(window: &Window, sides: &[std::ops::Range<i64>]) -> OccupancyHistory {
+        let row = |cols: std::ops::Range<i64>| cols.map(|c| (c, 10)).collect::<Vec<_>>();
+        let mut history = OccupancyHistory::new(window.len());
+        for (k, side) in sides.iter().enumerate() {
+            history.push(
+                &indices(window, &row(side.clone())),
+                &indices(window, &row(side.end..40)),
+                0.1 * k as f64,
+            );
+        }
+        history
+    }
+
     fn window() -> Window {
         Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"))
     }
@@ -527,20 +532,13 @@ mod tests {
     #[test]
     fn a_face_sliding_along_itself_is_measured_on_the_older_frames_that_resolve_it() {
         let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
-        let mut history = OccupancyHistory::new(window.len());
         // The side of a car passing side-on: ten cells on row 10 moving east one cell a frame,
         // the cells ahead of it seen free. Against the last two frames zero shift explains
         // 9 and 8 of 10, the true shift 10: more, not by the margin of ⌈0.25 · 10⌉ = 3.
         // Three frames back it is 7 against 10, and the cells entered were seen free then.
         let face = |first: i64| (first..first + 10).map(|c| (c, 10)).collect::<Vec<_>>();
-        for k in 0..8 {
-            let ahead: Vec<(i64, i64)> = (10 + k + 10..36).map(|c| (c, 10)).collect();
-            history.push(
-                &indices(&window, &face(10 + k)),
-                &indices(&window, &ahead),
-                0.1 * k as f64,
-            );
-        }
+        let sides: Vec<_> = (10..18).map(|first| first..first + 10).collect();
+        let history = side_history(&window, &sides);
         let now = cells(&window, &face(18));
         let found = Registrar::default()
             .register(&now, &window, &history, alone(0.8, &none), &params)
@@ -649,20 +647,9 @@ mod tests {
         // The last frame saw only its front seven cells (the rest hidden): zero and a shift
         // of one explain 7 each, a tie, and zero wins. But the cell the side entered since
         // was seen free in that frame.
-        let mut history = OccupancyHistory::new(window.len());
-        for k in 0..8 {
-            let first = 10 + k;
-            let seen = if k == 7 {
-                first + 3..first + 10
-            } else {
-                first..first + 10
-            };
-            history.push(
-                &indices(&window, &row(seen)),
-                &indices(&window, &row(first + 10..36)),
-                0.1 * k as f64,
-            );
-        }
+        let mut sides: Vec<_> = (10..17).map(|first| first..first + 10).collect();
+        sides.push(20..27);
+        let history = side_history(&window, &sides);
         let now = cells(&window, &row(18..28));
         let found = Registrar::default()
             .register(&now, &window, &history, alone(0.8, &none), &params)
@@ -677,14 +664,11 @@ mod tests {
 
         // The same side stopped three frames ago: zero explains the newer frames exactly,
         // the predicted shift leaves an end unmatched. The stop is kept.
-        let mut stopped = OccupancyHistory::new(window.len());
-        for (k, first) in [10, 11, 12, 13, 14, 15, 15, 15].into_iter().enumerate() {
-            stopped.push(
-                &indices(&window, &row(first..first + 10)),
-                &indices(&window, &row(first + 10..36)),
-                0.1 * k as f64,
-            );
-        }
+        let sides: Vec<_> = [10, 11, 12, 13, 14, 15, 15, 15]
+            .into_iter()
+            .map(|first| first..first + 10)
+            .collect();
+        let stopped = side_history(&window, &sides);
         let now = cells(&window, &row(15..25));
         let found = Registrar::default()
             .register(&now, &window, &stopped, alone(0.8, &none), &params)
