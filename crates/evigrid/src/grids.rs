@@ -412,6 +412,10 @@ pub struct SensorGrid {
     /// block's planes (a scan reaches a few percent of a large window). Writes through
     /// [`SensorGrid::m_free_mut`] and [`SensorGrid::m_occupied_mut`] set every block.
     may_hold_mass: Vec<bool>,
+    /// Cells the scan saw empty that SPEC §3 leaves vacuous: along the rays of a planar
+    /// scanner's sectors whose return lies beyond `max_range_m`, up to that range. Not mass;
+    /// the motion stage's seen tests read them. May repeat a cell.
+    clear_cells: Vec<u32>,
 }
 
 /// Equal grids hold equal masses; `may_hold_mass` is only a note on how they were written.
@@ -433,6 +437,7 @@ impl SensorGrid {
             m_free: vec![0.0; len],
             m_occupied: vec![0.0; len],
             may_hold_mass: vec![false; len.div_ceil(CELLS_PER_BLOCK)],
+            clear_cells: Vec::new(),
         }
     }
 
@@ -443,7 +448,8 @@ impl SensorGrid {
 
     /// Bytes of the grid's heap storage (what the memory budget counts).
     pub fn heap_bytes(&self) -> usize {
-        4 * (self.m_free.capacity() + self.m_occupied.capacity()) + self.may_hold_mass.capacity()
+        4 * (self.m_free.capacity() + self.m_occupied.capacity() + self.clear_cells.capacity())
+            + self.may_hold_mass.capacity()
     }
 
     /// True for a grid without cells.
@@ -496,6 +502,18 @@ impl SensorGrid {
             + std::mem::size_of_val(self.may_hold_mass.as_slice())
     }
 
+    /// Storage indices of the cells the scan saw empty beyond the sensor model's range limit
+    /// (see the field); they hold no mass.
+    pub fn clear_cells(&self) -> &[u32] {
+        &self.clear_cells
+    }
+
+    /// Notes a cell seen empty that gets no mass.
+    #[inline]
+    pub(crate) fn push_clear(&mut self, idx: usize) {
+        self.clear_cells.push(idx as u32);
+    }
+
     /// Per block of 64 cells, whether a cell may hold sensor mass (false: all its masses are 0).
     pub(crate) fn may_hold_mass(&self) -> &[bool] {
         &self.may_hold_mass
@@ -511,6 +529,7 @@ impl SensorGrid {
                 .for_each(|chunk| chunk.fill(0.0));
         }
         self.may_hold_mass.fill(false);
+        self.clear_cells.clear();
     }
 }
 

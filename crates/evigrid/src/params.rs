@@ -382,6 +382,17 @@ pub struct SensorParams {
     /// Returns farther than this are ignored, metres. By default 60 m (provisional, to be tuned on
     /// the benchmark).
     pub max_range_m: f64,
+    /// With a planar scanner (`ground_model = "none"`), the directions in which the scan met
+    /// nothing within `max_range_m` are seen empty up to that range: a sector whose return lies
+    /// beyond it, and a run of sectors without any return inside the scanner's field of view
+    /// (a gap between sectors with returns, except the widest, which is where the scanner does
+    /// not look; at least two sectors and three of the scan's mean ray spacings wide). These
+    /// cells get no mass (SPEC §3 leaves them vacuous): only the motion stage's seen tests read
+    /// them ([`crate::SensorGrid::clear_cells`]), so that a car sliding sideways 50 m off, with
+    /// open road behind it, is seen to leave its cells. By default true (docs/motion.md,
+    /// "Seen empty without a return"); false for a scanner whose rays go unanswered within range
+    /// (dark or glossy surfaces), where a gap is not empty space.
+    pub empty_without_return: bool,
     /// How returns are split into obstacle and ground points: `"local"` (3-D lidar: a local
     /// ground height per polar cell, `[sensor.ground]`), `"plane"` (3-D lidar: one ground plane
     /// per scan) or `"none"` (planar or multi-layer scanner: every return is an obstacle). By
@@ -426,6 +437,7 @@ impl Default for SensorParams {
             max_obstacle_height_m: 2.5,
             min_neighbourhood_returns: 4,
             max_range_m: 60.0,
+            empty_without_return: true,
             ground_model: GroundModel::Local,
             ground_band_m: 0.2,
             min_range_m: 2.0,

@@ -155,3 +155,49 @@ fn an_object_appearing_in_space_seen_free_gets_moving_evidence_at_once() {
         }
     }
 }
+
+/// The scanner looks ahead (east, ±90°) down a street between two walls 18 m to either side;
+/// beyond 40 m the street is open, and a beam that meets nothing returns nothing.
+fn street_scan(boxes: &[Aabb]) -> Vec<[f32; 3]> {
+    scan(boxes).into_iter().filter(|p| p[0] > 0.0).collect()
+}
+
+#[test]
+fn a_car_crossing_open_space_is_seen_to_leave_its_cells() {
+    // A car side-on 20 m ahead, crossing the street northwards at 10 m/s: its visible side
+    // slides along itself, so the shift that explains it best beats zero only by the cells at
+    // its ends, and no ray returned from behind it to show them empty (the open end of the
+    // street). The beams that returned nothing show them empty: moving.
+    const WALLS: [Aabb; 2] = [[-18.7, 18.2, 40.0, 18.7], [-18.7, -18.7, 40.0, -18.2]];
+    let run = |empty_without_return: bool| {
+        let mut params = Params::default();
+        (params.window.width_cells, params.window.height_cells) = (120, 120);
+        params.sensor.ground_model = GroundModel::None;
+        params.sensor.empty_without_return = empty_without_return;
+        let mut front_end = FrontEnd::new(&params, None).unwrap();
+        let mut evigrid = Fusion::with_method(params, Prior::Map, Method::Evigrid).unwrap();
+        let mut decided_moving = Vec::new();
+        for k in 0..8 {
+            let centre_m = -3.5 + 10.0 * DT_S * k as f64;
+            let mut boxes = WALLS.to_vec();
+            boxes.push([20.2, centre_m - 2.25, 22.0, centre_m + 2.25]);
+            front_end
+                .process(&street_scan(&boxes), &Isometry3::IDENTITY, DT_S * k as f64)
+                .unwrap();
+            evigrid.update(&front_end).unwrap();
+            let window = front_end.window();
+            let side = window.storage_index_of_point(20.3, centre_m).unwrap();
+            decided_moving.push(evigrid.decisions()[side] == Label::M);
+            for (x, y) in [(10.3, 18.3), (25.3, -18.3)] {
+                let wall = window.storage_index_of_point(x, y).unwrap();
+                assert_ne!(evigrid.decisions()[wall], Label::M, "frame {k} ({x}, {y})");
+            }
+        }
+        decided_moving
+    };
+    let seen = run(true);
+    assert!(seen[4..].iter().all(|&m| m), "{seen:?}");
+    // Without: the move is never seen, and the car is never decided moving.
+    let unseen = run(false);
+    assert!(unseen.iter().all(|&m| !m), "{unseen:?}");
+}

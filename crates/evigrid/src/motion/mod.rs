@@ -142,8 +142,12 @@ pub struct MotionStage {
     tracks: Tracks,
     observations: Vec<Observation>,
     occupied: Vec<u32>,
-    /// The scan's cells crossed by a ray without a return.
+    /// The scan's cells crossed by a ray without a return, and the cells it saw empty beyond
+    /// the sensor model's range ([`SensorGrid::clear_cells`]).
     free: Vec<u32>,
+    /// Per cell, whether it is among this frame's clear cells (reset through `clear_list`).
+    clear_now: Vec<bool>,
+    clear_list: Vec<u32>,
     /// Per cell of the clusters, in cluster order: whether it may have moved
     /// (`Registrar::moved`).
     moved: Vec<bool>,
@@ -178,6 +182,8 @@ impl MotionStage {
             observations: Vec::new(),
             occupied: Vec::new(),
             free: Vec::new(),
+            clear_now: vec![false; len],
+            clear_list: Vec::new(),
             moved: Vec::new(),
             gis: GisGrid::new(width, height),
             velocity_east: vec![0.0; len],
@@ -296,6 +302,24 @@ impl MotionStage {
                 }
             }
         }
+        for &idx in &self.clear_list {
+            if let Some(c) = self.clear_now.get_mut(idx as usize) {
+                *c = false;
+            }
+        }
+        self.clear_list.clear();
+        for &idx in sensor.clear_cells() {
+            let i = idx as usize;
+            if let Some(c) = self.clear_now.get_mut(i)
+                && !*c
+                && m_free.get(i) == Some(&0.0)
+                && m_occupied.get(i) == Some(&0.0)
+            {
+                *c = true;
+                self.clear_list.push(idx);
+                self.free.push(idx);
+            }
+        }
 
         // 2-3. Clusters, each registered against the past frames: independent searches, run
         // in parallel over a few contiguous runs of clusters of about equal cell counts, each
@@ -316,6 +340,7 @@ impl MotionStage {
         {
             let (clusters, history, params) = (&self.clusters, &self.history, &self.params);
             let m_free = sensor.m_free();
+            let clear_now = &self.clear_now[..];
             let mut runs = Vec::with_capacity(parts);
             let (mut moved, mut registrations) = (&mut self.moved[..], &mut self.registrations[..]);
             let mut registrars = self.registrars.iter_mut();
@@ -347,6 +372,7 @@ impl MotionStage {
                             clusters,
                             cluster: k as u32,
                             m_free,
+                            clear_now,
                         };
                         *slot = registrar.register(cells, window, history, now, params);
                         for (flag, c) in run_moved[first..first + cells.len()].iter_mut().zip(cells)

@@ -60,6 +60,8 @@ pub(crate) struct Now<'a> {
     pub(crate) cluster: u32,
     /// m(F) of the frame's SensorGrid: where rays crossed.
     pub(crate) m_free: &'a [f32],
+    /// Cells seen empty beyond the sensor model's range ([`crate::SensorGrid::clear_cells`]).
+    pub(crate) clear_now: &'a [bool],
 }
 
 /// Scratch buffers of the search, kept between clusters and frames.
@@ -140,7 +142,9 @@ impl Registrar {
                     Some(_) => self.patch[p] = history.bits(idx),
                     None => {
                         self.patch[p] = history.bits(idx);
-                        if now.m_free.get(idx).is_some_and(|&f| f > 0.0) {
+                        if now.m_free.get(idx).is_some_and(|&f| f > 0.0)
+                            || now.clear_now.get(idx) == Some(&true)
+                        {
                             self.left[p] = 0xff;
                         }
                     }
@@ -386,6 +390,7 @@ mod tests {
             clusters: none,
             cluster: 0,
             m_free: &ALL_FREE,
+            clear_now: &[],
         }
     }
 
@@ -597,6 +602,7 @@ mod tests {
             clusters: &clusters,
             cluster: own,
             m_free: &ALL_FREE,
+            clear_now: &[],
         };
         assert_eq!(
             registrar.register(&a, &window, &history, now, &params),
@@ -623,6 +629,7 @@ mod tests {
             clusters: &clusters,
             cluster: 0,
             m_free: &no_free,
+            clear_now: &[],
         };
         let found = Registrar::default().register(&now, &window, &history, now_frame, &params);
         assert!(found.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));
@@ -633,6 +640,17 @@ mod tests {
         }
         let seen = Now {
             m_free: &free,
+            ..now_frame
+        };
+        let moved = Registrar::default().register(&now, &window, &history, seen, &params);
+        assert!(moved.is_some_and(|r| (r.velocity_cells_per_s.0 - 40.0).abs() < 1e-9));
+        // Or seen empty by rays that met nothing within range (no mass on them).
+        let mut clear = vec![false; window.len()];
+        for idx in indices(&window, &side(0..4)) {
+            clear[idx as usize] = true;
+        }
+        let seen = Now {
+            clear_now: &clear,
             ..now_frame
         };
         let moved = Registrar::default().register(&now, &window, &history, seen, &params);

@@ -36,7 +36,7 @@ use serde::Serialize;
 use crate::grids::SensorGrid;
 use crate::params::SensorParams;
 use crate::window::Window;
-use classify::{CLASSIFY_CHUNK, Classified, PointClassifier, horizontal_range};
+use classify::{CLASSIFY_CHUNK, Classified, PointClassifier, horizontal_range, sector_of};
 use ray::walk_ray;
 use stray::StrayFilter;
 
@@ -85,6 +85,10 @@ pub struct SensorModel {
     obstacle_range: Vec<f64>,
     /// Horizontal range of the farthest ground return per sector (0 if none).
     ground_range: Vec<f64>,
+    /// Per sector, whether a return lay beyond `max_range_m` (planar scanners).
+    beyond_range: Vec<bool>,
+    /// Per sector, whether any return lay in it (planar scanners).
+    any_return: Vec<bool>,
     /// What each chunk of the current scan's points gave, in point order; kept between scans
     /// so that the chunks' buffers are not allocated again.
     classified: Vec<Classified>,
@@ -113,6 +117,8 @@ impl SensorModel {
             levelled: Vec::new(),
             obstacle_range: Vec::new(),
             ground_range: Vec::new(),
+            beyond_range: Vec::new(),
+            any_return: Vec::new(),
             classified: Vec::new(),
             stray: StrayFilter::default(),
             plane_fitter: ground::PlaneFitter::default(),
@@ -161,6 +167,17 @@ impl SensorModel {
             return stats;
         }
         let (min_range_m, max_range_m) = (self.params.min_range_m, self.params.max_range_m);
+        let sectors = self.sector_count();
+        let sectors_per_radian = sectors as f64 / std::f64::consts::TAU;
+        // A planar scanner's ray that returned beyond the range limit, or not at all, crossed
+        // the whole range without meeting an obstacle (a 3-D lidar's beam may pass over one).
+        let note_empty =
+            self.params.ground_model == GroundModel::None && self.params.empty_without_return;
+        let mut returns = 0usize;
+        self.beyond_range.clear();
+        self.beyond_range.resize(sectors, false);
+        self.any_return.clear();
+        self.any_return.resize(sectors, false);
         // Levelled frame: rotate only, so that heights and ranges are metric and small numbers
         // keep full precision whatever the map's origin.
         self.levelled.clear();
@@ -171,7 +188,14 @@ impl SensorModel {
             }
             let q = world_from_sensor.rotate([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]);
             let range_m = horizontal_range(q);
+            if note_empty {
+                self.any_return[sector_of(q, sectors_per_radian, sectors)] = true;
+                returns += 1;
+            }
             if !(min_range_m..=max_range_m).contains(&range_m) {
+                if note_empty && range_m > max_range_m {
+                    self.beyond_range[sector_of(q, sectors_per_radian, sectors)] = true;
+                }
                 stats.dropped_out_of_range += 1;
                 continue;
             }
@@ -211,9 +235,7 @@ impl SensorModel {
             }
         };
 
-        let sectors = self.sector_count();
         let sector_width = std::f64::consts::TAU / sectors as f64;
-        let sectors_per_radian = sectors as f64 / std::f64::consts::TAU;
         // Points are classified in fixed chunks, in parallel, and the chunks merged in order:
         // ranges by min/max, cells in point order, so the result does not depend on the number
         // of threads.
@@ -333,9 +355,83 @@ impl SensorModel {
             out.set_free(idx, 0.0);
             out.set_occupied(idx, mu_occupied);
         }
+        // Sectors whose rays met nothing within the range limit: seen empty up to it, outside
+        // the SensorGrid's mass (SPEC §3 leaves them vacuous).
+        if note_empty {
+            mark_gaps(&self.any_return, returns, &mut self.beyond_range);
+        }
+        for s in 0..sectors {
+            if !note_empty || !self.beyond_range[s] || self.obstacle_range[s].is_finite() {
+                continue;
+            }
+            let rays = ((max_range_m * sector_width / cell_size_m).ceil() as usize).clamp(1, 4096);
+            let first_angle = -std::f64::consts::PI + s as f64 * sector_width;
+            for k in 0..rays {
+                let angle = first_angle + (k as f64 + 0.5) * sector_width / rays as f64;
+                walk_ray(
+                    window,
+                    origin,
+                    angle.sin_cos(),
+                    max_range_m / cell_size_m,
+                    true,
+                    |idx| {
+                        if out.m_free()[idx] == 0.0 && out.m_occupied()[idx] == 0.0 {
+                            out.push_clear(idx);
+                        }
+                    },
+                );
+            }
+        }
         stats.free_cells = free_cells;
         stats.occupied_cells = occupied_cells;
         stats
+    }
+}
+
+/// Marks in `clear` the runs of sectors without a return inside the scanner's field of view.
+///
+/// The longest run is the part of the circle the scanner does not cover (a 360° scanner's
+/// longest gap is left out too: a loss, not an error). A run between two returns is a gap in
+/// which rays went out and met nothing, unless the rays themselves are that far apart: it must
+/// span two sectors and three mean ray spacings, the spacing taken as the field of view over the
+/// `returns` (an upper bound in a scan that lost rays to open space, so the rule only grows
+/// stricter there).
+fn mark_gaps(any_return: &[bool], returns: usize, clear: &mut [bool]) {
+    let n = any_return.len();
+    let Some(start) = any_return.iter().position(|&r| r) else {
+        return;
+    };
+    // Runs of empty sectors, walking the circle from a sector with a return.
+    let mut runs = Vec::new();
+    let mut k = 0;
+    while k < n {
+        let s = (start + k) % n;
+        if any_return[s] {
+            k += 1;
+            continue;
+        }
+        let first = k;
+        while k < n && !any_return[(start + k) % n] {
+            k += 1;
+        }
+        runs.push((first, k - first));
+    }
+    let longest = runs.iter().map(|r| r.1).max().unwrap_or(0);
+    // Returns per sector of the field of view; a real gap spans three ray spacings.
+    let density = returns as f64 / (n - longest).max(1) as f64;
+    let min_run = (3.0 / density).ceil().max(2.0);
+    let mut skipped = false;
+    for &(first, len) in &runs {
+        if len == longest && !skipped {
+            skipped = true;
+            continue;
+        }
+        if (len as f64) < min_run {
+            continue;
+        }
+        for k in first..first + len {
+            clear[(start + k) % n] = true;
+        }
     }
 }
 

@@ -551,3 +551,103 @@ fn the_local_ground_model_calls_fewer_ground_cells_occupied_than_the_plane() {
     assert!(occupied[1] * 100 <= occupied[0] * 85, "{occupied:?}");
     assert!(lane_occupied[1] <= lane_occupied[0], "{lane_occupied:?}");
 }
+
+/// The cells of `grid`'s clear list, as (column, row) of the small window.
+fn clear_cells(window: &Window, grid: &SensorGrid) -> std::collections::BTreeSet<(i64, i64)> {
+    let mut cells = std::collections::BTreeSet::new();
+    for col in -10..=10 {
+        for row in -10..=10 {
+            let idx = window.storage_index(col, row).unwrap() as u32;
+            if grid.clear_cells().contains(&idx) {
+                cells.insert((col, row));
+            }
+        }
+    }
+    cells
+}
+
+#[test]
+fn a_planar_ray_that_returns_beyond_the_range_sees_empty_cells_without_mass() {
+    let window = small_window();
+    let mut grid = SensorGrid::new(21, 21);
+    let params = SensorParams {
+        max_range_m: 6.0,
+        ..planar_params()
+    };
+    // One return 20 m east (beyond the 6 m limit), one 4 m north.
+    let points = [[20.0, 0.2, 0.0], [0.2, 4.0, 0.0]];
+    let pose = Isometry3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
+    let mut model = SensorModel::new(params.clone());
+    model.build(&points, &pose, &window, &mut grid);
+    // East: the cells the ray left within 6 m, none beyond; no mass on any (SPEC §3). The
+    // sensor's own cell is free already (the north ray crossed it).
+    let east: Vec<_> = clear_cells(&window, &grid).into_iter().collect();
+    assert_eq!(east, (1..=5).map(|c| (c, 0)).collect::<Vec<_>>());
+    for col in 1..=6 {
+        assert_eq!(at(&window, grid.m_free(), col as f64 + 0.5, 0.5), 0.0);
+    }
+    // Off, or with a 3-D lidar's ground model (its beam may pass over an obstacle): nothing.
+    for params in [
+        SensorParams {
+            empty_without_return: false,
+            ..params.clone()
+        },
+        SensorParams {
+            ground_model: GroundModel::Plane,
+            ..params
+        },
+    ] {
+        SensorModel::new(params).build(&points, &pose, &window, &mut grid);
+        assert!(grid.clear_cells().is_empty());
+    }
+}
+
+#[test]
+fn a_gap_without_returns_inside_the_field_of_view_is_seen_empty() {
+    let window = small_window();
+    let mut grid = SensorGrid::new(21, 21);
+    let params = SensorParams {
+        max_range_m: 9.5,
+        ..planar_params()
+    };
+    // A 120° scanner looking north, a beam every 0.25°, a wall 6 m off everywhere but in a
+    // 5° gap (bearings 88°–93°: open space) and on one beam at 60° (lost).
+    let scan = |gap: std::ops::Range<f64>| -> Vec<[f32; 3]> {
+        (0..=480)
+            .map(|k| 30.0 + k as f64 * 0.25)
+            .filter(|b| !gap.contains(b) && *b != 60.0)
+            .map(|b| {
+                let (s, c) = b.to_radians().sin_cos();
+                [(6.0 * c) as f32, (6.0 * s) as f32, 0.0]
+            })
+            .collect()
+    };
+    let mut model = SensorModel::new(params);
+    model.build(&scan(88.0..93.0), &Isometry3::IDENTITY, &window, &mut grid);
+    let clear = clear_cells(&window, &grid);
+    // The gap north, beyond the wall up to 9.5 m (the cells before it are free already); not
+    // the lost beam's 1° sector, not the 240° the scanner does not look at.
+    assert!((7..=8).all(|row| clear.contains(&(0, row))), "{clear:?}");
+    assert!(
+        clear.iter().all(|&(c, r)| c.abs() <= 1 && r >= 5),
+        "{clear:?}"
+    );
+    // Without the gap, nothing is seen empty.
+    model.build(&scan(0.0..0.0), &Isometry3::IDENTITY, &window, &mut grid);
+    assert!(grid.clear_cells().is_empty());
+}
+
+#[test]
+fn a_gap_must_span_three_ray_spacings() {
+    // 360 sectors of 1°; returns cover 120 of them, the rest (240) is not looked at.
+    // Runs of three empty sectors in the first 120.
+    let any_return: Vec<bool> = (0..360).map(|s| s < 120 && s % 10 < 7).collect();
+    // Dense returns (a few per sector): three empty sectors are a gap.
+    let mut clear = vec![false; 360];
+    mark_gaps(&any_return, 600, &mut clear);
+    assert!(clear[7] && clear[9] && !clear[6] && !clear[200]);
+    // A ray every 1.5° (80 returns): three sectors are under three spacings.
+    let mut clear = vec![false; 360];
+    mark_gaps(&any_return, 80, &mut clear);
+    assert!(clear.iter().all(|&c| !c));
+}
