@@ -1,8 +1,9 @@
 //! The motion belief of a track and its combination with a cell's mass function on Ω_PG.
 //!
-//! A track's velocity v (per-axis variances σ²) gives the statistic χ² = vx²/σx² + vy²/σy²,
-//! whose χ²(2) distribution under "v = 0" gives the confidence that the object moves,
-//! c = 1 − exp(−χ²/2). Then, on the cells of the track's cluster in this frame:
+//! A track's velocity v (per-axis variances σ²) gives the confidence that the object moves
+//! faster than `min_speed_mps` (the truth's "moving"), c = erf(z/√2), z = (|v| −
+//! `min_speed_mps`)/σ_r, σ_r the standard deviation of the speed along v. Then, on the cells
+//! of the track's cluster in this frame:
 //! - moving (|v| ≥ `min_speed_mps`, and at least `moving_after_measurements` registrations
 //!   of the track): m({M}) = `mu_moving` · c, the rest on Ω;
 //! - static (|v| < `min_speed_mps` and √(σx² + σy²) < `static_sigma_mps`: slow and known
@@ -25,6 +26,7 @@ use geodata::MapContext;
 use crate::grids::{N_SETS, OMEGA, class};
 use crate::params::{MotionParams, ResidualPolicy};
 
+use super::kalman::VelocityFilter;
 use super::tracks::Track;
 
 /// The motion evidence on one cell.
@@ -59,8 +61,7 @@ pub(crate) fn track_mass(track: &Track, params: &MotionParams) -> MotionMass {
         if (track.measurements as usize) < params.moving_after_measurements {
             return MotionMass::Vacuous;
         }
-        let chi_sq = x.mean_mps * x.mean_mps / x.variance + y.mean_mps * y.mean_mps / y.variance;
-        let confidence = 1.0 - (-0.5 * chi_sq).exp();
+        let confidence = moving_confidence(x, y, speed, params.min_speed_mps);
         MotionMass::Moving((params.mu_moving * confidence) as f32)
     } else if (x.variance + y.variance).sqrt() < params.static_sigma_mps {
         let [dx, dy] = track.travel_m;
@@ -72,6 +73,30 @@ pub(crate) fn track_mass(track: &Track, params: &MotionParams) -> MotionMass {
     } else {
         MotionMass::Vacuous
     }
+}
+
+/// The confidence that a track whose estimated speed `speed` is at least `min_speed_mps` moves
+/// faster than that: P(|v| > v_min) = Φ(z) with z = (|v̂| − v_min)/σ_r, σ_r the standard
+/// deviation of the speed along the estimated velocity, rescaled from [½, 1] to [0, 1]:
+/// 2Φ(z) − 1 = erf(z/√2). Moving is a speed above v_min (the truth's threshold), not any
+/// speed: a car crawling into a stop at 0.6 ± 0.4 m/s gets 0.20, a walker at 1.3 ± 0.4 m/s
+/// 0.95.
+fn moving_confidence(x: VelocityFilter, y: VelocityFilter, speed: f64, min_speed_mps: f64) -> f64 {
+    let along = (x.mean_mps * x.mean_mps * x.variance + y.mean_mps * y.mean_mps * y.variance)
+        / (speed * speed);
+    let z = (speed - min_speed_mps) / along.sqrt();
+    erf(z / std::f64::consts::SQRT_2).max(0.0)
+}
+
+/// The error function, within 1.5e-7 (Abramowitz & Stegun 7.1.26).
+fn erf(x: f64) -> f64 {
+    let t = 1.0 / (1.0 + 0.327_591_1 * x.abs());
+    let poly = t
+        * (0.254_829_592
+            + t * (-0.284_496_736
+                + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+    let value = 1.0 - poly * (-x * x).exp();
+    if x < 0.0 { -value } else { value }
 }
 
 /// The evidence of a cluster whose track says nothing (`mass` vacuous: never registered, or
@@ -284,6 +309,41 @@ mod tests {
     }
 
     #[test]
+    fn erf_matches_its_table() {
+        for (x, want) in [
+            (0.0, 0.0),
+            (0.5, 0.520_499_877_8),
+            (1.0, 0.842_700_792_9),
+            (-1.0, -0.842_700_792_9),
+            (2.0, 0.995_322_265_0),
+            (3.0, 0.999_977_909_5),
+        ] {
+            assert!((erf(x) - want).abs() < 2e-7, "erf({x}) = {}", erf(x));
+        }
+    }
+
+    #[test]
+    fn moving_means_faster_than_the_threshold() {
+        let params = MotionParams::default();
+        // 1.3 m/s east, σ 0.4 along it: z = (1.3 − 0.5)/0.4 = 2, erf(2/√2) = 0.9545,
+        // m({M}) = 0.8 · 0.9545.
+        let MotionMass::Moving(walker) = track_mass(&track([1.3, 0.0], 0.16, 3), &params) else {
+            panic!("not moving");
+        };
+        assert!((walker - 0.8 * 0.954_50).abs() < 1e-4, "{walker}");
+        // 0.6 ± 0.4 m/s, a car crawling into a stop: z = 0.25, erf(0.177) = 0.197.
+        let MotionMass::Moving(crawl) = track_mass(&track([0.6, 0.0], 0.16, 3), &params) else {
+            panic!("not moving");
+        };
+        assert!((crawl - 0.8 * 0.197_4).abs() < 1e-3, "{crawl}");
+        // Below the threshold it is not moving at all.
+        assert!(!matches!(
+            track_mass(&track([0.4, 0.0], 0.16, 3), &params),
+            MotionMass::Moving(_)
+        ));
+    }
+
+    #[test]
     fn a_cluster_on_a_building_is_not_stopped() {
         let on = [Some(MapContext::Road), Some(MapContext::Building)];
         let off = [Some(MapContext::Road), Some(MapContext::Other), None];
@@ -312,12 +372,11 @@ mod tests {
     #[test]
     fn a_track_gives_moving_static_or_no_evidence() {
         let p = MotionParams::default();
-        // 3 m/s east with σ = 1 m/s per axis: χ² = 9, c = 1 − e^{−4.5}.
-        let expected = (0.8 * (1.0 - (-4.5f64).exp())) as f32;
-        assert_eq!(
-            track_mass(&track([3.0, 0.0], 1.0, 2), &p),
-            MotionMass::Moving(expected)
-        );
+        // 3 m/s east with σ = 1 m/s per axis: z = (3 − 0.5)/1, c = erf(2.5/√2) = 0.98758.
+        let MotionMass::Moving(moving) = track_mass(&track([3.0, 0.0], 1.0, 2), &p) else {
+            panic!("not moving");
+        };
+        assert!((moving - 0.8 * 0.987_581).abs() < 1e-5, "{moving}");
         // Slow and well known (σ = 0.14 m/s): static, m(Ω∖{M}) = mu_static = 0.9.
         assert_eq!(
             track_mass(&track([0.1, 0.0], 0.01, 1), &p),
@@ -343,7 +402,7 @@ mod tests {
         );
         assert_eq!(
             track_mass(&track([3.0, 0.0], 1.0, 1), &p),
-            MotionMass::Moving(expected)
+            MotionMass::Moving(moving)
         );
     }
 
