@@ -85,8 +85,9 @@ pub struct SensorModel {
     obstacle_range: Vec<f64>,
     /// Horizontal range of the farthest ground return per sector (0 if none).
     ground_range: Vec<f64>,
-    /// Per sector, whether a return lay beyond `max_range_m` (planar scanners).
-    beyond_range: Vec<bool>,
+    /// Per sector, whether its rays met nothing within `max_range_m`: a return beyond it, or
+    /// none at all inside the field of view (planar scanners, `empty_without_return`).
+    empty_sector: Vec<bool>,
     /// Per sector, whether any return lay in it (planar scanners).
     any_return: Vec<bool>,
     /// What each chunk of the current scan's points gave, in point order; kept between scans
@@ -117,7 +118,7 @@ impl SensorModel {
             levelled: Vec::new(),
             obstacle_range: Vec::new(),
             ground_range: Vec::new(),
-            beyond_range: Vec::new(),
+            empty_sector: Vec::new(),
             any_return: Vec::new(),
             classified: Vec::new(),
             stray: StrayFilter::default(),
@@ -174,8 +175,8 @@ impl SensorModel {
         let note_empty =
             self.params.ground_model == GroundModel::None && self.params.empty_without_return;
         let mut returns = 0usize;
-        self.beyond_range.clear();
-        self.beyond_range.resize(sectors, false);
+        self.empty_sector.clear();
+        self.empty_sector.resize(sectors, false);
         self.any_return.clear();
         self.any_return.resize(sectors, false);
         // Levelled frame: rotate only, so that heights and ranges are metric and small numbers
@@ -189,13 +190,12 @@ impl SensorModel {
             let q = world_from_sensor.rotate([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]);
             let range_m = horizontal_range(q);
             if note_empty {
-                self.any_return[sector_of(q, sectors_per_radian, sectors)] = true;
+                let s = sector_of(q, sectors_per_radian, sectors);
+                self.any_return[s] = true;
+                self.empty_sector[s] |= range_m > max_range_m;
                 returns += 1;
             }
             if !(min_range_m..=max_range_m).contains(&range_m) {
-                if note_empty && range_m > max_range_m {
-                    self.beyond_range[sector_of(q, sectors_per_radian, sectors)] = true;
-                }
                 stats.dropped_out_of_range += 1;
                 continue;
             }
@@ -235,7 +235,6 @@ impl SensorModel {
             }
         };
 
-        let sector_width = std::f64::consts::TAU / sectors as f64;
         // Points are classified in fixed chunks, in parallel, and the chunks merged in order:
         // ranges by min/max, cells in point order, so the result does not depend on the number
         // of threads.
@@ -314,24 +313,11 @@ impl SensorModel {
             if limit_m <= 0.0 {
                 continue;
             }
-            // Enough rays that neighbours are under a cell apart at the far end.
-            let rays = ((limit_m * sector_width / cell_size_m).ceil() as usize).clamp(1, 4096);
-            let first_angle = -std::f64::consts::PI + s as f64 * sector_width;
-            for k in 0..rays {
-                let angle = first_angle + (k as f64 + 0.5) * sector_width / rays as f64;
-                walk_ray(
-                    window,
-                    origin,
-                    angle.sin_cos(),
-                    limit_m / cell_size_m,
-                    whole_cells,
-                    |idx| {
-                        // Counted on the first visit: rays of a sector overlap near the sensor.
-                        free_cells += usize::from(out.m_free()[idx] != mu_free);
-                        out.set_free(idx, mu_free);
-                    },
-                );
-            }
+            walk_sector(window, origin, s, sectors, limit_m, whole_cells, |idx| {
+                // Counted on the first visit: rays of a sector overlap near the sensor.
+                free_cells += usize::from(out.m_free()[idx] != mu_free);
+                out.set_free(idx, mu_free);
+            });
         }
         // A ground return's own cell was seen free, if it lies within its sector's free range
         // (a ray may enter that cell just after the return's range, or miss its corner).
@@ -358,28 +344,16 @@ impl SensorModel {
         // Sectors whose rays met nothing within the range limit: seen empty up to it, outside
         // the SensorGrid's mass (SPEC §3 leaves them vacuous).
         if note_empty {
-            mark_gaps(&self.any_return, returns, &mut self.beyond_range);
-        }
-        for s in 0..sectors {
-            if !note_empty || !self.beyond_range[s] || self.obstacle_range[s].is_finite() {
-                continue;
-            }
-            let rays = ((max_range_m * sector_width / cell_size_m).ceil() as usize).clamp(1, 4096);
-            let first_angle = -std::f64::consts::PI + s as f64 * sector_width;
-            for k in 0..rays {
-                let angle = first_angle + (k as f64 + 0.5) * sector_width / rays as f64;
-                walk_ray(
-                    window,
-                    origin,
-                    angle.sin_cos(),
-                    max_range_m / cell_size_m,
-                    true,
-                    |idx| {
-                        if out.m_free()[idx] == 0.0 && out.m_occupied()[idx] == 0.0 {
-                            out.push_clear(idx);
-                        }
-                    },
-                );
+            mark_gaps(&self.any_return, returns, &mut self.empty_sector);
+            for s in 0..sectors {
+                if !self.empty_sector[s] || self.obstacle_range[s].is_finite() {
+                    continue;
+                }
+                walk_sector(window, origin, s, sectors, max_range_m, true, |idx| {
+                    if out.m_free()[idx] == 0.0 && out.m_occupied()[idx] == 0.0 {
+                        out.push_clear(idx);
+                    }
+                });
             }
         }
         stats.free_cells = free_cells;
@@ -401,12 +375,31 @@ fn mark_gaps(any_return: &[bool], returns: usize, clear: &mut [bool]) {
     let Some(start) = any_return.iter().position(|&r| r) else {
         return;
     };
-    // Runs of empty sectors, walking the circle from a sector with a return.
-    let mut runs = Vec::new();
+    let mut longest = (0, 0);
+    for_each_gap(any_return, start, |first, len| {
+        if len > longest.1 {
+            longest = (first, len);
+        }
+    });
+    // Returns per sector of the field of view; a real gap spans three ray spacings.
+    let density = returns as f64 / (n - longest.1).max(1) as f64;
+    let min_run = (3.0 / density).ceil().max(2.0);
+    for_each_gap(any_return, start, |first, len| {
+        if first != longest.0 && len as f64 >= min_run {
+            for k in first..first + len {
+                clear[(start + k) % n] = true;
+            }
+        }
+    });
+}
+
+/// Calls `visit` with each run of sectors without a return, walking the circle from `start`
+/// (a sector with one): the run's first sector counted from `start`, and its length.
+fn for_each_gap(any_return: &[bool], start: usize, mut visit: impl FnMut(usize, usize)) {
+    let n = any_return.len();
     let mut k = 0;
     while k < n {
-        let s = (start + k) % n;
-        if any_return[s] {
+        if any_return[(start + k) % n] {
             k += 1;
             continue;
         }
@@ -414,24 +407,35 @@ fn mark_gaps(any_return: &[bool], returns: usize, clear: &mut [bool]) {
         while k < n && !any_return[(start + k) % n] {
             k += 1;
         }
-        runs.push((first, k - first));
+        visit(first, k - first);
     }
-    let longest = runs.iter().map(|r| r.1).max().unwrap_or(0);
-    // Returns per sector of the field of view; a real gap spans three ray spacings.
-    let density = returns as f64 / (n - longest).max(1) as f64;
-    let min_run = (3.0 / density).ceil().max(2.0);
-    let mut skipped = false;
-    for &(first, len) in &runs {
-        if len == longest && !skipped {
-            skipped = true;
-            continue;
-        }
-        if (len as f64) < min_run {
-            continue;
-        }
-        for k in first..first + len {
-            clear[(start + k) % n] = true;
-        }
+}
+
+/// Walks the rays of sector `s` (of `sectors`) from `origin` (cells) out to `limit_m`, enough
+/// of them that neighbours are under a cell apart at the far end (see [`walk_ray`]).
+fn walk_sector(
+    window: &Window,
+    origin: (f64, f64),
+    s: usize,
+    sectors: usize,
+    limit_m: f64,
+    whole_cells: bool,
+    mut visit: impl FnMut(usize),
+) {
+    let sector_width = std::f64::consts::TAU / sectors as f64;
+    let cell_size_m = window.cell_size_m();
+    let rays = ((limit_m * sector_width / cell_size_m).ceil() as usize).clamp(1, 4096);
+    let first_angle = -std::f64::consts::PI + s as f64 * sector_width;
+    for k in 0..rays {
+        let angle = first_angle + (k as f64 + 0.5) * sector_width / rays as f64;
+        walk_ray(
+            window,
+            origin,
+            angle.sin_cos(),
+            limit_m / cell_size_m,
+            whole_cells,
+            &mut visit,
+        );
     }
 }
 
