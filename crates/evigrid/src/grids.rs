@@ -412,9 +412,11 @@ pub struct SensorGrid {
     /// block's planes (a scan reaches a few percent of a large window). Writes through
     /// [`SensorGrid::m_free_mut`] and [`SensorGrid::m_occupied_mut`] set every block.
     may_hold_mass: Vec<bool>,
-    /// Cells the scan saw empty that SPEC §3 leaves vacuous: along the rays of a planar
-    /// scanner's sectors whose return lies beyond `max_range_m`, up to that range. Not mass;
-    /// the motion stage's seen tests read them. May repeat a cell.
+    /// Cells the scan saw empty that SPEC §3 leaves vacuous: with a planar scanner, up to
+    /// `max_range_m` along the sectors whose rays met nothing within it (a return beyond it,
+    /// or none inside the field of view; `sensor.empty_without_return`). Written after the
+    /// masses, so none of them holds mass; the motion stage's seen tests read them. May
+    /// repeat a cell.
     clear_cells: Vec<u32>,
 }
 
@@ -502,8 +504,8 @@ impl SensorGrid {
             + std::mem::size_of_val(self.may_hold_mass.as_slice())
     }
 
-    /// Storage indices of the cells the scan saw empty beyond the sensor model's range limit
-    /// (see the field); they hold no mass.
+    /// Storage indices of the cells the scan saw empty without a return within the sensor
+    /// model's range (see the field); they hold no mass.
     pub fn clear_cells(&self) -> &[u32] {
         &self.clear_cells
     }

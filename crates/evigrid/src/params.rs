@@ -156,8 +156,7 @@ impl Params {
     /// μ, β, α, δ, γ and the unknown threshold outside `[0, 1]`; [`ParamsError::NotPositive`] for
     /// a non-positive cell size, sensor length or `sensor.min_neighbourhood_returns`;
     /// [`ParamsError::EmptyWindow`]; [`ParamsError::Misordered`] for a count above its largest
-    /// value;
-    /// [`ParamsError::Misordered`] when the obstacle height band is empty.
+    /// value or an empty obstacle height band.
     pub fn validate(&self) -> Result<(), ParamsError> {
         positive("grid.cell_size_m", self.grid.cell_size_m)?;
         if self.window.width_cells == 0 || self.window.height_cells == 0 {
@@ -239,7 +238,7 @@ pub const MEMORY_BUDGET_BYTES: u64 = 1536 << 20;
 /// Bytes every window cell costs across the pipeline's grids: the PerceptionGrid's 32 mass
 /// planes, ζ and the two conflicts (f32), its seen flag, the SensorGrid's two masses, the
 /// GISGrid context, the decision and the moving trace, plus room for the motion stage's
-/// per-cell buffers (15 bytes today). A test holds it above what the pipeline allocates.
+/// per-cell buffers (16 bytes today). A test holds it above what the pipeline allocates.
 pub const WINDOW_BYTES_PER_CELL: u64 = 32 * 4 + 3 * 4 + 1 + 2 * 4 + 1 + 1 + 1 + 48;
 
 /// Checks that a `width × height` window fits [`MEMORY_BUDGET_BYTES`] (with checked arithmetic:
@@ -288,10 +287,10 @@ fn positive(name: &'static str, value: f64) -> Result<(), ParamsError> {
     }
 }
 
-/// A count above its largest value, reported as misordered against that value.
 /// The largest `sensor.min_neighbourhood_returns`: nine cells of 65,535 returns each.
 const MAX_NEIGHBOURHOOD_RETURNS: usize = 9 * u16::MAX as usize;
 
+/// A count above its largest value, reported as misordered against that value.
 fn at_most(name: &'static str, value: usize, high: usize) -> Result<(), ParamsError> {
     if value <= high {
         Ok(())

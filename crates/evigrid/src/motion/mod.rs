@@ -142,8 +142,8 @@ pub struct MotionStage {
     tracks: Tracks,
     observations: Vec<Observation>,
     occupied: Vec<u32>,
-    /// The scan's cells crossed by a ray without a return, and the cells it saw empty beyond
-    /// the sensor model's range ([`SensorGrid::clear_cells`]).
+    /// The scan's cells crossed by a ray without a return, and the cells it saw empty without
+    /// a return within range ([`SensorGrid::clear_cells`]).
     free: Vec<u32>,
     /// Per cell, whether it is among this frame's clear cells (reset through `clear_list`).
     clear_now: Vec<bool>,
@@ -234,12 +234,14 @@ impl MotionStage {
     }
 
     /// Bytes of the stage's per-cell buffers: cluster marks, the history's bit planes, the
-    /// boundary-aware context and the two velocity planes (what the memory budget counts; the
-    /// lists of a scan's cells and the tracks scale with the scene, not the window).
+    /// boundary-aware context, the marks of the cells seen empty without a return and the two
+    /// velocity planes (what the memory budget counts; the lists of a scan's cells and the
+    /// tracks scale with the scene, not the window).
     pub fn heap_bytes(&self) -> usize {
         self.clusters.dense_bytes()
             + self.history.dense_bytes()
             + self.gis.heap_bytes()
+            + self.clear_now.capacity()
             + 4 * (self.velocity_east.capacity() + self.velocity_north.capacity())
     }
 
@@ -308,12 +310,10 @@ impl MotionStage {
             }
         }
         self.clear_list.clear();
+        // They hold no mass (the sensor model lists them after the masses); a cell may repeat.
         for &idx in sensor.clear_cells() {
-            let i = idx as usize;
-            if let Some(c) = self.clear_now.get_mut(i)
+            if let Some(c) = self.clear_now.get_mut(idx as usize)
                 && !*c
-                && m_free.get(i) == Some(&0.0)
-                && m_occupied.get(i) == Some(&0.0)
             {
                 *c = true;
                 self.clear_list.push(idx);

@@ -409,6 +409,26 @@ mod tests {
         history
     }
 
+    /// The registration of the side now on row 10's columns `cols`, 0.8 s after the first
+    /// frame of `history` (a `side_history` of eight frames), alone in its frame.
+    fn register_side(
+        window: &Window,
+        history: &OccupancyHistory,
+        cols: std::ops::Range<i64>,
+    ) -> Registration {
+        let now = cells(window, &cols.map(|c| (c, 10)).collect::<Vec<_>>());
+        let none = Clusters::new(window.len());
+        Registrar::default()
+            .register(
+                &now,
+                window,
+                history,
+                alone(0.8, &none),
+                &MotionParams::default(),
+            )
+            .unwrap_or_else(|| panic!("not registered"))
+    }
+
     fn window() -> Window {
         Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"))
     }
@@ -536,18 +556,13 @@ mod tests {
 
     #[test]
     fn a_face_sliding_along_itself_is_measured_on_the_older_frames_that_resolve_it() {
-        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
+        let window = window();
         // The side of a car passing side-on: ten cells on row 10 moving east one cell a frame,
         // the cells ahead of it seen free. Against the last two frames zero shift explains
         // 9 and 8 of 10, the true shift 10: more, not by the margin of ⌈0.25 · 10⌉ = 3.
         // Three frames back it is 7 against 10, and the cells entered were seen free then.
-        let face = |first: i64| (first..first + 10).map(|c| (c, 10)).collect::<Vec<_>>();
         let sides: Vec<_> = (10..18).map(|first| first..first + 10).collect();
-        let history = side_history(&window, &sides);
-        let now = cells(&window, &face(18));
-        let found = Registrar::default()
-            .register(&now, &window, &history, alone(0.8, &none), &params)
-            .unwrap_or_else(|| panic!("not registered"));
+        let found = register_side(&window, &side_history(&window, &sides), 18..28);
         // Three cells in 0.3 s: the two frames that could not tell are dropped.
         assert_eq!(found.frames, 1);
         assert!(
@@ -659,19 +674,14 @@ mod tests {
 
     #[test]
     fn newer_frames_that_cannot_tell_give_way_and_a_stop_does_not() {
-        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
-        let row = |cols: std::ops::Range<i64>| cols.map(|c| (c, 10)).collect::<Vec<_>>();
+        let window = window();
         // A side of ten cells moving east a cell a frame, the road ahead of it seen free.
         // The last frame saw only its front seven cells (the rest hidden): zero and a shift
         // of one explain 7 each, a tie, and zero wins. But the cell the side entered since
         // was seen free in that frame.
         let mut sides: Vec<_> = (10..17).map(|first| first..first + 10).collect();
         sides.push(20..27);
-        let history = side_history(&window, &sides);
-        let now = cells(&window, &row(18..28));
-        let found = Registrar::default()
-            .register(&now, &window, &history, alone(0.8, &none), &params)
-            .unwrap_or_else(|| panic!("not registered"));
+        let found = register_side(&window, &side_history(&window, &sides), 18..28);
         // Three cells in 0.3 s: the two newer frames predicted a shift of 1 and 2, which
         // explain them as well as zero (7 = 7, 10 > 8).
         assert_eq!(found.frames, 1);
@@ -686,11 +696,7 @@ mod tests {
             .into_iter()
             .map(|first| first..first + 10)
             .collect();
-        let stopped = side_history(&window, &sides);
-        let now = cells(&window, &row(15..25));
-        let found = Registrar::default()
-            .register(&now, &window, &stopped, alone(0.8, &none), &params)
-            .unwrap_or_else(|| panic!("not registered"));
+        let found = register_side(&window, &side_history(&window, &sides), 15..25);
         assert_eq!(found.velocity_cells_per_s, (0.0, 0.0), "{found:?}");
     }
 }
