@@ -428,7 +428,6 @@ mod tests {
         segments
     }
 
-    /// A 360° planar scan from `pose` (x, y, heading): the first wall hit per ray, every 0.25°.
     /// The outline of a planar scan as a 3-D scanner sees it: each return also 1 m higher.
     fn solid_scan(planar: &[[f32; 3]]) -> Vec<[f32; 3]> {
         planar
@@ -437,6 +436,7 @@ mod tests {
             .collect()
     }
 
+    /// A 360° planar scan from `pose` (x, y, heading): the first wall hit per ray, every 0.25°.
     fn planar_scan(pose: (f64, f64, f64)) -> Vec<[f32; 3]> {
         let segments = world_segments();
         let mut points = Vec::new();

@@ -171,6 +171,7 @@ impl Drive {
     pub fn ego_id(&self) -> u32 {
         self.ego_id
     }
+
     /// The sensor's true pose now: the ego's, moved to the mount.
     fn world_from_sensor(&self) -> Pose2 {
         let mount = Pose2::new(Vec2::new(self.scenario.sensor.mount_forward(), 0.0), 0.0);

@@ -308,6 +308,14 @@ mod tests {
         );
     }
 
+    /// The m({M}) of moving evidence; a panic for any other.
+    fn moving_mass(evidence: MotionMass) -> f32 {
+        match evidence {
+            MotionMass::Moving(m) => m,
+            other => panic!("not moving: {other:?}"),
+        }
+    }
+
     #[test]
     fn erf_matches_its_table() {
         for (x, want) in [
@@ -327,14 +335,10 @@ mod tests {
         let params = MotionParams::default();
         // 1.3 m/s east, σ 0.4 along it: z = (1.3 − 0.5)/0.4 = 2, erf(2/√2) = 0.9545,
         // m({M}) = 0.8 · 0.9545.
-        let MotionMass::Moving(walker) = track_mass(&track([1.3, 0.0], 0.16, 3), &params) else {
-            panic!("not moving");
-        };
+        let walker = moving_mass(track_mass(&track([1.3, 0.0], 0.16, 3), &params));
         assert!((walker - 0.8 * 0.954_50).abs() < 1e-4, "{walker}");
         // 0.6 ± 0.4 m/s, a car crawling into a stop: z = 0.25, erf(0.177) = 0.197.
-        let MotionMass::Moving(crawl) = track_mass(&track([0.6, 0.0], 0.16, 3), &params) else {
-            panic!("not moving");
-        };
+        let crawl = moving_mass(track_mass(&track([0.6, 0.0], 0.16, 3), &params));
         assert!((crawl - 0.8 * 0.197_4).abs() < 1e-3, "{crawl}");
         // Below the threshold it is not moving at all.
         assert!(!matches!(
@@ -373,9 +377,7 @@ mod tests {
     fn a_track_gives_moving_static_or_no_evidence() {
         let p = MotionParams::default();
         // 3 m/s east with σ = 1 m/s per axis: z = (3 − 0.5)/1, c = erf(2.5/√2) = 0.98758.
-        let MotionMass::Moving(moving) = track_mass(&track([3.0, 0.0], 1.0, 2), &p) else {
-            panic!("not moving");
-        };
+        let moving = moving_mass(track_mass(&track([3.0, 0.0], 1.0, 2), &p));
         assert!((moving - 0.8 * 0.987_581).abs() < 1e-5, "{moving}");
         // Slow and well known (σ = 0.14 m/s): static, m(Ω∖{M}) = mu_static = 0.9.
         assert_eq!(

@@ -60,7 +60,8 @@ pub(crate) struct Now<'a> {
     pub(crate) cluster: u32,
     /// m(F) of the frame's SensorGrid: where rays crossed.
     pub(crate) m_free: &'a [f32],
-    /// Cells seen empty beyond the sensor model's range ([`crate::SensorGrid::clear_cells`]).
+    /// Cells seen empty by rays that met nothing within the sensor model's range
+    /// ([`crate::SensorGrid::clear_cells`]).
     pub(crate) clear_now: &'a [bool],
 }
 
