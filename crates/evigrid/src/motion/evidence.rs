@@ -42,14 +42,6 @@ pub enum MotionMass {
     Stopped(f32),
 }
 
-/// Whether the track moves now: fast enough, and registered often enough to say so.
-pub(crate) fn is_moving(track: &Track, params: &MotionParams) -> bool {
-    let [x, y] = track.velocity;
-    track.measurements > 0
-        && (track.measurements as usize) >= params.moving_after_measurements
-        && x.mean_mps.hypot(y.mean_mps) >= params.min_speed_mps
-}
-
 /// The evidence a track gives its cells.
 pub(crate) fn track_mass(track: &Track, params: &MotionParams) -> MotionMass {
     if track.measurements == 0 {

@@ -6,7 +6,6 @@
 //! up to `max_coast_s`, so that an object coming out of occlusion, whose cells have no history
 //! to register against, still carries its speed.
 
-use super::evidence;
 use super::kalman::VelocityFilter;
 use crate::params::MotionParams;
 
@@ -35,9 +34,17 @@ pub(crate) struct Track {
     /// Registrations that measured its velocity (none: it knows nothing of motion).
     pub(crate) measurements: u32,
     /// Net displacement, m, summed over the frames the track was judged moving in
-    /// ([`evidence::is_moving`]): once it reaches `mobile_after_travel_m` the object is a
+    /// ([`is_moving`]): once it reaches `mobile_after_travel_m` the object is a
     /// mobile one, so when static it is stopped (S), not infrastructure.
     pub(crate) travel_m: [f64; 2],
+}
+
+/// Whether the track moves now: fast enough, and registered often enough to say so.
+pub(crate) fn is_moving(track: &Track, params: &MotionParams) -> bool {
+    let [x, y] = track.velocity;
+    track.measurements > 0
+        && (track.measurements as usize) >= params.moving_after_measurements
+        && x.mean_mps.hypot(y.mean_mps) >= params.min_speed_mps
 }
 
 /// The tracks and the association scratch, kept between frames.
@@ -141,7 +148,7 @@ impl Tracks {
                 }
                 t.measurements = t.measurements.saturating_add(1);
             }
-            if evidence::is_moving(t, params) {
+            if is_moving(t, params) {
                 for (d, v) in t.travel_m.iter_mut().zip(&t.velocity) {
                     *d += v.mean_mps * dt_s;
                 }
@@ -241,7 +248,7 @@ mod tests {
         // below min_speed_mps add nothing.
         let travel = t.map_or(0.0, |t| t.travel_m[0]);
         assert!(travel > 4.75 && travel < 6.5, "{travel}");
-        assert!(t.is_some_and(|t| !evidence::is_moving(&t, &params)));
+        assert!(t.is_some_and(|t| !is_moving(&t, &params)));
 
         // A static object whose cluster jumps a cell back and forth (pose noise): each jump
         // registered against the last frame alone (0.5 m in 0.1 s, σ = 2.5 m/s), alternating
