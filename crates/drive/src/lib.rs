@@ -3,7 +3,8 @@
 //! This crate reads; it computes nothing about grids or belief functions. A scan is a list of
 //! points in the sensor frame ([`scan`]); what places it in the world comes from pose files
 //! ([`poses`]) or from a published drive's own layout ([`kitti_raw`], built on [`timestamp`],
-//! [`calib`] and [`oxts`]), or from a ROS 2 recording ([`bag`]).
+//! [`calib`] and [`oxts`]), or from a ROS 2 recording ([`bag`]). [`source`] makes any of them one [`Drive`]: scans
+//! matched to poses, read as frames.
 //!
 //! Conventions, everywhere in this crate:
 //! - rigid transforms are [`nalgebra::Isometry3<f64>`] named by what they map:
@@ -23,6 +24,7 @@ pub mod kitti_raw;
 pub mod oxts;
 pub mod poses;
 pub mod scan;
+pub mod source;
 mod text;
 pub mod timestamp;
 
@@ -31,4 +33,5 @@ pub use error::ReadError;
 pub use kitti_raw::{KittiRawDrive, KittiRawError, KittiRawFrame};
 pub use poses::{PoseFormat, PoseTrack, TrackError};
 pub use scan::{Scan, ScanError, list_scans, read_scan};
+pub use source::{Drive, DriveSpec, Frame, PoseOrigin, Poses, SourceError};
 pub use text::read_text_limited;
