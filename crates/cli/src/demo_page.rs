@@ -15,7 +15,7 @@ use eval::EvalReport;
 use evigrid::Label;
 use output::{ClassColours, OUTLINE, PATH, class_name, write_atomic};
 
-use crate::figures::OSM_ATTRIBUTION;
+use output::run_figures::OSM_ATTRIBUTION;
 
 /// Writes `out/index.html` from `out/report.md` (read back: its tables are the evaluation's)
 /// and the pictures the demo wrote beside it.

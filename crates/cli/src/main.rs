@@ -7,7 +7,6 @@ mod commands;
 mod demo_page;
 mod drive_input;
 mod exit;
-mod figures;
 mod input;
 mod interrupt;
 mod out_dir;

@@ -19,6 +19,9 @@
 //!   per cell, `foxglove.Grid`'s JSON layout), the nav2 `map_server` pair ([`nav2`]) and the
 //!   decision map georeferenced for GIS ([`georef`]).
 //! - The run as a Foxglove-ready MCAP recording ([`mcap::McapRecorder`]).
+//! - Sinks ([`sink::FrameSink`]): where a session's frames go (the recording, the per-frame
+//!   pictures, `frames.jsonl`, the final figures of [`run_figures`] and the exports), chosen by
+//!   the caller.
 //!
 //! ```
 //! use evigrid::{Label, Window};
@@ -44,6 +47,8 @@ pub mod geotiff;
 pub mod mcap;
 pub mod nav2;
 pub mod palette;
+pub mod run_figures;
+pub mod sink;
 #[cfg(test)]
 mod testing;
 pub mod text;

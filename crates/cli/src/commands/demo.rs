@@ -37,7 +37,7 @@ use rayon::prelude::*;
 use sim::Scenario;
 
 use crate::exit::BadInput;
-use crate::figures::{COLOURS, DECISION_NOTE, OSM_ATTRIBUTION, PIGNISTIC_NOTE, TRACE_NOTE};
+use output::run_figures::{COLOURS, DECISION_NOTE, OSM_ATTRIBUTION, PIGNISTIC_NOTE, TRACE_NOTE};
 
 /// The embedded map: buildings, roads and car parks around the demo route, GeoJSON.
 const MAP_GEOJSON: &[u8] = include_bytes!("../../assets/helsinki-demo.geojson");
@@ -298,7 +298,7 @@ fn render_views(
     let decision = decision_image(window, fusion.decisions(), &COLOURS)?;
     let pignistic = pignistic_image(window, fusion.perception(), &COLOURS)?;
     let trace = trace_image(window, fusion.decisions(), fusion.trace(), &COLOURS)?;
-    let arrows = crate::figures::velocity_arrows(window, fusion.motion());
+    let arrows = output::run_figures::velocity_arrows(window, fusion.motion());
     let overlay = Overlay {
         gis: Some(frame.front_end.gis()),
         path,

@@ -1009,7 +1009,7 @@ fn write_final_outputs(
 ) -> Result<()> {
     let window = pipeline.window();
     // Figures for people: enlarged, legend, scale bar, north arrow, map outlines, the path so far.
-    let views = crate::figures::Views {
+    let views = output::run_figures::Views {
         window,
         perception: pipeline.perception(),
         decisions: pipeline.decisions(),
@@ -1017,7 +1017,7 @@ fn write_final_outputs(
         motion: pipeline.fusion().motion(),
     };
     let gis = pipeline.has_map().then(|| pipeline.gis());
-    for (name, image) in crate::figures::final_figures(&views, gis, driven)? {
+    for (name, image) in output::run_figures::final_figures(&views, gis, driven)? {
         write_png(&image, &out.join(name))?;
     }
     // For the tools of the field: ROS OccupancyGrid, classes, masses, nav2, georeferenced map.

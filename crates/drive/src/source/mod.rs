@@ -305,6 +305,11 @@ impl Drive {
         self.times.as_deref()
     }
 
+    /// The file the scan times were read from, when they were.
+    pub fn times_source(&self) -> Option<&Path> {
+        self.times_source.as_deref()
+    }
+
     /// Scan times, or [`DEFAULT_SCAN_PERIOD_S`] apart from 0 when the scans have none.
     pub fn times_or_period(&self) -> Vec<f64> {
         match &self.times {
@@ -319,10 +324,7 @@ impl Drive {
     /// local frame when no map or origin gives one.
     pub fn first_fix(&self) -> Option<(f64, f64)> {
         match &self.kind {
-            Kind::KittiRaw(drive) => drive
-                .oxts()
-                .first()
-                .map(|p| (p.lat_deg, p.lon_deg)),
+            Kind::KittiRaw(drive) => drive.oxts().first().map(|p| (p.lat_deg, p.lon_deg)),
             _ => None,
         }
     }
@@ -410,11 +412,7 @@ impl Drive {
 
     /// Places the scans with poses the caller computed (the lidar odometry), one per scan from
     /// the first, at `times`.
-    pub fn place_with(
-        &self,
-        times: Vec<f64>,
-        world_from_sensor: Vec<Isometry3<f64>>,
-    ) -> Poses {
+    pub fn place_with(&self, times: Vec<f64>, world_from_sensor: Vec<Isometry3<f64>>) -> Poses {
         Poses {
             times,
             world_from_sensor,

@@ -73,8 +73,7 @@ impl Reader {
     fn new(drive: &Drive) -> Result<Self, SourceError> {
         Ok(match &drive.kind {
             Kind::Bag(bag) => Self::Bag(Box::new(
-                bag.scans()
-                    .map_err(|e| SourceError::Input(e.to_string()))?,
+                bag.scans().map_err(|e| SourceError::Input(e.to_string()))?,
             )),
             Kind::Files | Kind::KittiRaw(_) => Self::Files,
         })
@@ -186,6 +185,8 @@ impl Iterator for Frames<'_> {
         (left, Some(left))
     }
 }
+
+impl ExactSizeIterator for Frames<'_> {}
 
 impl std::fmt::Debug for Frames<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

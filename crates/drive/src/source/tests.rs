@@ -152,7 +152,10 @@ fn a_scan_folder_with_times_interpolates_the_pose_at_each_scan_time() {
     let placed = drive.place(None, usize::MAX).unwrap();
     assert_eq!(placed.times, vec![0.25, 0.5]);
     let x: Vec<f64> = placed.positions().iter().map(|p| p[0]).collect();
-    assert!((x[0] - 2.5).abs() < 1e-12 && (x[1] - 5.0).abs() < 1e-12, "{x:?}");
+    assert!(
+        (x[0] - 2.5).abs() < 1e-12 && (x[1] - 5.0).abs() < 1e-12,
+        "{x:?}"
+    );
 }
 
 #[test]
@@ -184,11 +187,7 @@ fn a_scan_folder_without_poses_is_placed_by_the_caller() {
         vec![0.0, 0.2],
         vec![Isometry3::identity(), Isometry3::translation(1.0, 0.0, 0.0)],
     );
-    let frames: Vec<_> = drive
-        .frames(&poses)
-        .unwrap()
-        .map(Result::unwrap)
-        .collect();
+    let frames: Vec<_> = drive.frames(&poses).unwrap().map(Result::unwrap).collect();
     assert_eq!(frames.len(), 2);
     assert_eq!(frames[1].name, "0000000002.pcd");
     assert_eq!(frames[1].world_from_sensor.translation.x, 1.0);
@@ -211,11 +210,7 @@ fn a_recording_is_placed_by_its_own_poses() {
     // Only the first two must be placed: two are.
     let poses = drive.place(None, 2).unwrap();
     assert_eq!(poses.len(), 2);
-    let frames: Vec<_> = drive
-        .frames(&poses)
-        .unwrap()
-        .map(Result::unwrap)
-        .collect();
+    let frames: Vec<_> = drive.frames(&poses).unwrap().map(Result::unwrap).collect();
     assert_eq!(frames.len(), 2);
     assert_eq!(frames[1].name, "kitti-0013.mcap#000001");
     assert_eq!(frames[1].time_s, drive.times().unwrap()[1]);

@@ -1,31 +1,38 @@
-//! The figures `evigrid run` and `evigrid demo` write for people: the views of the paper's
-//! Fig. 2 enlarged, with the map's outlines, the ego's path, a legend, a scale bar and a north
-//! arrow (`output::figure`), in the colour-blind-safe Okabe–Ito class colours.
+//! The figures a drive's run writes for people (`evigrid run`, `evigrid demo`, the session's
+//! final outputs): the views of the paper's Fig. 2 enlarged, with the map's outlines, the ego's
+//! path, a legend, a scale bar and a north arrow ([`crate::figure`]), in the colour-blind-safe
+//! Okabe–Ito class colours.
 
-use anyhow::Result;
 use evigrid::{GisGrid, Label, MovingTrace, PerceptionGrid, Window};
 use image::RgbImage;
-use output::{
-    ClassColours, Legend, Overlay, decision_image, figure, pignistic_image, readable_scale,
-    trace_image,
+
+use crate::{
+    ClassColours, Legend, OutputError, Overlay, decision_image, figure, pignistic_image,
+    readable_scale, trace_image,
 };
 
 /// Attribution the map's licence requires wherever the map is shown.
-pub(crate) const OSM_ATTRIBUTION: &str = "Map data © OpenStreetMap contributors, ODbL";
+pub const OSM_ATTRIBUTION: &str = "Map data © OpenStreetMap contributors, ODbL";
 
 /// The class colours of every figure.
-pub(crate) const COLOURS: ClassColours = ClassColours::OKABE_ITO;
+pub const COLOURS: ClassColours = ClassColours::OKABE_ITO;
 
-/// How to read each view, under its legend.
-pub(crate) const DECISION_NOTE: &str = "colour: the class decided (SPEC §6)";
-pub(crate) const PIGNISTIC_NOTE: &str = "colour: class colours mixed by betP";
-pub(crate) const TRACE_NOTE: &str = "every cell ever decided moving: M";
+/// How to read each view, under its legend: the decision view.
+pub const DECISION_NOTE: &str = "colour: the class decided (SPEC §6)";
+/// Under the pignistic view's legend.
+pub const PIGNISTIC_NOTE: &str = "colour: class colours mixed by betP";
+/// Under the trace view's legend.
+pub const TRACE_NOTE: &str = "every cell ever decided moving: M";
 
 /// A window's final state, as the views need it.
-pub(crate) struct Views<'a> {
+pub struct Views<'a> {
+    /// The window.
     pub window: &'a Window,
+    /// Masses.
     pub perception: &'a PerceptionGrid,
+    /// Decisions, storage order.
     pub decisions: &'a [Label],
+    /// Every cell ever decided moving.
     pub trace: &'a MovingTrace,
     /// The motion stage of the `evigrid` method, whose cell velocities are drawn as arrows.
     pub motion: Option<&'a evigrid::motion::MotionStage>,
@@ -38,7 +45,7 @@ const ARROW_BLOCK_CELLS: usize = 6;
 
 /// The velocity arrows of a motion stage: one per block of [`ARROW_BLOCK_CELLS`]² cells, at the
 /// first moving cell of the block (world order), `(position, velocity)` in metres and m/s.
-pub(crate) fn velocity_arrows(
+pub fn velocity_arrows(
     window: &Window,
     motion: Option<&evigrid::motion::MotionStage>,
 ) -> Vec<([f64; 2], [f64; 2])> {
@@ -69,11 +76,11 @@ pub(crate) fn velocity_arrows(
 
 /// The three final figures, named `decision.png`, `pignistic.png`, `trace.png`, each enlarged to
 /// [`readable_scale`] with `gis`'s outlines (when there is a map) and `path`.
-pub(crate) fn final_figures(
+pub fn final_figures(
     views: &Views<'_>,
     gis: Option<&GisGrid>,
     path: &[[f64; 2]],
-) -> Result<Vec<(&'static str, RgbImage)>> {
+) -> Result<Vec<(&'static str, RgbImage)>, OutputError> {
     let window = views.window;
     let arrows = velocity_arrows(window, views.motion);
     let overlay = Overlay {
