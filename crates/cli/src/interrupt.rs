@@ -3,7 +3,7 @@
 //! ends the process at once, for a run that does not stop quickly enough.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 use signal_hook::consts::{SIGINT, SIGTERM};
 
@@ -32,9 +32,9 @@ impl Interrupt {
         Self(flag)
     }
 
-    /// True once a signal asked the command to stop.
-    pub fn requested(&self) -> bool {
-        self.0.load(Ordering::Relaxed)
+    /// The flag a signal raises, for a library that polls it between frames.
+    pub fn flag(&self) -> &AtomicBool {
+        &self.0
     }
 }
 

@@ -5,7 +5,6 @@
 
 mod commands;
 mod demo_page;
-mod drive_input;
 mod exit;
 mod input;
 mod interrupt;

@@ -15,12 +15,12 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use drive::poses::{PoseTrack, write_kitti_odometry, write_kitti_times, write_tum};
 use nalgebra::Isometry3;
+use odometry::FrameOutcome;
 use odometry::metrics::relative_errors;
-use odometry::{FrameOutcome, OdometryParams};
 use serde::Serialize;
 
-use crate::drive_input::{open_scans, poses_from_odometry, poses_from_oxts};
 use crate::exit::BadInput;
+use drive::{Drive, DriveSpec, PoseOrigin};
 
 /// Output formats of `evigrid odometry`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -88,6 +88,26 @@ struct OdometrySummary {
     against_oxts: Option<AgainstOxts>,
 }
 
+/// How the odometry's registrations went, counted as the pass goes, with its bar.
+struct Counts {
+    bar: indicatif::ProgressBar,
+    registered: usize,
+    not_converged: usize,
+    predicted: usize,
+}
+
+impl session::Progress for Counts {
+    fn odometry_scan(&mut self, odometry: &odometry::Odometry) {
+        match odometry.last_report().map(|r| r.outcome) {
+            Some(FrameOutcome::Registered { converged: true }) => self.registered += 1,
+            Some(FrameOutcome::Registered { converged: false }) => self.not_converged += 1,
+            Some(FrameOutcome::Predicted) => self.predicted += 1,
+            _ => {}
+        }
+        self.bar.inc(1);
+    }
+}
+
 /// Runs `evigrid odometry`.
 pub fn run(args: OdometryArgs) -> Result<()> {
     if args.max_frames == Some(0) {
@@ -95,7 +115,12 @@ pub fn run(args: OdometryArgs) -> Result<()> {
     }
     crate::out_dir::check_out_file(&args.out, &[&args.scans])?;
     let interrupt = crate::interrupt::Interrupt::install();
-    let mut scans = open_scans(&args.scans, args.times.as_deref())?;
+    let mut scans = Drive::open(&DriveSpec::ScanFolder {
+        dir: args.scans.clone(),
+        times: args.times.clone(),
+        poses: None,
+    })
+    .map_err(|e| BadInput::new(e.to_string()))?;
     if let Some(n) = args.max_frames {
         scans.truncate(n);
     }
@@ -104,27 +129,32 @@ pub fn run(args: OdometryArgs) -> Result<()> {
             .map_err(|e| BadInput::new(e.to_string()))?,
         None => Isometry3::identity(),
     };
-    let bar = crate::progress::bar(scans.paths.len() as u64, "odometry");
-    let (mut registered, mut not_converged, mut predicted) = (0, 0, 0);
+    let mut counts = Counts {
+        bar: crate::progress::bar(scans.len() as u64, "odometry"),
+        registered: 0,
+        not_converged: 0,
+        predicted: 0,
+    };
     let started = Instant::now();
     // Strict: the pose file has one line per scan, so a scan cannot be left out.
-    let poses = poses_from_odometry(
+    let poses = session::odometry_pass(
         &mut scans,
-        OdometryParams::default(),
         true,
+        interrupt.flag(),
         &mut Vec::new(),
-        &|| interrupt.requested(),
-        |odometry: &odometry::Odometry| {
-            match odometry.last_report().map(|r| r.outcome) {
-                Some(FrameOutcome::Registered { converged: true }) => registered += 1,
-                Some(FrameOutcome::Registered { converged: false }) => not_converged += 1,
-                Some(FrameOutcome::Predicted) => predicted += 1,
-                _ => {}
-            }
-            bar.inc(1);
-        },
-    )?;
-    bar.finish_and_clear();
+        &mut counts,
+    )
+    .map_err(|e| match e {
+        session::SessionError::Interrupted => crate::interrupt::Interrupted.into(),
+        e => BadInput::new(e.to_string()),
+    })?;
+    counts.bar.finish_and_clear();
+    let Counts {
+        registered,
+        not_converged,
+        predicted,
+        ..
+    } = counts;
     let seconds = started.elapsed().as_secs_f64();
     let track = PoseTrack::new(poses.times.clone(), poses.world_from_sensor.clone())
         .map_err(|e| BadInput::new(format!("{}: scan times: {e}", args.scans.display())))?;
@@ -140,17 +170,19 @@ pub fn run(args: OdometryArgs) -> Result<()> {
         times_file = Some(path.display().to_string());
     }
 
-    let against_oxts = match &scans.kitti {
-        Some(drive) => {
-            let first = drive.oxts().first().map(|p| (p.lat_deg, p.lon_deg));
+    let against_oxts = match scans.pose_origin() {
+        PoseOrigin::Oxts { .. } => {
+            let first = scans.first_fix();
             let projection = first
                 .map(|(lat, lon)| geodata::TransverseMercator::new(lat, lon))
                 .transpose()
                 .map_err(|e| BadInput::new(e.to_string()))?;
             match projection {
                 Some(projection) => {
-                    let reference =
-                        poses_from_oxts(drive, &|lat, lon| projection.forward(lat, lon))?;
+                    let project = |lat: f64, lon: f64| projection.forward(lat, lon);
+                    let reference = scans
+                        .place(Some(&project), usize::MAX)
+                        .map_err(|e| BadInput::new(e.to_string()))?;
                     let n = poses.world_from_sensor.len();
                     let lengths_m = vec![10.0, 20.0, 30.0];
                     let errors = relative_errors(
@@ -171,7 +203,7 @@ pub fn run(args: OdometryArgs) -> Result<()> {
                 None => None,
             }
         }
-        None => None,
+        _ => None,
     };
 
     let frames = poses.times.len();
@@ -183,7 +215,7 @@ pub fn run(args: OdometryArgs) -> Result<()> {
             OdometryFormat::Kitti => "kitti",
         },
         times_file,
-        scan_times: scans.times_source.as_ref().map(|p| p.display().to_string()),
+        scan_times: scans.times_source().map(|p| p.display().to_string()),
         frames,
         registered,
         not_converged,
