@@ -43,6 +43,7 @@
 mod error;
 mod odometry_pass;
 mod pose;
+mod progress;
 mod run;
 mod session;
 mod summary;
@@ -51,8 +52,10 @@ mod summary;
 pub use error::SessionError;
 /// Poses from the scans alone, for drives without poses.
 pub use odometry_pass::odometry_pass;
+/// What a caller hears as a drive runs.
+pub use progress::Progress;
 /// A whole drive: placing it, running it, both.
-pub use run::{Placement, Progress, RunOutcome, place, run_drive, run_placed};
+pub use run::{Placement, RunOutcome, place, run_drive, run_placed};
 /// The session, step by step.
 pub use session::{Map, Session, SessionConfig, StepResult, method_name};
 /// What a session reports.

@@ -8,7 +8,7 @@ use drive::{Drive, Poses};
 use odometry::{Odometry, OdometryParams};
 
 use crate::SessionError;
-use crate::run::Progress;
+use crate::progress::Progress;
 use crate::summary::SkippedScan;
 
 /// Registers every scan of `drive` in order, in the first scan's frame. An unreadable scan of

@@ -8,36 +8,10 @@ use drive::{Drive, PoseOrigin, Poses};
 use evigrid::PoseRefinement;
 use output::sink::FrameSink;
 
+use crate::progress::Progress;
 use crate::session::{Session, SessionConfig};
-use crate::summary::{FrameRecord, SkippedScan, Summary};
+use crate::summary::{SkippedScan, Summary};
 use crate::{SessionError, odometry_pass};
-
-/// What a caller hears as a drive runs (a progress bar, per-frame lines). Every method does
-/// nothing by default; `()` hears nothing.
-pub trait Progress {
-    /// The odometry pass starts over `scans` scans.
-    fn odometry_started(&mut self, scans: usize) {
-        let _ = scans;
-    }
-    /// The odometry registered (or left out) one scan; its last report says how it went.
-    fn odometry_scan(&mut self, odometry: &odometry::Odometry) {
-        let _ = odometry;
-    }
-    /// The odometry pass ended.
-    fn odometry_finished(&mut self) {}
-    /// The frames start: `frames` of them.
-    fn frames_started(&mut self, frames: usize) {
-        let _ = frames;
-    }
-    /// Frame `index` was processed (`record`) or skipped (`None`).
-    fn frame(&mut self, index: usize, record: Option<&FrameRecord>) {
-        let _ = (index, record);
-    }
-    /// The frames ended.
-    fn frames_finished(&mut self) {}
-}
-
-impl Progress for () {}
 
 /// A drive whose scans have their poses, ready to run.
 #[derive(Debug)]

@@ -48,12 +48,13 @@ impl std::fmt::Debug for Map {
     }
 }
 
-/// What a session is built from.
-#[derive(Debug, Default)]
+/// What a session is built from. By default: the default parameters, the `evigrid` method (as
+/// `evigrid run`), no map, no origin, skipping bad scans, every frame.
+#[derive(Debug)]
 pub struct SessionConfig {
     /// The method's parameters (SPEC §7).
     pub params: Params,
-    /// The fusion: [`Method::Evigrid`] or [`Method::Kurdej2013`].
+    /// The fusion: [`Method::Evigrid`] (the default) or [`Method::Kurdej2013`].
     pub method: Method,
     /// The map; without one the prior is vacuous.
     pub map: Option<Map>,
@@ -66,6 +67,20 @@ pub struct SessionConfig {
     pub max_frames: Option<usize>,
     /// The output folder, as the summary names it (empty: none).
     pub out: String,
+}
+
+impl Default for SessionConfig {
+    fn default() -> Self {
+        Self {
+            params: Params::default(),
+            method: Method::Evigrid,
+            map: None,
+            origin: None,
+            strict: false,
+            max_frames: None,
+            out: String::new(),
+        }
+    }
 }
 
 /// The name a method has in summaries and on command lines: `evigrid`, `kurdej2013`.

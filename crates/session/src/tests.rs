@@ -145,10 +145,7 @@ fn a_raised_stop_flag_ends_the_session_before_the_next_frame() {
 
 #[test]
 fn stepping_frame_by_frame_gives_the_whole_drive_s_figures() {
-    let config = || SessionConfig {
-        method: evigrid::Method::Evigrid,
-        ..SessionConfig::default()
-    };
+    let config = SessionConfig::default;
     let whole = run_drive(bag(), config(), &mut [], &AtomicBool::new(false)).unwrap();
 
     let drive = bag();

@@ -170,41 +170,7 @@ pub fn run(args: OdometryArgs) -> Result<()> {
         times_file = Some(path.display().to_string());
     }
 
-    let against_oxts = match scans.pose_origin() {
-        PoseOrigin::Oxts { .. } => {
-            let first = scans.first_fix();
-            let projection = first
-                .map(|(lat, lon)| geodata::TransverseMercator::new(lat, lon))
-                .transpose()
-                .map_err(|e| BadInput::new(e.to_string()))?;
-            match projection {
-                Some(projection) => {
-                    let project = |lat: f64, lon: f64| projection.forward(lat, lon);
-                    let reference = scans
-                        .place(Some(&project), usize::MAX)
-                        .map_err(|e| BadInput::new(e.to_string()))?;
-                    let n = poses.world_from_sensor.len();
-                    let lengths_m = vec![10.0, 20.0, 30.0];
-                    let errors = relative_errors(
-                        &poses.world_from_sensor,
-                        &reference.world_from_sensor[..n.min(reference.world_from_sensor.len())],
-                        &lengths_m,
-                        1,
-                    )
-                    .context("relative errors against OXTS")?;
-                    Some(AgainstOxts {
-                        lengths_m,
-                        segments: errors.segments.len(),
-                        translation_pct: errors.mean_translation_pct(),
-                        rotation_deg_per_m: errors.mean_rotation_deg_per_m(),
-                        heading_deg_per_m: errors.mean_heading_deg_per_m(),
-                    })
-                }
-                None => None,
-            }
-        }
-        _ => None,
-    };
+    let against_oxts = against_oxts(&scans, &poses.world_from_sensor)?;
 
     let frames = poses.times.len();
     let summary = OdometrySummary {
@@ -276,4 +242,32 @@ fn write_file(
     write(&mut out)
         .and_then(|()| std::io::Write::flush(&mut out))
         .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// The odometry's relative errors against a KITTI raw drive's OXTS poses (in the frame of the
+/// transverse Mercator at its first fix); `None` for other drives.
+fn against_oxts(scans: &Drive, poses: &[Isometry3<f64>]) -> Result<Option<AgainstOxts>> {
+    if !matches!(scans.pose_origin(), PoseOrigin::Oxts { .. }) {
+        return Ok(None);
+    }
+    let Some((lat, lon)) = scans.first_fix() else {
+        return Ok(None);
+    };
+    let projection =
+        geodata::TransverseMercator::new(lat, lon).map_err(|e| BadInput::new(e.to_string()))?;
+    let project = |lat: f64, lon: f64| projection.forward(lat, lon);
+    let reference = scans
+        .place(Some(&project), usize::MAX)
+        .map_err(|e| BadInput::new(e.to_string()))?;
+    let n = poses.len().min(reference.world_from_sensor.len());
+    let lengths_m = vec![10.0, 20.0, 30.0];
+    let errors = relative_errors(poses, &reference.world_from_sensor[..n], &lengths_m, 1)
+        .context("relative errors against OXTS")?;
+    Ok(Some(AgainstOxts {
+        lengths_m,
+        segments: errors.segments.len(),
+        translation_pct: errors.mean_translation_pct(),
+        rotation_deg_per_m: errors.mean_rotation_deg_per_m(),
+        heading_deg_per_m: errors.mean_heading_deg_per_m(),
+    }))
 }

@@ -13,8 +13,8 @@
 //! length); then it is occupied-static (O). Without the hold only the leading edge of a moving
 //! car would be M.
 
-use crate::{EvalError, GridMethod, Label};
-use evigrid::FrontEnd;
+use super::SensorGridBaseline;
+use crate::Label;
 use evigrid::SensorGrid;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
@@ -134,17 +134,15 @@ impl LogOdds {
     }
 }
 
-impl GridMethod for LogOdds {
-    fn name(&self) -> &'static str {
-        "log-odds"
+impl SensorGridBaseline for LogOdds {
+    const NAME: &'static str = "log-odds";
+
+    fn reset_range(&mut self, range: Range<usize>) {
+        LogOdds::reset_range(self, range);
     }
 
-    fn process(&mut self, front_end: &FrontEnd) -> Result<(), EvalError> {
-        for span in front_end.new_cell_spans() {
-            self.reset_range(span);
-        }
-        self.update(front_end.sensor_grid(), front_end.dt_s());
-        Ok(())
+    fn update(&mut self, sensor: &SensorGrid, dt_s: f64) {
+        LogOdds::update(self, sensor, dt_s);
     }
 
     fn decide(&self, out: &mut [Label]) {

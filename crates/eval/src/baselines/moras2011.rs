@@ -11,8 +11,8 @@
 //! never observed or m(Ω) > `unknown_threshold`; otherwise F if m(F) ≥ m(O) (the larger
 //! pignistic probability), else O.
 
-use crate::{EvalError, GridMethod, Label};
-use evigrid::FrontEnd;
+use super::SensorGridBaseline;
+use crate::Label;
 use evigrid::SensorGrid;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
@@ -122,17 +122,15 @@ impl Moras2011 {
     }
 }
 
-impl GridMethod for Moras2011 {
-    fn name(&self) -> &'static str {
-        "moras2011"
+impl SensorGridBaseline for Moras2011 {
+    const NAME: &'static str = "moras2011";
+
+    fn reset_range(&mut self, range: Range<usize>) {
+        Moras2011::reset_range(self, range);
     }
 
-    fn process(&mut self, front_end: &FrontEnd) -> Result<(), EvalError> {
-        for span in front_end.new_cell_spans() {
-            self.reset_range(span);
-        }
-        self.update(front_end.sensor_grid(), front_end.dt_s());
-        Ok(())
+    fn update(&mut self, sensor: &SensorGrid, dt_s: f64) {
+        Moras2011::update(self, sensor, dt_s);
     }
 
     fn decide(&self, out: &mut [Label]) {
