@@ -15,15 +15,16 @@
 //! WGS84 poses are placed in the map's projection, else the configured origin's, else at a
 //! KITTI raw drive's first fix ([`place`]).
 //!
-//! Over the shared KITTI raw drive (runs when `EVIGRID_SHARED` names the shared folder):
+//! Over the shared KITTI raw drive (runs when the shared data is found: `EVIGRID_SHARED`, by
+//! default `../shared` beside the workspace):
 //!
 //! ```
 //! use std::sync::atomic::AtomicBool;
 //! use drive::{Drive, DriveSpec};
 //! use session::{SessionConfig, run_drive};
 //!
-//! let Some(shared) = std::env::var_os("EVIGRID_SHARED") else { return Ok(()) };
-//! let dir = std::path::Path::new(&shared).join("data/lidar/kitti-raw-0013/2011_09_26");
+//! let kitti = "data/lidar/kitti-raw-0013/2011_09_26";
+//! let Some(dir) = geodata::testdata::shared_file(kitti) else { return Ok(()) };
 //! let drive = Drive::open(&DriveSpec::KittiRaw { dir, poses: None })?;
 //! let config = SessionConfig {
 //!     max_frames: Some(3),

@@ -32,38 +32,37 @@ pub fn odometry_pass(
     let recording = drive.is_recording();
     let given = drive.given_path().display().to_string();
     let (mut times, mut poses, mut kept) = (Vec::new(), Vec::new(), Vec::new());
-    for read in drive.scans()? {
+    let mut scans = drive.scans()?;
+    loop {
+        // Polled before a scan is read: a signal does not wait for a slow read.
         if stop.load(Ordering::Relaxed) {
             return Err(SessionError::Interrupted);
         }
+        let Some(read) = scans.next() else { break };
         // An unreadable scan is left out (the next registration spans the gap, as the
         // constant-velocity prediction allows) unless `strict`.
-        let registered = read.map_err(|s| s.error).and_then(|read| {
-            odometry
+        let registered = match read {
+            Ok(read) => odometry
                 .register(&read.scan.points_in_sensor, read.time_s)
                 .map(|pose| (read.index, read.time_s, pose))
-                .map_err(|e| format!("{}: {e}", read.name))
-        });
+                .map_err(|e| (read.name.clone(), format!("{}: {e}", read.name))),
+            Err(bad) => Err((bad.name, bad.error)),
+        };
         match registered {
             Ok((index, time_s, pose)) => {
                 kept.push(index);
                 times.push(time_s);
                 poses.push(pose);
             }
-            Err(error) if recording => {
+            Err((_, error)) if recording => {
                 return Err(SessionError::Input(format!("{given}: {error}")));
             }
-            Err(error) if strict => return Err(SessionError::Input(error)),
-            Err(error) => {
-                let index = kept.len() + skipped.len();
-                skipped.push(SkippedScan {
-                    scan: drive.scan_name(index),
-                    error,
-                });
-            }
+            Err((_, error)) if strict => return Err(SessionError::Input(error)),
+            Err((scan, error)) => skipped.push(SkippedScan { scan, error }),
         }
         progress.odometry_scan(&odometry);
     }
+    drop(scans);
     drive.keep(&kept);
     Ok(drive.place_with(times, poses))
 }
