@@ -39,9 +39,9 @@ pub struct Views<'a> {
 }
 
 /// Cells slower than this draw no arrow, m/s.
-const MIN_ARROW_SPEED_MPS: f32 = 0.5;
+pub const MIN_ARROW_SPEED_MPS: f32 = 0.5;
 /// One arrow per block of this many cells a side, so that a car shows one or two arrows.
-const ARROW_BLOCK_CELLS: usize = 6;
+pub const ARROW_BLOCK_CELLS: usize = 6;
 
 /// The velocity arrows of a motion stage: one per block of [`ARROW_BLOCK_CELLS`]² cells, at the
 /// first moving cell of the block (world order), `(position, velocity)` in metres and m/s.

@@ -1,8 +1,8 @@
 //! Baselines from the literature, for comparison with the map-aided evidential grid.
 //!
-//! Both are [`GridMethod`](crate::GridMethod)s: they consume the same SensorGrid as evigrid's
+//! Both are [`GridMethod`]s: they consume the same SensorGrid as evigrid's
 //! step (m(F), m(O) per cell, in the window's storage layout, from the shared front end) and
-//! decide each cell as a [`Label`](crate::Label): F, M, O (occupied and static — a two-class
+//! decide each cell as a [`Label`]: F, M, O (occupied and static — a two-class
 //! method cannot say whether it is a building, street furniture or a stopped car) or unknown. The metrics score O as "static
 //! occupied": wrong for I, U and S in the five-class view, right for all three in the coarse view
 //! (see [`crate::metrics`]).
