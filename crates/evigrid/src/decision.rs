@@ -45,6 +45,56 @@ pub fn betp(m: &[f32; N_SETS]) -> [f32; 5] {
     p.map(|pk| pk / normal)
 }
 
+/// [`betp`] of the cells `cells` (storage indices) of `grid`, bit for bit, class by class:
+/// `out[k]` is cleared, then holds class k's probability for each cell of the range, in order.
+/// Each focal set's plane is read once over the range (a plane of zeros is skipped) instead of
+/// gathering 32 planes per cell, and the sums run along the cells, where they vectorise. What
+/// writes the pignistic probabilities of a whole grid (a recording's grid, a picture) should use
+/// this: on KITTI 0013's 320 × 320 window it is several times quicker than [`betp`] of each
+/// cell's [`PerceptionGrid::cell_masses`].
+///
+/// # Panics
+/// If `cells` does not lie within the grid.
+///
+/// # References
+/// As [`betp`].
+pub fn betp_cells(
+    grid: &PerceptionGrid,
+    cells: std::ops::Range<usize>,
+    out: &mut [Vec<f32>; 5],
+) {
+    for pk in out.iter_mut() {
+        pk.clear();
+        pk.resize(cells.len(), 0.0);
+    }
+    // Sets in ascending order, as `betp` adds them: each class gets the same sums.
+    for set in 1..N_SETS {
+        let masses = &grid.plane(set)[cells.clone()];
+        // Adding +0 changes no sum that starts at +0.
+        if masses.iter().all(|&m| m == 0.0) {
+            continue;
+        }
+        let inverse = INVERSE_SIZE[set];
+        for (k, pk) in out.iter_mut().enumerate() {
+            if set & (1 << k) != 0 {
+                for (p, &mass) in pk.iter_mut().zip(masses) {
+                    *p += mass * inverse;
+                }
+            }
+        }
+    }
+    for (i, &empty) in grid.plane(0)[cells].iter().enumerate() {
+        let normal = 1.0 - empty;
+        for pk in out.iter_mut() {
+            pk[i] = if normal <= MIN_NORMAL_MASS {
+                0.0
+            } else {
+                pk[i] / normal
+            };
+        }
+    }
+}
+
 /// 1 / |A| for every focal set A (0 for ∅): the pignistic share of each of its classes. A
 /// product, not a division, so that [`decide_lanes`] vectorises cheaply and still gives
 /// [`betp`]'s values.
@@ -224,6 +274,40 @@ mod tests {
 
     fn close(a: f32, b: f32) -> bool {
         (a - b).abs() < 1e-6
+    }
+
+    #[test]
+    fn betp_cells_is_betp_of_each_cell_bit_for_bit() {
+        let mut grid = PerceptionGrid::new(7, 5);
+        let mut state = 7_u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for idx in 0..grid.len() {
+            // Mass on a few sets (set 9 never: a plane of zeros is skipped), normalised.
+            let mut m = [0.0_f32; N_SETS];
+            for set in [1, 3, 6, 17, 24, 30, OMEGA] {
+                m[set] = next();
+            }
+            m[0] = if idx % 4 == 0 { next() } else { 0.0 };
+            let total: f32 = m.iter().sum();
+            grid.set_cell_masses(idx, &m.map(|v| v / total));
+        }
+        // Total conflict: no betP.
+        let mut conflict = [0.0_f32; N_SETS];
+        conflict[0] = 1.0;
+        grid.set_cell_masses(12, &conflict);
+        let mut out: [Vec<f32>; 5] = std::array::from_fn(|_| vec![9.0; 3]);
+        betp_cells(&grid, 5..31, &mut out);
+        for (i, idx) in (5..31).enumerate() {
+            let expected = betp(&grid.cell_masses(idx));
+            let p: [f32; 5] = std::array::from_fn(|k| out[k][i]);
+            assert_eq!(p.map(f32::to_bits), expected.map(f32::to_bits), "cell {idx}");
+        }
+        assert!(out.iter().all(|pk| pk.len() == 26 && pk[12 - 5] == 0.0));
     }
 
     #[test]

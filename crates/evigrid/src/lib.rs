@@ -80,7 +80,7 @@ pub use params::{
     WINDOW_BYTES_PER_CELL, WindowParams, check_window_size,
 };
 // The labels, the decision and the pignistic probability (SPEC §6).
-pub use decision::{betp, decide, decide_grid};
+pub use decision::{betp, betp_cells, decide, decide_grid};
 pub use label::Label;
 // The grids and the world-fixed window they share.
 pub use grids::{GisGrid, N_SETS, OMEGA, PerceptionGrid, SensorGrid, class};

@@ -204,6 +204,9 @@ pub struct RefinementStats {
     pub correction_deg: f64,
     /// Scan points matched to the map in the registration's last iteration.
     pub correspondences: usize,
+    /// Gauss–Newton iterations the registration ran (0 when it did not run): what its time
+    /// grows with.
+    pub iterations: usize,
     /// Wall time, milliseconds.
     pub ms: f64,
 }
@@ -443,6 +446,7 @@ fn refined_pose(
     let mut stats = RefinementStats {
         outcome,
         correspondences: refinement.correspondences,
+        iterations: refinement.iterations,
         ms,
         ..RefinementStats::default()
     };

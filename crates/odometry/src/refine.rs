@@ -82,7 +82,7 @@ impl Default for RefineParams {
             max_points_per_voxel: 20,
             initial_threshold_m: 1.0,
             max_iterations: 100,
-            convergence_tolerance: 1e-4,
+            convergence_tolerance: 1e-3,
             max_correction_m: 0.5,
             max_correction_deg: 1.0,
             prior_weight: 0.1,

@@ -44,6 +44,7 @@ mod export;
 mod figure;
 pub mod georef;
 pub mod geotiff;
+mod indexed;
 pub mod mcap;
 pub mod nav2;
 pub mod palette;
@@ -61,6 +62,7 @@ pub use export::{
     OccupancyGridExport, Point, Pose, Quaternion, RosHeader, RosTime, Vector2, count_decisions,
     file_names, focal_set_name, write_grid_exports, write_masses,
 };
+pub use indexed::write_decision_png;
 pub use figure::{
     Legend, OUTLINE, Overlay, PATH, READABLE_SIDE_PX, class_name, figure, readable_scale,
 };

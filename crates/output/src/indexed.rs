@@ -1,0 +1,170 @@
+//! The decision map written straight to a palette PNG: the per-frame picture of a run.
+//!
+//! A decision map has at most eight colours, one per [`Label`], so its PNG needs no RGB: a
+//! palette and 1, 2 or 4 bits a pixel (2 for [`ClassColours::THREE_CLASSES`]' four colours) is
+//! the same picture for every decoder, with a twelfth of the bytes to filter and deflate, and
+//! with fast deflate (`fdeflate`) it is what makes a picture a frame affordable: on the 320 × 320
+//! window of KITTI 0013 it costs a small fraction of [`decision_image`](crate::decision_image)
+//! then [`write_png`](crate::write_png) (`docs/benchmarks.md`).
+
+use std::io::Write as _;
+use std::path::Path;
+
+use evigrid::{Label, Window};
+
+use crate::atomic::write_atomic;
+use crate::error::{OutputError, check_len};
+use crate::views::ClassColours;
+
+/// The palette of `colours` (each distinct colour once, in [`Label::ALL`] order) and each
+/// label's index in it, by label code.
+fn palette(colours: &ClassColours) -> (Vec<[u8; 3]>, [u8; Label::ALL.len()]) {
+    let mut entries: Vec<[u8; 3]> = Vec::with_capacity(Label::ALL.len());
+    let mut index = [0u8; Label::ALL.len()];
+    for label in Label::ALL {
+        let colour = colours.of(label);
+        let at = match entries.iter().position(|&c| c == colour) {
+            Some(at) => at,
+            None => {
+                entries.push(colour);
+                entries.len() - 1
+            }
+        };
+        // At most eight labels, so at most eight entries.
+        index[label as usize] = at as u8;
+    }
+    (entries, index)
+}
+
+/// The smallest PNG bit depth that holds `entries` palette indices.
+fn bit_depth(entries: usize) -> (png::BitDepth, u32) {
+    match entries {
+        0..=2 => (png::BitDepth::One, 1),
+        3..=4 => (png::BitDepth::Two, 2),
+        _ => (png::BitDepth::Four, 4),
+    }
+}
+
+/// Writes the decision map (`decisions` in storage order, one pixel per cell, north up, as
+/// [`decision_image`](crate::decision_image) paints it with `colours`) to `path` as a palette
+/// PNG with fast compression, atomically ([`write_atomic`]).
+///
+/// # Errors
+///
+/// [`OutputError::Size`] if `decisions` does not have one entry per window cell;
+/// [`OutputError::Image`] or [`OutputError::Io`] naming `path`.
+pub fn write_decision_png(
+    window: &Window,
+    decisions: &[Label],
+    colours: &ClassColours,
+    path: &Path,
+) -> Result<(), OutputError> {
+    check_len("decisions", decisions.len(), window)?;
+    let (entries, index) = palette(colours);
+    let (depth, bits) = bit_depth(entries.len());
+    let (w, h) = (window.width(), window.height());
+    let per_byte = (8 / bits) as usize;
+    let row_bytes = w.div_ceil(per_byte);
+    let mut packed = vec![0u8; row_bytes * h];
+    // World-order spans run south to north, west to east; image rows run north to south.
+    let mut pixel = 0usize;
+    for span in window.world_order_spans() {
+        for idx in span {
+            let (x, row_from_south) = (pixel % w, pixel / w);
+            let row = h - 1 - row_from_south;
+            let code = u32::from(index[decisions[idx] as usize]);
+            // The leftmost pixel in the high bits (PNG's order for depths below 8).
+            let shift = 8 - bits * (1 + (x % per_byte) as u32);
+            packed[row * row_bytes + x / per_byte] |= (code << shift) as u8;
+            pixel += 1;
+        }
+    }
+    let image_error = |source: png::EncodingError| OutputError::Image {
+        path: path.to_path_buf(),
+        source: image::ImageError::Encoding(image::error::EncodingError::new(
+            image::error::ImageFormatHint::Exact(image::ImageFormat::Png),
+            source,
+        )),
+    };
+    let mut encoded = Vec::new();
+    {
+        let mut encoder = png::Encoder::new(&mut encoded, w as u32, h as u32);
+        encoder.set_color(png::ColorType::Indexed);
+        encoder.set_depth(depth);
+        encoder.set_palette(entries.concat());
+        encoder.set_compression(png::Compression::Fast);
+        let mut writer = encoder.write_header().map_err(image_error)?;
+        writer.write_image_data(&packed).map_err(image_error)?;
+        writer.finish().map_err(image_error)?;
+    }
+    write_atomic(path, |file| file.write_all(&encoded))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use crate::testing::window;
+    use crate::{decision_image, write_png};
+
+    /// Every label somewhere, in an irregular pattern, on a window that has moved (its storage
+    /// wraps) and whose width is not a multiple of four pixels.
+    fn scene() -> (Window, Vec<Label>) {
+        let mut w = Window::new(13, 7, 0.5).unwrap();
+        let _ = w.move_to(5, -3);
+        let d = (0..w.len())
+            .map(|i| Label::ALL[(i * 7 + i / 5) % Label::ALL.len()])
+            .collect();
+        (w, d)
+    }
+
+    #[test]
+    fn the_palette_png_has_the_pixels_of_the_rgb_picture() {
+        let dir = tempfile::tempdir().unwrap();
+        for (colours, entries) in [
+            (ClassColours::THREE_CLASSES, 4),
+            (ClassColours::FIVE_CLASSES, 7),
+            (ClassColours::OKABE_ITO, 7),
+        ] {
+            assert_eq!(palette(&colours).0.len(), entries);
+            let (w, d) = scene();
+            let rgb = dir.path().join("rgb.png");
+            let indexed = dir.path().join("indexed.png");
+            write_png(&decision_image(&w, &d, &colours).unwrap(), &rgb).unwrap();
+            write_decision_png(&w, &d, &colours, &indexed).unwrap();
+            let expected = image::open(&rgb).unwrap().to_rgb8();
+            let read = image::open(&indexed).unwrap().to_rgb8();
+            assert_eq!(read.dimensions(), (13, 7));
+            assert_eq!(read, expected);
+        }
+    }
+
+    #[test]
+    fn three_classes_take_two_bits_a_pixel() {
+        // Unknown black, F green, I/U/S/O/Edge blue, M red: four colours.
+        let (entries, index) = palette(&ClassColours::THREE_CLASSES);
+        assert_eq!(entries, [[0, 0, 0], [0, 190, 0], [40, 80, 255], [230, 0, 0]]);
+        assert_eq!(index, [0, 1, 2, 2, 2, 3, 2, 2]);
+        assert_eq!(bit_depth(4), (png::BitDepth::Two, 2));
+        assert_eq!(bit_depth(5), (png::BitDepth::Four, 4));
+        // Header byte 24 of a PNG is the IHDR's bit depth, byte 25 its colour type (3: palette).
+        let w = window();
+        let d = vec![Label::F; w.len()];
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("d.png");
+        write_decision_png(&w, &d, &ClassColours::THREE_CLASSES, &path).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!((bytes[24], bytes[25]), (2, 3));
+    }
+
+    #[test]
+    fn decisions_of_the_wrong_size_are_refused_and_write_nothing() {
+        let w = window();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("d.png");
+        let error =
+            write_decision_png(&w, &[Label::F], &ClassColours::THREE_CLASSES, &path).unwrap_err();
+        assert!(matches!(error, OutputError::Size { .. }), "{error}");
+        assert!(!path.exists());
+    }
+}
