@@ -58,11 +58,7 @@ pub fn betp(m: &[f32; N_SETS]) -> [f32; 5] {
 ///
 /// # References
 /// As [`betp`].
-pub fn betp_cells(
-    grid: &PerceptionGrid,
-    cells: std::ops::Range<usize>,
-    out: &mut [Vec<f32>; 5],
-) {
+pub fn betp_cells(grid: &PerceptionGrid, cells: std::ops::Range<usize>, out: &mut [Vec<f32>; 5]) {
     for pk in out.iter_mut() {
         pk.clear();
         pk.resize(cells.len(), 0.0);
@@ -305,7 +301,11 @@ mod tests {
         for (i, idx) in (5..31).enumerate() {
             let expected = betp(&grid.cell_masses(idx));
             let p: [f32; 5] = std::array::from_fn(|k| out[k][i]);
-            assert_eq!(p.map(f32::to_bits), expected.map(f32::to_bits), "cell {idx}");
+            assert_eq!(
+                p.map(f32::to_bits),
+                expected.map(f32::to_bits),
+                "cell {idx}"
+            );
         }
         assert!(out.iter().all(|pk| pk.len() == 26 && pk[12 - 5] == 0.0));
     }

@@ -143,7 +143,10 @@ mod tests {
     fn three_classes_take_two_bits_a_pixel() {
         // Unknown black, F green, I/U/S/O/Edge blue, M red: four colours.
         let (entries, index) = palette(&ClassColours::THREE_CLASSES);
-        assert_eq!(entries, [[0, 0, 0], [0, 190, 0], [40, 80, 255], [230, 0, 0]]);
+        assert_eq!(
+            entries,
+            [[0, 0, 0], [0, 190, 0], [40, 80, 255], [230, 0, 0]]
+        );
         assert_eq!(index, [0, 1, 2, 2, 2, 3, 2, 2]);
         assert_eq!(bit_depth(4), (png::BitDepth::Two, 2));
         assert_eq!(bit_depth(5), (png::BitDepth::Four, 4));

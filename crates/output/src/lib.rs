@@ -62,8 +62,8 @@ pub use export::{
     OccupancyGridExport, Point, Pose, Quaternion, RosHeader, RosTime, Vector2, count_decisions,
     file_names, focal_set_name, write_grid_exports, write_masses,
 };
-pub use indexed::write_decision_png;
 pub use figure::{
     Legend, OUTLINE, Overlay, PATH, READABLE_SIDE_PX, class_name, figure, readable_scale,
 };
+pub use indexed::write_decision_png;
 pub use views::{ClassColours, decision_image, pignistic_image, trace_image};

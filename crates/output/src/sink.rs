@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use evigrid::motion::MotionStage;
 use evigrid::{GisGrid, Isometry3, Label, MovingTrace, PerceptionGrid, SensorGrid, Window};
 
-use crate::mcap::{GnssFix, McapFrame, McapRecorder};
+use crate::mcap::{GnssFix, McapFrame, McapGrid, McapRecorder};
 use crate::run_figures::{Views, final_figures};
 use crate::{
     ClassColours, GridExports, OutputError, write_decision_png, write_grid_exports, write_png,
@@ -133,10 +133,17 @@ impl FrameSink for McapSink {
         })
     }
 
-    fn finish(&mut self, _last: &FinalView<'_>) -> Result<(), OutputError> {
+    fn finish(&mut self, last: &FinalView<'_>) -> Result<(), OutputError> {
         // Closed even after an early stop: what it holds stays readable.
         match self.recorder.take() {
-            Some(recorder) => recorder.finish().map(|_| ()),
+            // The final grid, if the recorder's interval skipped the last frame's.
+            Some(recorder) => recorder
+                .finish(Some(&McapGrid {
+                    window: last.window,
+                    decisions: last.decisions,
+                    perception: last.perception,
+                }))
+                .map(|_| ()),
             None => Ok(()),
         }
     }

@@ -137,10 +137,11 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let mut recorder = if args.no_mcap {
         None
     } else {
-        Some(McapRecorder::create(
-            &args.out.join("run.mcap"),
-            Some(&loaded.map),
-        )?)
+        // Every frame's grid: the demo's frames are what it shows.
+        Some(
+            McapRecorder::create(&args.out.join("run.mcap"), Some(&loaded.map))?
+                .with_grid_interval(0.0),
+        )
     };
     // The MCAP frames and the final exports, written from the observer.
     let mut recorded: Result<()> = Ok(());
@@ -184,7 +185,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     rendered?;
     recorded?;
     if let Some(recorder) = recorder {
-        recorder.finish()?;
+        recorder.finish(None)?;
     }
     let gif_bytes = encoded?;
     bar.finish_and_clear();

@@ -8,7 +8,7 @@
 //!
 //! | topic | schema | when |
 //! |---|---|---|
-//! | `/evigrid/decision` | `foxglove.Grid` in `map`, fields [`GRID_FIELDS`] | every frame |
+//! | `/evigrid/decision` | `foxglove.Grid` in `map`, fields [`GRID_FIELDS`] | the first frame, then every [`GRID_INTERVAL_S`] of drive at most, and the last frame |
 //! | `/tf` | `foxglove.FrameTransform` `map` → `sensor` | every frame |
 //! | `/scan` | `foxglove.PointCloud` in `sensor` | every frame |
 //! | `/map` | `foxglove.SceneUpdate`, buildings and roads as line loops in `map` | once, first frame |
@@ -16,6 +16,11 @@
 //!
 //! Log and publish times are the scan's time (a fix: its own time), so Foxglove's timeline is the
 //! drive's.
+//!
+//! The grid is the recording's costly message (betP of every cell, base64): a viewer shows the
+//! latest grid at every instant, so writing it at 2 Hz (the scan, pose and fix at every frame)
+//! cut the default KITTI run's CPU by about a tenth (`docs/benchmarks.md`). The last frame's grid
+//! is always written ([`McapRecorder::finish`]), so the recording ends on the run's final grid.
 
 mod messages;
 pub mod schemas;
@@ -90,6 +95,22 @@ pub struct McapFrame<'a> {
     pub fix: Option<GnssFix>,
 }
 
+/// The decision grid is written at most once per this much drive time, seconds (2 Hz), plus the
+/// first and the last frame's ([`McapRecorder::with_grid_interval`] changes it; 0 writes every
+/// frame's).
+pub const GRID_INTERVAL_S: f64 = 0.5;
+
+/// The grid after the last frame, for [`McapRecorder::finish`].
+#[derive(Clone, Copy, Debug)]
+pub struct McapGrid<'a> {
+    /// The grid's window.
+    pub window: &'a Window,
+    /// Decisions, storage order.
+    pub decisions: &'a [Label],
+    /// Masses.
+    pub perception: &'a PerceptionGrid,
+}
+
 /// Messages written per topic.
 #[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct McapCounts {
@@ -116,6 +137,12 @@ pub struct McapRecorder {
     map_outlines: Option<(Vec<Outline>, Vec<Outline>)>,
     counts: McapCounts,
     sequence: u32,
+    /// [`GRID_INTERVAL_S`] or the interval chosen, nanoseconds.
+    grid_interval_ns: u64,
+    /// Time of the last grid written, nanoseconds.
+    last_grid_ns: Option<u64>,
+    /// Time of the last frame written, nanoseconds.
+    last_frame_ns: Option<u64>,
 }
 
 impl std::fmt::Debug for McapRecorder {
@@ -125,6 +152,12 @@ impl std::fmt::Debug for McapRecorder {
             .field("counts", &self.counts)
             .finish_non_exhaustive()
     }
+}
+
+/// `seconds` as whole nanoseconds, 0 for a negative or NaN value.
+fn seconds_to_ns(seconds: f64) -> u64 {
+    // `as` saturates: a huge interval writes the first and the last grid only.
+    (seconds * 1e9).round() as u64
 }
 
 /// A closed outline, local metres.
@@ -199,16 +232,36 @@ impl McapRecorder {
             map_outlines: map.map(|m| (outlines(&m.buildings), outlines(&m.roads))),
             counts: McapCounts::default(),
             sequence: 0,
+            grid_interval_ns: seconds_to_ns(GRID_INTERVAL_S),
+            last_grid_ns: None,
+            last_frame_ns: None,
         })
     }
 
-    fn send(
-        &mut self,
-        channel: u16,
-        topic: &str,
-        ns: u64,
-        data: &str,
-    ) -> Result<(), OutputError> {
+    /// Writes the decision grid at most once per `interval_s` of drive time (seconds; 0 or less:
+    /// every frame), instead of [`GRID_INTERVAL_S`].
+    #[must_use]
+    pub fn with_grid_interval(mut self, interval_s: f64) -> Self {
+        self.grid_interval_ns = seconds_to_ns(interval_s);
+        self
+    }
+
+    /// The grid message of `grid` at `ns`, sent.
+    fn send_grid(&mut self, ns: u64, grid: &McapGrid<'_>) -> Result<(), OutputError> {
+        check_len("decisions", grid.decisions.len(), grid.window)?;
+        check_len("perception grid", grid.perception.len(), grid.window)?;
+        let message = messages::grid(ns, FRAME_MAP, grid.window, grid.decisions, grid.perception);
+        self.send(
+            self.channels.decision,
+            TOPIC_DECISION,
+            ns,
+            &message.to_json(),
+        )?;
+        self.last_grid_ns = Some(ns);
+        Ok(())
+    }
+
+    fn send(&mut self, channel: u16, topic: &str, ns: u64, data: &str) -> Result<(), OutputError> {
         self.sequence = self.sequence.wrapping_add(1);
         let header = MessageHeader {
             channel_id: channel,
@@ -258,14 +311,18 @@ impl McapRecorder {
         }
         let tf = messages::frame_transform(ns, FRAME_MAP, FRAME_SENSOR, frame.world_from_sensor);
         self.send(self.channels.tf, TOPIC_TF, ns, &tf.to_string())?;
-        let grid = messages::grid(
-            ns,
-            FRAME_MAP,
-            frame.window,
-            frame.decisions,
-            frame.perception,
-        );
-        self.send(self.channels.decision, TOPIC_DECISION, ns, &grid.to_json())?;
+        let grid_due = self
+            .last_grid_ns
+            .is_none_or(|last| ns >= last.saturating_add(self.grid_interval_ns));
+        if grid_due {
+            let grid = McapGrid {
+                window: frame.window,
+                decisions: frame.decisions,
+                perception: frame.perception,
+            };
+            self.send_grid(ns, &grid)?;
+        }
+        self.last_frame_ns = Some(ns);
         let scan = messages::point_cloud(ns, FRAME_SENSOR, frame.points_in_sensor);
         self.send(self.channels.scan, TOPIC_SCAN, ns, &scan.to_json())?;
         if let (Some(fix), Some(fix_ns)) = (frame.fix, fix_ns) {
@@ -275,12 +332,20 @@ impl McapRecorder {
         Ok(())
     }
 
-    /// Writes the summary and index, and moves the recording into place.
+    /// Writes `last`, the grid after the last frame written, if the interval skipped that
+    /// frame's grid (give `None` only when every frame's grid was written: an interval of 0);
+    /// then the summary and index, and moves the recording into place.
     ///
     /// # Errors
     ///
-    /// [`OutputError::Mcap`] or [`OutputError::Io`] naming the file.
-    pub fn finish(mut self) -> Result<McapCounts, OutputError> {
+    /// [`OutputError::Size`] if `last` does not have its window's size, [`OutputError::Mcap`]
+    /// or [`OutputError::Io`] naming the file.
+    pub fn finish(mut self, last: Option<&McapGrid<'_>>) -> Result<McapCounts, OutputError> {
+        if let (Some(ns), Some(grid)) = (self.last_frame_ns, last)
+            && self.last_grid_ns != Some(ns)
+        {
+            self.send_grid(ns, grid)?;
+        }
         let mcap_error = |source| OutputError::Mcap {
             path: self.path.clone(),
             source,
@@ -338,8 +403,15 @@ mod tests {
                 .unwrap();
         }
         assert!(!path.exists(), "the file appears on finish only");
-        let counts = recorder.finish().unwrap();
-        assert_eq!(counts.messages[TOPIC_DECISION], 3);
+        let last = McapGrid {
+            window: &w,
+            decisions: &d,
+            perception: &pg,
+        };
+        let counts = recorder.finish(Some(&last)).unwrap();
+        // The first frame's grid, then none for 0.5 s, and the last frame's from `finish`.
+        assert_eq!(counts.messages[TOPIC_DECISION], 2);
+        assert_eq!(counts.messages[TOPIC_TF], 3);
         assert_eq!(counts.messages[TOPIC_MAP], 1);
         assert_eq!(counts.messages[TOPIC_GNSS], 1);
         let bytes = std::fs::read(&path).unwrap();
@@ -365,7 +437,7 @@ mod tests {
             }
         }
         assert_eq!(per_topic, counts.messages);
-        assert_eq!(times, [100_000_000_000, 100_100_000_000, 100_200_000_000]);
+        assert_eq!(times, [100_000_000_000, 100_200_000_000]);
         // Chunks are zstd whatever the features the rest of a build gives the `mcap` crate.
         let summary = ::mcap::Summary::read(&bytes).unwrap().unwrap();
         assert!(!summary.chunk_indexes.is_empty());
@@ -375,6 +447,59 @@ mod tests {
                 .iter()
                 .all(|chunk| chunk.compression == "zstd")
         );
+    }
+
+    /// Decision-grid times in a recording of frames at `times_s` with grid interval
+    /// `interval_s`, finished with the last frame's grid.
+    fn grid_times(times_s: &[f64], interval_s: f64) -> Vec<u64> {
+        let w = window();
+        let d = decisions(&w, |_, _| Label::F);
+        let pg = PerceptionGrid::new(w.width(), w.height());
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.mcap");
+        let mut recorder = McapRecorder::create(&path, None)
+            .unwrap()
+            .with_grid_interval(interval_s);
+        for &time_s in times_s {
+            let frame = McapFrame {
+                time_s,
+                window: &w,
+                decisions: &d,
+                perception: &pg,
+                world_from_sensor: &Isometry3::IDENTITY,
+                points_in_sensor: &[],
+                fix: None,
+            };
+            recorder.write_frame(&frame).unwrap();
+        }
+        let last = McapGrid {
+            window: &w,
+            decisions: &d,
+            perception: &pg,
+        };
+        recorder.finish(Some(&last)).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        ::mcap::MessageStream::new(&bytes)
+            .unwrap()
+            .map(|m| m.unwrap())
+            .filter(|m| m.channel.topic == TOPIC_DECISION)
+            .map(|m| m.log_time / 100_000_000)
+            .collect()
+    }
+
+    #[test]
+    fn the_grid_is_written_at_its_interval_and_on_the_last_frame() {
+        // Frames every 0.1 s (times in tenths of a second below).
+        let times: Vec<f64> = (0..12).map(|k| 10.0 + 0.1 * f64::from(k)).collect();
+        // 0.5 s: the first frame, then each frame at least 0.5 s after the last grid, and the
+        // last frame's from `finish`.
+        assert_eq!(grid_times(&times, 0.5), [100, 105, 110, 111]);
+        // The last frame's grid already due is not written twice.
+        assert_eq!(grid_times(&times[..11], 0.5), [100, 105, 110]);
+        // 0: every frame's, once each.
+        assert_eq!(grid_times(&times, 0.0), (100..112).collect::<Vec<u64>>());
+        // One frame: its grid, once.
+        assert_eq!(grid_times(&times[..1], 0.5), [100]);
     }
 
     #[test]
