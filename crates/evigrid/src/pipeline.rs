@@ -933,12 +933,16 @@ mod tests {
             let error = [pose.translation[0] - x, pose.translation[1], heading];
             if k == 0 {
                 assert_eq!(stats.pose_refinement.outcome, RefinementOutcome::First);
+                assert_eq!(stats.pose_refinement.iterations, 0);
             } else {
                 assert_eq!(
                     stats.pose_refinement.outcome,
                     RefinementOutcome::Refined,
                     "{k}"
                 );
+                // What the registration's time grows with, reported and bounded.
+                let iterations = stats.pose_refinement.iterations;
+                assert!((1..=100).contains(&iterations), "{k}: {iterations}");
                 assert!(pose.translation[2].abs() < 1e-9 && pose.rotation[2][2] > 1.0 - 1e-12);
             }
             if let Some((given_error, used_error)) = last {

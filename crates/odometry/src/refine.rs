@@ -55,9 +55,8 @@ pub struct RefineParams {
     /// Gauss–Newton iterations per scan at most (default 100).
     pub max_iterations: usize,
     /// ICP stops when an update's norm (metres and radians as one 6-vector) is below this
-    /// (default 1e-3, a millimetre: against a prior that agrees to a decimetre the last
-    /// iterations only slide the pose along a street by millimetres; 1e-4, [`crate::Odometry`]'s,
-    /// took twice the iterations on KITTI 0013 for poses within 3 cm, `docs/benchmarks.md`).
+    /// (default 1e-4; 1e-3 halves the iterations on KITTI 0013 but flips a decision in a
+    /// synthetic scene, `docs/benchmarks.md`).
     pub convergence_tolerance: f64,
     /// A registration that moves the position farther than this from the prior is refused and
     /// the prior kept (metres, default 0.5: five times a good GNSS/INS's 0.1 m).
@@ -84,7 +83,7 @@ impl Default for RefineParams {
             max_points_per_voxel: 20,
             initial_threshold_m: 1.0,
             max_iterations: 100,
-            convergence_tolerance: 1e-3,
+            convergence_tolerance: 1e-4,
             max_correction_m: 0.5,
             max_correction_deg: 1.0,
             prior_weight: 0.1,
