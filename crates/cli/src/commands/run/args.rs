@@ -139,8 +139,9 @@ Outputs (in --out):
                                colours, legend, scale bar, north arrow, map outlines, ego path
   pignistic.png                final betP colour mix;  trace.png  moving objects over the drive
                                (both drawn as decision.png)
-  run.mcap                     Foxglove recording: per frame the decision grid, the pose, the scan,
-                               the GNSS fix (KITTI raw); the map's outlines (not with --no-mcap)
+  run.mcap                     Foxglove recording: per frame the pose, the scan, the GNSS fix
+                               (KITTI raw); the decision grid at 2 Hz and the last frame's; the
+                               map's outlines (not with --no-mcap)
   occupancy.json               final decided grid, ROS 2 nav_msgs/OccupancyGrid as JSON
   classes.json                 final decided class per cell (0 unknown, 1 F, 2 I, 3 U, 4 S, 5 M)
   masses.json, masses.bin      final masses, one little-endian float32 field per focal set
