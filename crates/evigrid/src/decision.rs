@@ -64,13 +64,12 @@ pub fn betp_cells(grid: &PerceptionGrid, cells: std::ops::Range<usize>, out: &mu
         pk.resize(cells.len(), 0.0);
     }
     // Sets in ascending order, as `betp` adds them: each class gets the same sums.
-    for set in 1..N_SETS {
+    for (set, &inverse) in INVERSE_SIZE.iter().enumerate().skip(1) {
         let masses = &grid.plane(set)[cells.clone()];
         // Adding +0 changes no sum that starts at +0.
         if masses.iter().all(|&m| m == 0.0) {
             continue;
         }
-        let inverse = INVERSE_SIZE[set];
         for (k, pk) in out.iter_mut().enumerate() {
             if set & (1 << k) != 0 {
                 for (p, &mass) in pk.iter_mut().zip(masses) {
