@@ -7,30 +7,38 @@
 //! confusion matrix. A cell is counted once per frame, so long-lived cells weigh more, as in a
 //! per-frame benchmark. The runner keeps one matrix per mask (see "Three masks" below).
 //!
-//! Truth and predictions are both [`Label`]s. Truth is one of {F, I, U, S, M} or
-//! [`Label::Edge`], the boundary band of a building (a cell it covers in part, not at its
-//! centre; see [`sim::truth`]). Predictions are one of {F, I, U, S, M, O, unknown}, where O
-//! ("occupied, static, class not resolved") is what a two-class baseline says of an occupied
-//! cell that is not moving. Because a baseline cannot name I, U or S, two views are reported:
+//! Truth and predictions are both [`Label`]s. Predictions are one of {F, I, U, S, M, O,
+//! unknown}, where O ("occupied, static, class not resolved") is what a two-class baseline says
+//! of an occupied cell that is not moving. Because a baseline cannot name I, U or S, two views
+//! are reported:
 //! - **five-class** scores on the matrix as is (O counts as a miss for I, U and S);
 //! - **coarse** scores on {F, O = I ∪ U ∪ S, M}: truth and predictions I, U, S, O merge into O,
 //!   which compares every method fairly on free / static-occupied / moving.
 //!
-//! # The boundary band
-//! A band cell is part wall, part open space: F and I (or U, O) are both right there, M is not.
-//! Its row of the matrix is kept apart ([`ConfusionMatrix::edge`]): it adds a false positive to
-//! M (and, in the coarse view, to coarse M) when predicted M, counts as static in the static
-//! accuracy, and touches no other class's score. Its count and how often it is called M are
-//! reported ([`Scores::edge_cell_frames`], [`Scores::edge_predicted_moving`]).
+//! # The truth rule: a cell is what covers its centre
+//! The headline truth is [`sim::truth::label_window_centre`]: one rule for every object,
+//! building or road user. No cell in view is left out of any score. A cell an object covers in
+//! part without its centre is truth F (calling it M is a false M; missing the object there is
+//! no miss); these cells, the *band*, are counted a second time in [`ConfusionMatrix::band`]
+//! and reported as information ([`Scores::band_cell_frames`], [`Scores::band_predicted_moving`]).
+//! A road user never seen moving (standing since it came into view, on ground never seen free)
+//! is truth S, but no evidence tells it from a pole, so S and U are both correct there: its
+//! cells go to [`ConfusionMatrix::never_seen_moving`] and are scored as truth S, except that
+//! predicted U is a correct U ([`ConfusionMatrix::scored_counts`]); their count is reported
+//! ([`Scores::never_seen_moving_cell_frames`]).
 //!
-//! # The object outline band
-//! A cell a road user or a piece of street furniture overlaps only by a sliver, at none of the
-//! truth's samples ([`sim::truth::label_window_with_outline`]), holds part of the object and
-//! mostly free space: a ray ends on the sliver or crosses the cell beside it, and free or the
-//! object's class are both defensible at the grid's resolution. Such a cell is scored as no
-//! class (as PASCAL VOC leaves a "void" band along object boundaries out of its scores): its
-//! predictions are counted apart ([`ConfusionMatrix::outline`]) and reported
-//! ([`Scores::outline_cell_frames`], [`Scores::outline_predicted_moving`]).
+//! # The previous rule, kept one release
+//! Before issue 30 truth was [`sim::truth::label_window_with_outline`], and the evaluation
+//! still scores it beside the headline (`scores_visible_previous` of the report):
+//! - **The boundary band.** A cell a building covers in part, not at its centre, was truth
+//!   [`Label::Edge`]. Its row is kept apart ([`ConfusionMatrix::edge`]): it adds a false
+//!   positive to M (and, in the coarse view, to coarse M) when predicted M, counts as static in
+//!   the static accuracy, and touches no other class's score ([`Scores::edge_cell_frames`],
+//!   [`Scores::edge_predicted_moving`]).
+//! - **The object outline band.** A cell an actor overlaps only by a sliver, at none of the
+//!   truth's 3 × 3 samples, was scored as no class: its predictions are counted apart
+//!   ([`ConfusionMatrix::outline`], [`Scores::outline_cell_frames`],
+//!   [`Scores::outline_predicted_moving`]). A cell an actor covers at any sample was the actor's.
 //!
 //! # Definitions (per class c, counts over scored cell-frames)
 //! TP = truth c and predicted c; FP = predicted c, truth not c; FN = truth c, predicted not c
@@ -44,7 +52,7 @@
 //! "A Dynamic Points Removal Benchmark in Point Cloud Maps", ITSC 2023; their
 //! `scripts/py/eval/evaluate_all.py`): SA = correctly kept static / all truly static, DA =
 //! correctly flagged dynamic / all truly dynamic, HA = their harmonic mean. For grids: SA is the
-//! fraction of cells whose truth is F, I, U, S or edge that are *not* predicted M (unknown counts
+//! fraction of cells whose truth is F, I, U, S (or the previous rule's edge) that are *not* predicted M (unknown counts
 //! as kept: it does not wrongly delete a static object); DA is the fraction of truly M cells
 //! predicted M. Because free cells are most of the static ones, SA is close to 1 for any method
 //! that rarely says M; **occupied-static accuracy** is the same ratio over truth I, U and S
@@ -106,6 +114,14 @@ pub struct ConfusionMatrix {
     /// counted, never scored. Absent in reports written before the band existed: read as zeros.
     #[serde(default)]
     pub outline: [u64; 7],
+    /// Centre rule: the band, cells covered in part without their centre (truth F, scored in
+    /// `counts` as F), counted here a second time as information. Same columns.
+    #[serde(default)]
+    pub band: [u64; 7],
+    /// Centre rule: truth S of a road user never seen moving, where S and U are both correct.
+    /// Same columns; scored as truth S, except that predicted U counts as a correct U.
+    #[serde(default)]
+    pub never_seen_moving: [u64; 7],
 }
 
 impl ConfusionMatrix {
@@ -150,6 +166,53 @@ impl ConfusionMatrix {
         }
     }
 
+    /// Adds a frame scored by the centre rule (`sim::truth::label_window_centre`): cell `k`
+    /// counts when `observed[k]`; a cell flagged in `never_seen_moving` with truth S goes to
+    /// [`never_seen_moving`](Self::never_seen_moving), any other to its row, and a cell of the
+    /// band with truth F is counted in [`band`](Self::band) too. Slices must have equal length.
+    pub fn add_frame_centre(
+        &mut self,
+        truth: &sim::truth::CentreTruth,
+        predicted: &[Label],
+        observed: &[bool],
+    ) {
+        let cells = truth
+            .labels
+            .iter()
+            .zip(&truth.band)
+            .zip(&truth.never_seen_moving)
+            .zip(predicted.iter().zip(observed));
+        for (((&t, &band), &parked), (&p, &o)) in cells {
+            if !o {
+                continue;
+            }
+            let column = COLUMN[p as usize];
+            if parked && t == Label::S {
+                self.never_seen_moving[column] += 1;
+                continue;
+            }
+            if band && t == Label::F {
+                self.band[column] += 1;
+            }
+            self.add(t, p);
+        }
+    }
+
+    /// The rows F, I, U, S, M as scored: [`counts`](Self::counts) with the never-seen-moving
+    /// cells folded in (predicted U as a correct U, anything else as truth S).
+    pub fn scored_counts(&self) -> [[u64; 7]; 5] {
+        let mut out = self.counts;
+        let u_column = COLUMN[Label::U as usize];
+        for (column, &n) in self.never_seen_moving.iter().enumerate() {
+            if column == u_column {
+                out[2][u_column] += n;
+            } else {
+                out[3][column] += n;
+            }
+        }
+        out
+    }
+
     /// Adds another matrix.
     pub fn merge(&mut self, other: &ConfusionMatrix) {
         for (a, b) in self.counts.iter_mut().zip(&other.counts) {
@@ -163,11 +226,25 @@ impl ConfusionMatrix {
         for (x, y) in self.outline.iter_mut().zip(&other.outline) {
             *x += y;
         }
+        for (x, y) in self.band.iter_mut().zip(&other.band) {
+            *x += y;
+        }
+        for (x, y) in self
+            .never_seen_moving
+            .iter_mut()
+            .zip(&other.never_seen_moving)
+        {
+            *x += y;
+        }
     }
 
-    /// Total scored cell-frames, the boundary band included (the outline band is not scored).
+    /// Total scored cell-frames: the rows, the never-seen-moving cells and the building
+    /// boundary band of the previous rule (its outline band is not scored; the centre rule's
+    /// band is already in the rows).
     pub fn total(&self) -> u64 {
-        self.counts.iter().flatten().sum::<u64>() + self.edge.iter().sum::<u64>()
+        self.counts.iter().flatten().sum::<u64>()
+            + self.never_seen_moving.iter().sum::<u64>()
+            + self.edge.iter().sum::<u64>()
     }
 
     /// This matrix with the boundary band counted as truth I: what the labelling rule before
@@ -200,7 +277,7 @@ impl ConfusionMatrix {
         let row_of = [0usize, 1, 1, 1, 2];
         let col_of = [0usize, 1, 1, 1, 2, 1, 3];
         let mut out = [[0u64; 4]; 3];
-        for (t, row) in self.counts.iter().enumerate() {
+        for (t, row) in self.scored_counts().iter().enumerate() {
             for (p, &n) in row.iter().enumerate() {
                 out[row_of[t]][col_of[p]] += n;
             }
@@ -212,14 +289,15 @@ impl ConfusionMatrix {
     pub fn scores(&self) -> Scores {
         // The band adds false positives to M only (see the module docs).
         let edge_moving = self.edge[M_COLUMN];
+        let counts = self.scored_counts();
         let five: Vec<ClassScores> = (0..5)
             .map(|c| {
-                let tp = self.counts[c][c];
-                let mut fp: u64 = (0..5).filter(|&t| t != c).map(|t| self.counts[t][c]).sum();
+                let tp = counts[c][c];
+                let mut fp: u64 = (0..5).filter(|&t| t != c).map(|t| counts[t][c]).sum();
                 if c == 4 {
                     fp += edge_moving;
                 }
-                let fn_: u64 = self.counts[c].iter().sum::<u64>() - tp;
+                let fn_: u64 = counts[c].iter().sum::<u64>() - tp;
                 ClassScores::new(TRUTH_NAMES[c], tp, fp, fn_)
             })
             .collect();
@@ -242,12 +320,12 @@ impl ConfusionMatrix {
                 (kept + n - r[M_COLUMN], total + n)
             })
         };
-        let (occupied_kept, occupied_total) = kept(&self.counts[1..4]);
-        let (free_kept, free_total) = kept(&self.counts[..1]);
+        let (occupied_kept, occupied_total) = kept(&counts[1..4]);
+        let (free_kept, free_total) = kept(&counts[..1]);
         let static_total = free_total + occupied_total + edge_total;
         let static_kept = free_kept + occupied_kept + edge_total - edge_moving;
-        let dynamic_total: u64 = self.counts[4].iter().sum();
-        let dynamic_found = self.counts[4][M_COLUMN];
+        let dynamic_total: u64 = counts[4].iter().sum();
+        let dynamic_found = counts[4][M_COLUMN];
         let sa = ratio(static_kept, static_total);
         let da = ratio(dynamic_found, dynamic_total);
         let ha = match (sa, da) {
@@ -265,6 +343,9 @@ impl ConfusionMatrix {
             edge_predicted_moving: edge_moving,
             outline_cell_frames: self.outline.iter().sum(),
             outline_predicted_moving: self.outline[M_COLUMN],
+            band_cell_frames: self.band.iter().sum(),
+            band_predicted_moving: self.band[M_COLUMN],
+            never_seen_moving_cell_frames: self.never_seen_moving.iter().sum(),
             static_accuracy: sa,
             dynamic_accuracy: da,
             harmonic_accuracy: ha,
@@ -351,6 +432,16 @@ pub struct Scores {
     /// Of those, predicted M.
     #[serde(default)]
     pub outline_predicted_moving: u64,
+    /// Centre rule: cell-frames of the band (covered in part without the centre, truth F),
+    /// scored as F and reported here as information.
+    #[serde(default)]
+    pub band_cell_frames: u64,
+    /// Of those, predicted M (false M of the centre rule).
+    #[serde(default)]
+    pub band_predicted_moving: u64,
+    /// Centre rule: cell-frames of road users never seen moving (S and U both correct).
+    #[serde(default)]
+    pub never_seen_moving_cell_frames: u64,
     /// DynamicMap SA (truth F, I, U, S and edge).
     pub static_accuracy: Option<f64>,
     /// DynamicMap DA.
@@ -654,6 +745,39 @@ mod tests {
         // M: TP 1, FP 1 → IoU 1/2; scored as F, the band's M is one more FP → 1/3.
         assert_eq!(s.moving_iou, Some(0.5));
         assert_eq!(m.outline_as_free().scores().moving_iou, Some(1.0 / 3.0));
+    }
+
+    #[test]
+    fn centre_rule_band_is_scored_free_and_never_seen_moving_accepts_s_and_u() {
+        use Label as P;
+        // Truth F F F S S S M; cells 0, 1 in the band; cells 3, 4, 5 of a road user never
+        // seen moving; cell 6 not observed.
+        let truth = sim::truth::CentreTruth {
+            labels: vec![P::F, P::F, P::F, P::S, P::S, P::S, P::M],
+            band: vec![true, true, false, false, false, false, false],
+            never_seen_moving: vec![false, false, false, true, true, true, false],
+        };
+        let pred = [P::M, P::F, P::F, P::U, P::S, P::M, P::M];
+        let mut observed = [true; 7];
+        observed[6] = false;
+        let mut m = ConfusionMatrix::default();
+        m.add_frame_centre(&truth, &pred, &observed);
+        // The band is scored as F (one false M) and counted a second time apart.
+        assert_eq!(m.counts[0], [2, 0, 0, 0, 1, 0, 0]);
+        assert_eq!(m.band, [1, 0, 0, 0, 1, 0, 0]);
+        assert_eq!(m.never_seen_moving, [0, 0, 1, 1, 1, 0, 0]);
+        assert_eq!(m.total(), 6);
+        let s = m.scores();
+        assert_eq!((s.band_cell_frames, s.band_predicted_moving), (2, 1));
+        assert_eq!(s.never_seen_moving_cell_frames, 3);
+        // U: the one predicted U is correct (TP 1, FP 0). S: TP 1, FN 1 (predicted M).
+        assert_eq!((s.classes[2].tp, s.classes[2].fp), (1, 0));
+        assert_eq!((s.classes[3].tp, s.classes[3].fp, s.classes[3].fn_), (1, 0, 1));
+        // M: TP 0 (the truly moving cell was not observed), FP 2: precision 0.
+        assert_eq!((s.classes[4].tp, s.classes[4].fp), (0, 2));
+        // Occupied-static: 3 cells, 2 kept (U, S); static: 6 cells, 4 kept.
+        assert_relative_eq!(s.occupied_static_accuracy.unwrap_or(-1.0), 2.0 / 3.0);
+        assert_relative_eq!(s.static_accuracy.unwrap_or(-1.0), 4.0 / 6.0);
     }
 
     #[test]

@@ -94,12 +94,12 @@ pub struct FusionFrame<'a> {
     pub front_end: &'a FrontEnd,
     /// The variant's fusion after the frame: PerceptionGrid, decisions, trace.
     pub fusion: &'a Fusion,
-    /// The simulator's truth over the window after the frame, in storage order
-    /// ([`IGNORED`](sim::truth::IGNORED) where the ego's own sensor cannot see), for pictures
-    /// of truth beside prediction.
+    /// The simulator's truth over the window after the frame by the centre rule, in storage
+    /// order ([`IGNORED`](sim::truth::IGNORED) where the ego's own sensor cannot see), for
+    /// pictures of truth beside prediction.
     pub truth: &'a [evigrid::Label],
-    /// The object outline band over the window, in storage order: cells an actor overlaps at
-    /// none of their 3 × 3 samples, scored as no class (see `docs/evaluation.md`).
+    /// The band over the window, in storage order: cells an object covers in part without
+    /// their centre (truth F, scored as F; see `docs/evaluation.md`).
     pub outline: &'a [bool],
     /// The sensor's position (x east, y north, metres) as the method was given it this frame.
     pub ego_position: [f64; 2],
@@ -133,6 +133,8 @@ struct Runner {
     predicted: Vec<Label>,
     confusion: ConfusionMatrix,
     visible: ConfusionMatrix,
+    /// Cells in view, scored by the previous truth rule (one release, for comparison).
+    visible_previous: ConfusionMatrix,
     all: ConfusionMatrix,
     remanence: Remanence,
     latency: Latency,
@@ -167,6 +169,7 @@ impl Runner {
             predicted: vec![Label::Unknown; len],
             confusion: ConfusionMatrix::default(),
             visible: ConfusionMatrix::default(),
+            visible_previous: ConfusionMatrix::default(),
             all: ConfusionMatrix::default(),
             remanence: Remanence::new(len),
             latency: Latency::default(),
@@ -178,6 +181,7 @@ impl Runner {
     fn merge(&mut self, other: &Runner) {
         self.confusion.merge(&other.confusion);
         self.visible.merge(&other.visible);
+        self.visible_previous.merge(&other.visible_previous);
         self.all.merge(&other.all);
         self.remanence.merge(&other.remanence);
         self.latency.merge(&other.latency);
@@ -290,6 +294,8 @@ pub fn evaluate_observed(
             confusion: r.confusion,
             scores_visible: r.visible.scores(),
             confusion_visible: r.visible,
+            scores_visible_previous: Some(r.visible_previous.scores()),
+            confusion_visible_previous: Some(r.visible_previous),
             scores_all: r.all.scores(),
             confusion_all: r.all,
             remanence: r.remanence.summary(),
@@ -324,10 +330,20 @@ fn run_drive(
     let mut observed = vec![false; len];
     let mut observed_now = vec![false; len];
     let everywhere = vec![true; len];
-    let mut truth_world = Vec::new();
-    let mut truth_storage = vec![truth::IGNORED; len];
+    let mut previous_world = Vec::new();
+    let mut previous_storage = vec![truth::IGNORED; len];
     let mut outline_world = Vec::new();
     let mut outline_storage = vec![false; len];
+    let mut centre_world = truth::CentreTruth::default();
+    let mut centre = truth::CentreTruth {
+        labels: vec![truth::IGNORED; len],
+        band: vec![false; len],
+        never_seen_moving: vec![false; len],
+    };
+    let mut never_seen_moving = NeverSeenMoving {
+        seen_free: vec![false; len],
+        ..NeverSeenMoving::default()
+    };
     let frames = drive.frame_count();
     loop {
         let started = Instant::now();
@@ -345,8 +361,10 @@ fn run_drive(
         let pose = *front_end.world_from_sensor();
         let window = front_end.window();
         for span in front_end.new_cell_spans() {
-            observed[span].fill(false);
+            observed[span.clone()].fill(false);
+            never_seen_moving.seen_free[span].fill(false);
         }
+        never_seen_moving.update(drive, &frame, window);
         let sensor_grid = front_end.sensor_grid();
         for ((o, now), (&f, &m)) in observed
             .iter_mut()
@@ -359,19 +377,29 @@ fn run_drive(
 
         // Truth over the window, rearranged into storage order.
         let started = Instant::now();
-        drive.truth_with_outline(
-            &window.as_cell_window(),
-            &mut truth_world,
-            &mut outline_world,
-        );
+        let cell_window = window.as_cell_window();
+        drive.truth_centre(&cell_window, &never_seen_moving.ids, &mut centre_world);
+        drive.truth_with_outline(&cell_window, &mut previous_world, &mut outline_world);
         simulation_s += started.elapsed().as_secs_f64();
         let mut k = 0;
         for span in window.world_order_spans() {
             for idx in span {
-                truth_storage[idx] = truth_world.get(k).copied().unwrap_or(truth::IGNORED);
+                centre.labels[idx] = centre_world.labels.get(k).copied().unwrap_or(truth::IGNORED);
+                centre.band[idx] = centre_world.band.get(k).copied().unwrap_or(false);
+                centre.never_seen_moving[idx] =
+                    centre_world.never_seen_moving.get(k).copied().unwrap_or(false);
+                previous_storage[idx] = previous_world.get(k).copied().unwrap_or(truth::IGNORED);
                 outline_storage[idx] = outline_world.get(k).copied().unwrap_or(false);
                 k += 1;
             }
+        }
+        // After the truth: the cells seen free up to this frame, for the next one's newcomers.
+        for (seen, &f) in never_seen_moving
+            .seen_free
+            .iter_mut()
+            .zip(front_end.sensor_grid().m_free())
+        {
+            *seen |= f > 0.0;
         }
 
         // Every variant on the same front end.
@@ -388,8 +416,8 @@ fn run_drive(
                     frame: frame.index,
                     front_end,
                     fusion,
-                    truth: &truth_storage,
-                    outline: &outline_storage,
+                    truth: &centre.labels,
+                    outline: &centre.band,
                     ego_position: [pose.translation[0], pose.translation[1]],
                     points_in_sensor: &points,
                     world_from_sensor: &pose,
@@ -401,19 +429,23 @@ fn run_drive(
                     r.remanence.reset(idx);
                 }
             }
-            let band = &outline_storage;
             r.confusion
-                .add_frame_with_outline(&truth_storage, &r.predicted, &observed, band);
+                .add_frame_centre(&centre, &r.predicted, &observed);
             r.visible
-                .add_frame_with_outline(&truth_storage, &r.predicted, &observed_now, band);
-            r.all
-                .add_frame_with_outline(&truth_storage, &r.predicted, &everywhere, band);
+                .add_frame_centre(&centre, &r.predicted, &observed_now);
+            r.all.add_frame_centre(&centre, &r.predicted, &everywhere);
+            r.visible_previous.add_frame_with_outline(
+                &previous_storage,
+                &r.predicted,
+                &observed_now,
+                &outline_storage,
+            );
             let frame_no = frame.index as u32;
             for idx in 0..len {
                 r.remanence.update(
                     idx,
                     frame_no,
-                    truth_storage[idx],
+                    centre.labels[idx],
                     r.predicted[idx],
                     observed_now[idx],
                 );
@@ -428,6 +460,59 @@ fn run_drive(
         });
     }
     Ok(simulation_s)
+}
+
+/// Who the truth's never-seen-moving rule covers: road users standing since they came into
+/// view (their first scan return), on ground not seen free before (the cell of their centre
+/// had no free evidence since it entered the window). One that moves after it came into view
+/// loses the pass for good; one that appears on ground seen free never has it.
+#[derive(Default)]
+struct NeverSeenMoving {
+    /// Per actor id: `None` until its first return, then whether it holds the pass.
+    pass: Vec<Option<bool>>,
+    /// Per storage cell: free evidence since the cell entered the window.
+    seen_free: Vec<bool>,
+    /// The actors holding the pass now (stopped), for the truth.
+    ids: Vec<u32>,
+}
+
+impl NeverSeenMoving {
+    /// Updates the passes with this frame's returns and classes, before `seen_free` takes in
+    /// this frame's scan.
+    fn update(&mut self, drive: &Drive, frame: &Frame, window: &Window) {
+        let actors = drive.actors();
+        self.pass.resize(actors.len(), None);
+        let mut returns = vec![false; actors.len()];
+        for hit in &frame.scan.hits {
+            if let HitTarget::Actor(id) = *hit
+                && let Some(r) = returns.get_mut(id as usize)
+            {
+                *r = true;
+            }
+        }
+        self.ids.clear();
+        for ((a, pass), &seen) in actors.iter().zip(self.pass.iter_mut()).zip(&returns) {
+            if a.kind.is_infrastructure() {
+                continue;
+            }
+            let moving = truth::actor_class(a) == Label::M;
+            match pass {
+                Some(p) if moving => *p = false,
+                None if seen => {
+                    let p = a.pose.position_m;
+                    let ground_seen_free = window
+                        .storage_index_of_point(p.x, p.y)
+                        .and_then(|i| self.seen_free.get(i))
+                        .is_some_and(|&f| f);
+                    *pass = Some(!moving && !ground_seen_free);
+                }
+                _ => {}
+            }
+            if *pass == Some(true) {
+                self.ids.push(a.id);
+            }
+        }
+    }
 }
 
 /// The share of the front end's time a variant is charged: what it would cost the variant

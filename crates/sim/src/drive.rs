@@ -261,6 +261,23 @@ impl Drive {
         );
     }
 
+    /// Truth of `window` now by the centre rule ([`truth::label_window_centre`]): the actors
+    /// the sensor cannot see are ignored, and the S cells of the road users in
+    /// `never_seen_moving` are flagged (the caller knows what the sensor saw).
+    pub fn truth_centre(
+        &self,
+        window: &CellWindow,
+        never_seen_moving: &[u32],
+        out: &mut truth::CentreTruth,
+    ) {
+        let unseen = self.unseen();
+        let roles = truth::ActorRoles {
+            unseen: &unseen,
+            never_seen_moving,
+        };
+        truth::label_window_centre(&self.world, &self.actors, roles, window, out);
+    }
+
     fn advance(&mut self) {
         let dt = self.dt_s();
         let snapshot = actors::obstacles(&self.actors, &[] as &[Obstacle]);

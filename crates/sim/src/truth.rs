@@ -1,7 +1,24 @@
 //! Ground truth per cell of a window at one instant, in the perception grid's classes.
 //!
-//! # Labelling rule
-//! Each cell is sampled at `n × n` points (the centres of an `n × n` subdivision; n odd, by
+//! # The rule: a cell is what covers its centre
+//! [`label_window_centre`], the truth every score is computed on (issue 30): one rule for every
+//! object, building or road user. A cell whose centre a building covers is I (U if the building
+//! is missing from the map handed to the pipeline: the map prior's own cell-centre rule, SPEC §4);
+//! a cell whose centre an actor covers takes the actor's class (U street furniture, S a road
+//! user slower than [`STOPPED_BELOW_MPS`], M one at or above it). A cell an object covers in part
+//! without its centre is F: calling it M is a false M, missing the object there is no miss. Such
+//! cells form the *band* ([`CentreTruth::band`]), reported beside the scores as information.
+//! Nothing in view is left out: the only cells outside the classes are [`IGNORED`] ones, under
+//! the ego or an object holding the sensor, which the sensor cannot see.
+//!
+//! A road user never seen moving (standing since it came into view, on ground never seen free)
+//! is S, and flagged ([`CentreTruth::never_seen_moving`]): no evidence tells it from a pole, so
+//! the evaluation scores S and U both correct there. Which actors these are depends on what the
+//! sensor saw; the caller names them ([`ActorRoles`]).
+//!
+//! # The previous rule, kept one release for comparison
+//! [`label_window`] and [`label_window_with_outline`] label by the rule before issue 30, which
+//! the evaluation still scores beside the headline so that the change can be read. Each cell is sampled at `n × n` points (the centres of an `n × n` subdivision; n odd, by
 //! default [`DEFAULT_SAMPLES_PER_AXIS`] = 3, so the cell centre is one of them).
 //!
 //! - **Buildings: the map prior's rule, plus a boundary band.** A cell whose *centre* is inside a
@@ -127,66 +144,12 @@ pub fn label_window_with_outline(
         return;
     }
     let n = samples_per_axis.clamp(1, 7) | 1;
-    let mid = n / 2;
     let s = window.cell_size_m;
     let sub = s / n as f64;
     let x0 = window.first_col as f64 * s;
     let y0 = window.first_row as f64 * s;
-    let lo = Vec2::new(x0, y0);
-    let hi = Vec2::new(x0 + w as f64 * s, y0 + h as f64 * s);
-    // Window-relative sample index k ↔ coordinate origin + (k + 0.5)·sub.
-    let first_sample = |v: f64, origin: f64| ((v - origin) / sub - 0.5).ceil();
-    let last_sample = |v: f64, origin: f64| ((v - origin) / sub - 0.5).floor();
 
-    // Buildings: scanline over every sample row.
-    let mut ids = Vec::new();
-    world.buildings_near(lo, hi, &mut ids);
-    let mut xs = Vec::new();
-    for &id in &ids {
-        let b = &world.buildings()[id as usize];
-        // The band by exact overlap: a cell the outline crosses holds some of the building,
-        // however thin, and the scanner returns from it (a sample can miss a façade 5 cm into
-        // the cell). The cells it covers at a sample are claimed by the scanline below.
-        for ring in &b.rings {
-            for (k, &a) in ring.iter().enumerate() {
-                let end = ring[(k + 1) % ring.len()];
-                cells_on_segment(a, end, lo, s, (w, h), |col, row| {
-                    claim(&mut out[row * w + col], Label::Edge);
-                });
-            }
-        }
-        let class = if b.mapped { Label::I } else { Label::U };
-        let k0 = first_sample(b.bounds.0.y, y0).max(0.0) as usize;
-        let k1 = last_sample(b.bounds.1.y, y0).min((h * n) as f64 - 1.0);
-        if k1 < k0 as f64 {
-            continue;
-        }
-        for k in k0..=(k1 as usize) {
-            let y = y0 + (k as f64 + 0.5) * sub;
-            xs.clear();
-            b.crossings_at(y, &mut xs);
-            xs.sort_by(f64::total_cmp);
-            let row = k / n;
-            let centre_row = k % n == mid;
-            for pair in xs.chunks_exact(2) {
-                let j0 = first_sample(pair[0], x0).max(0.0);
-                let j1 = last_sample(pair[1], x0).min((w * n) as f64 - 1.0);
-                if j1 < j0 {
-                    continue;
-                }
-                let (j0, j1) = (j0 as usize, j1 as usize);
-                for c in j0 / n..=j1 / n {
-                    // The centre sample of cell c is sample c·n + mid of this row.
-                    let centre = c * n + mid;
-                    let inside = centre_row && (j0..=j1).contains(&centre);
-                    claim(
-                        &mut out[row * w + c],
-                        if inside { class } else { Label::Edge },
-                    );
-                }
-            }
-        }
-    }
+    label_buildings(world, window, n, out);
 
     // Actors: test the samples of the cells under each footprint's bounding box.
     for a in actors {
@@ -238,6 +201,182 @@ pub fn label_window_with_outline(
     for (band, &label) in outline.iter_mut().zip(out.iter()) {
         *band &= label == Label::F;
     }
+}
+
+/// The truth of one instant by the centre rule (see the module docs), row-major over the
+/// window like [`label_window`]'s output.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CentreTruth {
+    /// Per cell: the class of what covers its centre, F where nothing does, or [`IGNORED`].
+    pub labels: Vec<Label>,
+    /// Per cell: the band, truth F and covered in part (by any area, not at the centre) by a
+    /// building or an actor that is not unseen. Reported, scored as F.
+    pub band: Vec<bool>,
+    /// Per cell: truth S from a road user never seen moving (one of
+    /// [`ActorRoles::never_seen_moving`]), for which S and U are both correct.
+    pub never_seen_moving: Vec<bool>,
+}
+
+/// The actors the truth treats apart from their class.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ActorRoles<'a> {
+    /// Actors the sensor cannot see (the ego, an object holding the sensor): [`IGNORED`].
+    pub unseen: &'a [u32],
+    /// Road users never seen moving: standing since they came into view, on ground never seen
+    /// free. Their S cells are flagged in [`CentreTruth::never_seen_moving`]. Who they are
+    /// depends on what the sensor saw, so the caller (the evaluation) decides.
+    pub never_seen_moving: &'a [u32],
+}
+
+/// Labels every cell of `window` into `truth` by the centre rule: a cell is what covers its
+/// centre, building or actor, with [`IGNORED`] under the actors in `roles.unseen`; a cell
+/// covered only in part is F and in the band. When several objects cover a centre the highest
+/// class wins (F < I < U < S < M < [`IGNORED`]).
+pub fn label_window_centre(
+    world: &World,
+    actors: &[Actor],
+    roles: ActorRoles<'_>,
+    window: &CellWindow,
+    truth: &mut CentreTruth,
+) {
+    let (w, h) = (window.width, window.height);
+    let CentreTruth {
+        labels,
+        band,
+        never_seen_moving,
+    } = truth;
+    for plane in [&mut *band, &mut *never_seen_moving] {
+        plane.clear();
+        plane.resize(w * h, false);
+    }
+    labels.clear();
+    labels.resize(w * h, Label::F);
+    if w == 0 || h == 0 || window.cell_size_m.is_nan() || window.cell_size_m <= 0.0 {
+        return;
+    }
+    // Buildings: one sample, the centre; every other cell they cover in part is band.
+    label_buildings(world, window, 1, labels);
+    for (label, in_band) in labels.iter_mut().zip(band.iter_mut()) {
+        if *label == Label::Edge {
+            *label = Label::F;
+            *in_band = true;
+        }
+    }
+    let s = window.cell_size_m;
+    let x0 = window.first_col as f64 * s;
+    let y0 = window.first_row as f64 * s;
+    for a in actors {
+        let code = if roles.unseen.contains(&a.id) {
+            IGNORED
+        } else {
+            actor_class(a)
+        };
+        let parked = code == Label::S && roles.never_seen_moving.contains(&a.id);
+        let r = a.footprint.bounding_radius_m();
+        let p = a.pose.position_m;
+        let col_of = |v: f64| ((v - x0) / s).floor();
+        let row_of = |v: f64| ((v - y0) / s).floor();
+        let c0 = col_of(p.x - r).max(0.0);
+        let c1 = col_of(p.x + r).min(w as f64 - 1.0);
+        let r0 = row_of(p.y - r).max(0.0);
+        let r1 = row_of(p.y + r).min(h as f64 - 1.0);
+        if c1 < c0 || r1 < r0 {
+            continue;
+        }
+        for row in (r0 as usize)..=(r1 as usize) {
+            for col in (c0 as usize)..=(c1 as usize) {
+                let k = row * w + col;
+                let min = Vec2::new(x0 + col as f64 * s, y0 + row as f64 * s);
+                let centre = Vec2::new(min.x + 0.5 * s, min.y + 0.5 * s);
+                if a.footprint.contains(&a.pose, centre) {
+                    claim(&mut labels[k], code);
+                    never_seen_moving[k] |= parked;
+                } else if code != IGNORED
+                    && a
+                        .footprint
+                        .overlaps_rect(&a.pose, min, Vec2::new(min.x + s, min.y + s))
+                {
+                    band[k] = true;
+                }
+            }
+        }
+    }
+    for ((&label, in_band), parked) in labels
+        .iter()
+        .zip(band.iter_mut())
+        .zip(never_seen_moving.iter_mut())
+    {
+        *in_band &= label == Label::F;
+        *parked &= label == Label::S;
+    }
+}
+
+/// Claims, in `out` (row-major over `window`, already sized), the building class of every cell
+/// whose centre a building covers (I if mapped, U if not) and [`Label::Edge`] for every other
+/// cell a building covers in part: at one of `n × n` samples (`n` odd) or by its outline.
+fn label_buildings(world: &World, window: &CellWindow, n: usize, out: &mut [Label]) {
+    let (w, h) = (window.width, window.height);
+    let mid = n / 2;
+    let s = window.cell_size_m;
+    let sub = s / n as f64;
+    let x0 = window.first_col as f64 * s;
+    let y0 = window.first_row as f64 * s;
+    let lo = Vec2::new(x0, y0);
+    let hi = Vec2::new(x0 + w as f64 * s, y0 + h as f64 * s);
+    // Window-relative sample index k ↔ coordinate origin + (k + 0.5)·sub.
+    let first_sample = |v: f64, origin: f64| ((v - origin) / sub - 0.5).ceil();
+    let last_sample = |v: f64, origin: f64| ((v - origin) / sub - 0.5).floor();
+
+    // Scanline over every sample row.
+    let mut ids = Vec::new();
+    world.buildings_near(lo, hi, &mut ids);
+    let mut xs = Vec::new();
+    for &id in &ids {
+        let b = &world.buildings()[id as usize];
+        // The band by exact overlap: a cell the outline crosses holds some of the building,
+        // however thin, and the scanner returns from it (a sample can miss a façade 5 cm into
+        // the cell). The cells it covers at a sample are claimed by the scanline below.
+        for ring in &b.rings {
+            for (k, &a) in ring.iter().enumerate() {
+                let end = ring[(k + 1) % ring.len()];
+                cells_on_segment(a, end, lo, s, (w, h), |col, row| {
+                    claim(&mut out[row * w + col], Label::Edge);
+                });
+            }
+        }
+        let class = if b.mapped { Label::I } else { Label::U };
+        let k0 = first_sample(b.bounds.0.y, y0).max(0.0) as usize;
+        let k1 = last_sample(b.bounds.1.y, y0).min((h * n) as f64 - 1.0);
+        if k1 < k0 as f64 {
+            continue;
+        }
+        for k in k0..=(k1 as usize) {
+            let y = y0 + (k as f64 + 0.5) * sub;
+            xs.clear();
+            b.crossings_at(y, &mut xs);
+            xs.sort_by(f64::total_cmp);
+            let row = k / n;
+            let centre_row = k % n == mid;
+            for pair in xs.chunks_exact(2) {
+                let j0 = first_sample(pair[0], x0).max(0.0);
+                let j1 = last_sample(pair[1], x0).min((w * n) as f64 - 1.0);
+                if j1 < j0 {
+                    continue;
+                }
+                let (j0, j1) = (j0 as usize, j1 as usize);
+                for c in j0 / n..=j1 / n {
+                    // The centre sample of cell c is sample c·n + mid of this row.
+                    let centre = c * n + mid;
+                    let inside = centre_row && (j0..=j1).contains(&centre);
+                    claim(
+                        &mut out[row * w + c],
+                        if inside { class } else { Label::Edge },
+                    );
+                }
+            }
+        }
+    }
+
 }
 
 /// Calls `visit(col, row)` for every cell of a `w × h` grid of `s`-metre cells with origin
@@ -336,6 +475,127 @@ mod tests {
                     .collect()
             })
             .collect()
+    }
+
+    fn centre(world: &World, actors: &[Actor], roles: ActorRoles<'_>) -> CentreTruth {
+        let mut truth = CentreTruth::default();
+        label_window_centre(world, actors, roles, &window(), &mut truth);
+        truth
+    }
+
+    fn band_cells(truth: &CentreTruth) -> Vec<usize> {
+        (0..truth.band.len()).filter(|&k| truth.band[k]).collect()
+    }
+
+    #[test]
+    fn centre_rule_a_car_covering_centres_and_its_sliver_in_the_band() {
+        let world = World::new(vec![], vec![], (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)));
+        // A car 4.5 × 1.8 centred at (4.0, 1.85) heading east: x ∈ [1.75, 6.25], y ∈ [0.95,
+        // 2.75]. Centres x = 2.5 … 5.5 and y = 1.5, 2.5 are inside: columns 2–5 of rows 1, 2.
+        // Row 0 holds a 5 cm sliver (y ∈ [0.95, 1]) over columns 1–6; columns 1 and 6 of rows
+        // 1, 2 hold the car's ends without their centres (1.5 < 1.75, 6.5 > 6.25).
+        let mut car = Actor::fixed(0, ActorKind::Car, Pose2::new(Vec2::new(4.0, 1.85), 0.0));
+        car.speed_mps = 5.0;
+        let truth = centre(&world, &[car.clone()], ActorRoles::default());
+        assert_eq!(
+            rows(&truth.labels, 8),
+            vec!["........", "..MMMM..", "..MMMM..", "........"]
+        );
+        assert_eq!(band_cells(&truth), vec![1, 2, 3, 4, 5, 6, 9, 14, 17, 22]);
+        assert!(truth.never_seen_moving.iter().all(|&b| !b));
+        // Under the ego: ignored where it covers a centre, and no band.
+        let roles = ActorRoles {
+            unseen: &[0],
+            never_seen_moving: &[],
+        };
+        let truth = centre(&world, &[car], roles);
+        assert_eq!(truth.labels[8 + 2], IGNORED);
+        assert_eq!(truth.labels[8 + 1], Label::F);
+        assert!(truth.band.iter().all(|&b| !b));
+    }
+
+    #[test]
+    fn centre_rule_a_building_corner_is_band_and_its_centre_cell_infrastructure() {
+        // Building [1.6, 3.4]²: only the centre (2.5, 2.5) of cell (2, 2) is inside; the eight
+        // cells around it hold a corner or a side of it without their centres.
+        let square = |lo: f64, hi: f64| {
+            Building::new(vec![vec![
+                Vec2::new(lo, lo),
+                Vec2::new(hi, lo),
+                Vec2::new(hi, hi),
+                Vec2::new(lo, hi),
+            ]])
+            .unwrap()
+        };
+        let world = World::new(
+            vec![square(1.6, 3.4)],
+            vec![],
+            (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)),
+        );
+        let truth = centre(&world, &[], ActorRoles::default());
+        assert_eq!(
+            rows(&truth.labels, 8),
+            vec!["........", "..I.....", "........", "........"]
+        );
+        assert_eq!(
+            band_cells(&truth),
+            vec![9, 10, 11, 17, 19, 25, 26, 27],
+            "the 3 × 3 block around cell (2, 2) but its centre"
+        );
+        // The same corner by a pedestrian standing against it (r 0.3 at (1.45, 1.45): covers
+        // the corner cell (1, 1)'s centre): S, not band; the building's band beside it stays.
+        let ped = Actor::fixed(
+            1,
+            ActorKind::Pedestrian,
+            Pose2::new(Vec2::new(1.45, 1.45), 0.0),
+        );
+        let truth = centre(&world, &[ped], ActorRoles::default());
+        assert_eq!(truth.labels[8 + 1], Label::S);
+        assert!(!truth.band[8 + 1]);
+        assert!(truth.band[8 + 2]);
+    }
+
+    #[test]
+    fn centre_rule_a_thin_object_off_every_centre_is_band_only() {
+        // A bollard (r 0.1) at (2.05, 3.05), x ∈ [1.95, 2.15], y ∈ [2.95, 3.15]: the previous
+        // rule gave the cell of its centre U; by the centre rule it covers no centre, so the
+        // four cells it touches are F, in the band.
+        let world = World::new(vec![], vec![], (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)));
+        let thin = Actor::fixed(
+            1,
+            ActorKind::Bollard,
+            Pose2::new(Vec2::new(2.05, 3.05), 0.0),
+        );
+        let truth = centre(&world, &[thin.clone()], ActorRoles::default());
+        assert!(truth.labels.iter().all(|&l| l == Label::F));
+        assert_eq!(band_cells(&truth), vec![17, 18, 25, 26]);
+        let mut old = Vec::new();
+        label_window(&world, &[thin], &[], &window(), 3, &mut old);
+        assert_eq!(old[3 * 8 + 2], Label::U);
+    }
+
+    #[test]
+    fn never_seen_moving_flags_the_s_cells_of_the_named_road_users_only() {
+        let world = World::new(vec![], vec![], (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)));
+        // Two pedestrians standing, one walking, each on one cell centre.
+        let at = |id, x, speed| {
+            let mut a = Actor::fixed(id, ActorKind::Pedestrian, Pose2::new(Vec2::new(x, 1.5), 0.0));
+            a.speed_mps = speed;
+            a
+        };
+        let actors = [at(0, 1.5, 0.0), at(1, 3.5, 0.0), at(2, 5.5, 1.2)];
+        let roles = ActorRoles {
+            unseen: &[],
+            never_seen_moving: &[0, 2],
+        };
+        let truth = centre(&world, &actors, roles);
+        assert_eq!(
+            rows(&truth.labels, 8),
+            vec!["........", "........", ".S.S.M..", "........"]
+        );
+        // Actor 0 is named and stopped; 1 is not named; 2 is named but moving (M, no pass).
+        let flagged: Vec<usize> = (0..32).filter(|&k| truth.never_seen_moving[k]).collect();
+        assert_eq!(flagged, vec![8 + 1]);
     }
 
     #[test]

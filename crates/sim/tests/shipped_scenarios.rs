@@ -64,3 +64,38 @@ fn error_scenarios_differ_from_their_base_only_by_their_error() {
         assert_eq!(s, base);
     }
 }
+
+#[test]
+fn every_family_scenario_is_valid_draws_its_route_and_carries_its_family() {
+    let names = toml_names("families");
+    assert_eq!(names.len(), 18, "{names:?}");
+    for name in &names {
+        let s = read(name);
+        assert!(s.frame_count() > 0, "{name}");
+        assert!(s.ego.waypoints.is_empty(), "{name}");
+        let file = name.trim_start_matches("families/");
+        let (t, e) = (&s.traffic, &s.errors);
+        let offset = e.map_offset_m[0].hypot(e.map_offset_m[1]);
+        if file.starts_with("dense360-") {
+            assert_eq!((t.moving_cars, t.pedestrians), (40, 60), "{name}");
+            assert_eq!(s.sensor.dropout_probability, 0.05, "{name}");
+            assert_eq!(s.sensor.kind, sim::scenario::ScannerKind::Multibeam, "{name}");
+        } else if file.starts_with("crawl-") {
+            assert_eq!(t.car_speed_mps, [1.5, 4.0], "{name}");
+        } else if file.starts_with("fast-") {
+            assert_eq!(s.ego.speed_mps, 14.0, "{name}");
+            assert_eq!(t.car_speed_mps, [12.0, 20.0], "{name}");
+        } else if file.starts_with("pose-noise-0.1-") {
+            assert_eq!((e.pose_sigma_m, e.pose_sigma_heading_deg), (0.1, 0.2), "{name}");
+            assert_eq!(offset, 0.0, "{name}");
+        } else if file.starts_with("pose-noise-0.2-") {
+            assert_eq!((e.pose_sigma_m, e.pose_sigma_heading_deg), (0.2, 0.5), "{name}");
+            assert_eq!(offset, 0.0, "{name}");
+        } else if file.starts_with("pose-offset-") {
+            assert_eq!((e.pose_sigma_m, e.pose_sigma_heading_deg), (0.2, 0.5), "{name}");
+            assert!((offset - 0.85).abs() < 0.01, "{name}: {offset}");
+        } else {
+            panic!("{name}: no family");
+        }
+    }
+}

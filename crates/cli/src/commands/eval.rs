@@ -70,9 +70,10 @@ Outputs (in --out, each written atomically):
                             share of the row)
   per-class-iou.png         IoU of F, I, U, S, M in view, one bar per variant
 
-Table: scores over the cells in view (the sensor has evidence there in this frame), then the
-moving IoU and macro-F1 over the cells observed at least once. Building edge cells (covered in
-part, not at the centre) are scored as static only: see docs/evaluation.md.";
+Table: scores over the cells in view (the sensor has evidence there in this frame), truth by
+the centre rule (a cell is what covers its centre, building or road user; a cell covered in part
+without its centre is free, its share and M calls shown as the band), then the moving IoU and M
+precision by the previous truth rule, for comparison: see docs/evaluation.md.";
 
 /// Most seeds one evaluation runs: each is a whole simulated drive, so a thousand already takes
 /// hours; more is a typo.
@@ -238,11 +239,12 @@ fn fmt_score(v: Option<f64>) -> String {
     v.map_or_else(|| "-".to_string(), |x| format!("{x:.3}"))
 }
 
-/// The stdout table: one line per variant, the in-view scores first, then the moving IoU and
-/// macro-F1 over the cells observed at least once, then a line saying so.
+/// The stdout table: one line per variant, the in-view scores by the centre rule first, then
+/// the band's share and what it holds called M, then the moving IoU and M precision in view by
+/// the previous truth rule (one release, so that the change can be read), then a line saying so.
 pub(crate) fn table(report: &EvalReport) -> String {
     let mut s = format!(
-        "{:<12} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8} {:>8} | {:>7} {:>8}\n",
+        "{:<12} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8} {:>8} | {:>6} {:>7} | {:>7} {:>7}\n",
         "variant",
         "IoU M",
         "dynamic",
@@ -251,15 +253,22 @@ pub(crate) fn table(report: &EvalReport) -> String {
         "static",
         "macro-F1",
         "ms/frame",
+        "band",
+        "band M",
         "IoU M",
-        "macro-F1"
+        "M prec"
     );
     for v in &report.variants {
-        let (now, once) = (&v.scores_visible, &v.scores);
+        let now = &v.scores_visible;
+        let previous = v.scores_visible_previous.as_ref();
+        let band_share = (now.scored_cell_frames > 0)
+            .then(|| now.band_cell_frames as f64 / now.scored_cell_frames as f64);
+        let band_moving = (now.band_cell_frames > 0)
+            .then(|| now.band_predicted_moving as f64 / now.band_cell_frames as f64);
         // Writing to a String cannot fail.
         let _ = writeln!(
             s,
-            "{:<12} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8} {:>8.2} | {:>7} {:>8}",
+            "{:<12} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8} {:>8.2} | {:>6} {:>7} | {:>7} {:>7}",
             v.variant.name(),
             fmt_score(now.moving_iou),
             fmt_score(now.dynamic_accuracy),
@@ -268,13 +277,16 @@ pub(crate) fn table(report: &EvalReport) -> String {
             fmt_score(now.static_accuracy),
             fmt_score(now.macro_f1),
             v.ms_per_frame,
-            fmt_score(once.moving_iou),
-            fmt_score(once.macro_f1),
+            fmt_score(band_share),
+            fmt_score(band_moving),
+            fmt_score(previous.and_then(|p| p.moving_iou)),
+            fmt_score(previous.and_then(|p| p.moving_precision)),
         );
     }
     s.push_str(
-        "Left of |: cells in view (occ-st: static accuracy over truth I, U, S). \
-         Right: cells observed at least once.\n",
+        "Left: cells in view, truth by the centre rule (occ-st: static accuracy over truth I, U, S). \
+         band: share of the cells covered in part without their centre (truth F), band M: \
+         share of those called M. Right: IoU M and M precision by the previous truth rule.\n",
     );
     s
 }
@@ -294,11 +306,12 @@ fn report_markdown(
     s.push_str("## Scores\n\n");
     s.push_str(&report.to_markdown());
     s.push_str(
-        "\nSA: share of truly static cells (F, I, U, S and the building edge band) not predicted \
+        "\nTruth: a cell is what covers its centre (building or road user); a cell covered in \
+         part without its centre is F (the band); a road user never seen moving is S, with S \
+         and U both correct. SA: share of truly static cells (F, I, U, S) not predicted \
          M; occupied-static accuracy: the same over truth I, U and S only; DA: share of truly \
          moving cells predicted M; M precision: share of the cells predicted M that are moving; \
-         HA: harmonic mean of SA and DA. Edge-band cells (a building covers them in part, not \
-         at the centre) count only against M. Two-class baselines predict O (occupied, static) \
+         HA: harmonic mean of SA and DA. Two-class baselines predict O (occupied, static) \
          and never I, U or S, so their five-class scores for I, U, S are 0 by construction; \
          compare them on the coarse columns.\n",
     );
