@@ -770,6 +770,16 @@ pub struct MotionParams {
     /// a static object's jitter does not add up) to count as a mobile object: once static
     /// again, its cells get mass `mu_static` on {S} (stopped) instead of Ω∖{M}. By default 2.
     pub mobile_after_travel_m: f64,
+    /// Time, s, a track must have been judged moving, besides `mobile_after_travel_m`, before
+    /// it counts as a mobile object (S once stopped): a short track that ends beside static
+    /// cells leaves them static. By default 1.
+    pub mobile_after_moving_s: f64,
+    /// Frames a track must have been judged moving before it is reported in the moving-object
+    /// list (`MotionStage::moving_objects`); below this, or without a measured velocity, or
+    /// with an existence probability under 0.9, it is held back. By default 3.
+    pub report_after_moving_frames: usize,
+    /// Whether held-back objects are listed too, with `held_back: true`. By default false.
+    pub report_held_back: bool,
     /// Cells of the intermediate space (context T) this close to a building cell, in cells
     /// (4-neighbour steps, 0-4), take the context "beside a building", prior {F, I}: the map
     /// prior by the cell centre misses cells cut by a façade, and a footprint is drawn or
@@ -795,6 +805,9 @@ impl Default for MotionParams {
             mu_moving: 0.8,
             mu_static: 0.9,
             mobile_after_travel_m: 2.0,
+            mobile_after_moving_s: 1.0,
+            report_after_moving_frames: 3,
+            report_held_back: false,
             building_margin_cells: 2,
         }
     }
@@ -840,6 +853,7 @@ impl MotionParams {
         positive("motion.static_sigma_mps", self.static_sigma_mps)?;
         positive("motion.max_coast_s", self.max_coast_s)?;
         positive("motion.mobile_after_travel_m", self.mobile_after_travel_m)?;
+        positive("motion.mobile_after_moving_s", self.mobile_after_moving_s)?;
         unit("motion.mu_moving", self.mu_moving)?;
         unit("motion.mu_static", self.mu_static)?;
         Ok(())

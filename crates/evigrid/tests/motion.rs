@@ -89,13 +89,21 @@ fn a_car_driving_away_is_decided_moving_within_three_frames() {
             let fence = window.storage_index_of_point(x, y).unwrap();
             assert_ne!(evigrid.decisions()[fence], Label::M, "frame {k} ({x}, {y})");
         }
+        let objects = evigrid.motion().map(|m| m.moving_objects().to_vec());
+        let objects = objects.unwrap_or_default();
+        if k == 2 {
+            // Judged moving for two frames (1, 2): below report_after_moving_frames (3), held
+            // back.
+            assert!(objects.is_empty(), "frame {k}: {objects:?}");
+        }
         if k >= 3 {
             // One moving object, the car, with its velocity and the same id every frame.
-            let objects = evigrid.motion().map(|m| m.moving_objects().to_vec());
-            let objects = objects.unwrap_or_default();
             assert_eq!(objects.len(), 1, "frame {k}: {objects:?}");
             let car = objects[0];
-            let [vx, vy] = car.velocity_mps.unwrap_or([f32::NAN; 2]);
+            assert!(!car.held_back && car.hits as usize == k + 1, "frame {k}: {car:?}");
+            assert!(car.existence_probability > 0.9 && car.sigma_mps > 0.0, "{car:?}");
+            assert!((car.age_s - 0.1 * k as f32).abs() < 1e-3, "{car:?}");
+            let [vx, vy] = car.velocity_mps;
             assert!(
                 (vx - 8.0).abs() < 1.5 && vy.abs() < 1.0,
                 "frame {k}: {car:?}"
@@ -118,6 +126,70 @@ fn a_car_driving_away_is_decided_moving_within_three_frames() {
         "evigrid: {decided_moving:?}"
     );
     assert!(paper_moving.iter().all(|&m| !m), "paper: {paper_moving:?}");
+}
+
+/// The car of `a_car_driving_away_is_decided_moving_within_three_frames`, driving at
+/// `velocity` (m/s east, north) under `params`; the moving-object list of every frame.
+fn car_driving_away_objects(
+    mut params: Params,
+    velocity: [f64; 2],
+) -> Vec<Vec<evigrid::motion::MovingObject>> {
+    (params.window.width_cells, params.window.height_cells) = (80, 80);
+    params.sensor.ground_model = GroundModel::None;
+    let mut front_end = FrontEnd::new(&params, None).unwrap();
+    let mut evigrid = Fusion::with_method(params, Prior::Map, Method::Evigrid).unwrap();
+    (0..12)
+        .map(|k| {
+            let (x, y) = (velocity[0] * DT_S * k as f64, velocity[1] * DT_S * k as f64);
+            let mut boxes = FENCE.to_vec();
+            boxes.push([3.0 + x, -0.9 + y, 7.5 + x, 0.9 + y]);
+            front_end
+                .process(&scan(&boxes), &Isometry3::IDENTITY, DT_S * k as f64)
+                .unwrap();
+            evigrid.update(&front_end).unwrap();
+            let objects = evigrid.motion().map(|m| m.moving_objects().to_vec());
+            objects.unwrap_or_default()
+        })
+        .collect()
+}
+
+#[test]
+fn a_registration_faster_than_max_speed_is_refused_not_clamped() {
+    // The car drives diagonally at 8 m/s east and 8 m/s north, 11.3 m/s. With max_speed_mps =
+    // 10 the search reaches ⌈10 · 0.1 / 0.5⌉ = 2 cells a frame in each axis, so it finds the
+    // diagonal shift, which implies 11.3 m/s > 10: refused (no velocity measured that frame),
+    // never clamped; what is listed (held back too) is at most 10 m/s.
+    let mut params = Params::default();
+    params.motion.max_speed_mps = 10.0;
+    params.motion.report_held_back = true;
+    let frames = car_driving_away_objects(params, [8.0, 8.0]);
+    for object in frames.iter().flatten() {
+        let [vx, vy] = object.velocity_mps;
+        assert!(vx.hypot(vy) <= 10.0, "{object:?}");
+    }
+    // With the default 25 m/s it is listed at about 11.3 m/s.
+    let frames = car_driving_away_objects(Params::default(), [8.0, 8.0]);
+    let [vx, vy] = frames[11][0].velocity_mps;
+    assert!((vx.hypot(vy) - 11.3).abs() < 2.0, "{:?}", frames[11]);
+}
+
+#[test]
+fn held_back_objects_are_listed_only_on_request_and_flagged() {
+    let mut params = Params::default();
+    params.motion.report_held_back = true;
+    let frames = car_driving_away_objects(params, [8.0, 0.0]);
+    // Judged moving from frame 1: frames 1 and 2 list it held back, frame 3 on reported; one
+    // id throughout. Without the request, frames 1 and 2 list nothing.
+    let flags: Vec<Vec<bool>> = frames
+        .iter()
+        .map(|f| f.iter().map(|o| o.held_back).collect())
+        .collect();
+    assert_eq!(flags[1..3], [vec![true], vec![true]], "{frames:?}");
+    assert!(flags[3..].iter().all(|f| f == &vec![false]), "{flags:?}");
+    let ids: std::collections::BTreeSet<u64> = frames[1..].iter().flatten().map(|o| o.id).collect();
+    assert_eq!(ids.len(), 1, "{frames:?}");
+    let quiet = car_driving_away_objects(Params::default(), [8.0, 0.0]);
+    assert!(quiet[..3].iter().all(|f| f.is_empty()), "{quiet:?}");
 }
 
 #[test]

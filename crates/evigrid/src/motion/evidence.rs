@@ -7,8 +7,8 @@
 //! - moving (|v| ≥ `min_speed_mps`, and at least `moving_after_measurements` registrations
 //!   of the track): m({M}) = `mu_moving` · c, the rest on Ω;
 //! - static (|v| < `min_speed_mps` and √(σx² + σy²) < `static_sigma_mps`: slow and known
-//!   well enough), and the track has travelled `mobile_after_travel_m` while moving (net) and
-//!   its cluster touches no mapped building: m({S}) = `mu_static`, the rest on Ω: a mobile
+//!   well enough), and the track has travelled `mobile_after_travel_m` while moving (net), for
+//!   at least `mobile_after_moving_s`, and its cluster touches no mapped building: m({S}) = `mu_static`, the rest on Ω: a mobile
 //!   object standing still, "not moving" and "a road user" at once;
 //! - static otherwise: m(Ω∖{M}) = `mu_static`, the rest on Ω: "not moving", which says
 //!   nothing about I, U or S (street furniture and a standing pedestrian are alike in size);
@@ -57,7 +57,9 @@ pub(crate) fn track_mass(track: &Track, params: &MotionParams) -> MotionMass {
         MotionMass::Moving((params.mu_moving * confidence) as f32)
     } else if (x.variance + y.variance).sqrt() < params.static_sigma_mps {
         let [dx, dy] = track.travel_m;
-        if dx.hypot(dy) >= params.mobile_after_travel_m {
+        if dx.hypot(dy) >= params.mobile_after_travel_m
+            && track.moving_s >= params.mobile_after_moving_s
+        {
             MotionMass::Stopped(params.mu_static as f32)
         } else {
             MotionMass::Static(params.mu_static as f32)
@@ -362,6 +364,10 @@ mod tests {
             first_seen_s: 0.0,
             measurements,
             travel_m: [0.0; 2],
+            hits: measurements + 1,
+            misses: 0,
+            moving_frames: 0,
+            moving_s: 0.0,
         }
     }
 
@@ -425,10 +431,18 @@ mod tests {
     fn a_static_track_that_travelled_is_stopped() {
         let p = MotionParams::default();
         assert_eq!(p.mobile_after_travel_m, 2.0);
+        assert_eq!(p.mobile_after_moving_s, 1.0);
         let mut t = track([0.1, 0.0], 0.01, 4);
-        // 1.2 m east and 1.6 m north: 2 m in all, a mobile object standing still.
+        // 1.2 m east and 1.6 m north: 2 m in all, over 1 s moving: a mobile object standing
+        // still.
         t.travel_m = [1.2, 1.6];
+        t.moving_s = 1.0;
         assert_eq!(track_mass(&t, &p), MotionMass::Stopped(0.9));
+        // The same 2 m in 0.9 s of moving (a short track, such as a static area's face
+        // sliding for a few frames as the ego passes): only "not moving", never S.
+        t.moving_s = 0.9;
+        assert_eq!(track_mass(&t, &p), MotionMass::Static(0.9));
+        t.moving_s = 1.0;
         // 1.9 m: not enough, only "not moving".
         t.travel_m = [1.9, 0.0];
         assert_eq!(track_mass(&t, &p), MotionMass::Static(0.9));

@@ -109,21 +109,43 @@ pub struct CellReport {
 
 /// An object the stage judged moving this frame: a track and the cells of its cluster that
 /// received moving evidence.
+///
+/// The list ([`MotionStage::moving_objects`]) holds an object only once the evidence suffices
+/// (see [`MovingObject::held_back`]); no reported speed exceeds `motion.max_speed_mps`,
+/// because a registration that implies a faster shift is refused (the cluster gets no velocity
+/// measurement that frame), never clamped; and each object is listed once: tracks of two
+/// pieces of one object (within `motion.gate_m`, velocities within 1 m/s or 2σ) are merged
+/// into the one with more hits.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct MovingObject {
     /// The track's identifier: the same object keeps it from frame to frame while it is
     /// tracked (it coasts through `max_coast_s` unseen).
     pub id: u64,
-    /// Centroid of its cluster's cells, world frame (x east, y north), metres.
+    /// Centroid of its moving cells, world frame (x east, y north), metres.
     pub position_m: [f64; 2],
-    /// Estimated velocity east and north, m/s, and √(σx² + σy²) of it; `None` for an object
-    /// judged moving because it entered space seen free, with no velocity measured yet.
-    pub velocity_mps: Option<[f32; 2]>,
-    /// See `velocity_mps`.
-    pub sigma_mps: Option<f32>,
+    /// Estimated velocity east and north, m/s (the track's filtered velocity).
+    pub velocity_mps: [f32; 2],
+    /// √(σx² + σy²) of `velocity_mps`, m/s.
+    pub sigma_mps: f32,
+    /// Time since the track started, s.
+    pub age_s: f32,
+    /// Frames an observation joined the track.
+    pub hits: u32,
+    /// The probability that the object exists: a binary Bayes filter over the track's hits and
+    /// misses (detection 0.9, false alarm 0.3 per frame, from even odds; `docs/motion.md`).
+    pub existence_probability: f32,
+    /// Whether the evidence is below the reporting threshold: no velocity measured yet (an
+    /// object judged moving because it entered space seen free), fewer than
+    /// `motion.report_after_moving_frames` frames judged moving, or an existence probability
+    /// under [`REPORT_MIN_EXISTENCE`]. Such objects are listed only with
+    /// `motion.report_held_back = true`; their cells get the moving evidence all the same.
+    pub held_back: bool,
     /// Cells given moving evidence this frame.
     pub cells: u32,
 }
+
+/// The existence probability an object needs to be reported (two hits without a miss).
+pub const REPORT_MIN_EXISTENCE: f32 = 0.9;
 
 /// The motion stage of one window: history, clusters, tracks, and their scratch buffers.
 #[derive(Clone, Debug)]
@@ -397,11 +419,17 @@ impl MotionStage {
             let registration = self.registrations[k];
             self.cluster_frames
                 .push(registration.map_or(0, |r| r.frames as u32));
-            let velocity = registration.map(|r| {
-                let sigma = r.variance_cells(self.params.shift_sigma_cells).sqrt() * cell_size_m;
-                let (vx, vy) = r.velocity_cells_per_s;
-                ([vx * cell_size_m, vy * cell_size_m], sigma * sigma)
-            });
+            // A registration that implies a speed above `max_speed_mps` is refused: no
+            // velocity measured this frame (the search's per-axis reach lets a diagonal shift
+            // exceed it, and two shifts from different pasts can too).
+            let velocity = registration
+                .map(|r| {
+                    let sigma =
+                        r.variance_cells(self.params.shift_sigma_cells).sqrt() * cell_size_m;
+                    let (vx, vy) = r.velocity_cells_per_s;
+                    ([vx * cell_size_m, vy * cell_size_m], sigma * sigma)
+                })
+                .filter(|([vx, vy], _)| vx.hypot(*vy) <= self.params.max_speed_mps);
             registered += usize::from(velocity.is_some());
             self.observations.push(Observation {
                 centroid_m: [sx / n * cell_size_m, sy / n * cell_size_m],
@@ -476,15 +504,24 @@ impl MotionStage {
             let sigma_mps = (track.velocity[0].variance + track.velocity[1].variance).sqrt() as f32;
             if let MotionMass::Moving(_) = mass {
                 let cells_moving = moved.iter().filter(|&&m| m).count() as u32;
-                let measured = state != CellMotion::EnteredSeenFree;
-                if cells_moving > 0 {
-                    self.moving_objects.push(MovingObject {
-                        id: track.id,
-                        position_m: self.observations[k].centroid_m,
-                        velocity_mps: measured.then_some([vx, vy]),
-                        sigma_mps: measured.then_some(sigma_mps),
-                        cells: cells_moving,
-                    });
+                let object = MovingObject {
+                    id: track.id,
+                    position_m: self.observations[k].centroid_m,
+                    velocity_mps: [vx, vy],
+                    sigma_mps,
+                    age_s: (time_s - track.first_seen_s) as f32,
+                    hits: track.hits,
+                    existence_probability: track.existence_probability() as f32,
+                    held_back: state == CellMotion::EnteredSeenFree
+                        || track.measurements == 0
+                        || (track.moving_frames as usize) < self.params.report_after_moving_frames
+                        || (track.existence_probability() as f32) < REPORT_MIN_EXISTENCE,
+                    cells: cells_moving,
+                };
+                let fast = f64::from(vx.hypot(vy)) > self.params.max_speed_mps;
+                if cells_moving > 0 && !fast && (!object.held_back || self.params.report_held_back)
+                {
+                    self.moving_objects.push(object);
                 }
             }
             for (c, &moved) in cells.iter().zip(moved) {
@@ -538,6 +575,8 @@ impl MotionStage {
             decisions[idx] = decide(&m, perception.seen()[idx] != 0, self.unknown_threshold);
         }
 
+        merge_pieces(&mut self.moving_objects, self.params.gate_m);
+
         // 6. This frame joins the history.
         self.history.push(&self.occupied, &self.free, time_s);
         MotionStats {
@@ -550,6 +589,38 @@ impl MotionStage {
             ms: start.elapsed().as_secs_f64() * 1e3,
         }
     }
+}
+
+/// Merges the objects that are pieces of one (centroids within `gate_m`, velocities within
+/// 1 m/s or twice their σ) into the one with more hits (reported before held back, then more
+/// hits, then the older id), its position the cell-weighted centroid: one id per object.
+fn merge_pieces(objects: &mut Vec<MovingObject>, gate_m: f64) {
+    objects.sort_by(|a, b| {
+        a.held_back
+            .cmp(&b.held_back)
+            .then(b.hits.cmp(&a.hits))
+            .then(a.id.cmp(&b.id))
+    });
+    let mut kept: Vec<MovingObject> = Vec::with_capacity(objects.len());
+    for o in objects.drain(..) {
+        let piece_of = kept.iter_mut().find(|k| {
+            let d = (k.position_m[0] - o.position_m[0]).hypot(k.position_m[1] - o.position_m[1]);
+            let dv = (k.velocity_mps[0] - o.velocity_mps[0])
+                .hypot(k.velocity_mps[1] - o.velocity_mps[1]);
+            d <= gate_m && dv <= (2.0 * k.sigma_mps.max(o.sigma_mps)).max(1.0)
+        });
+        match piece_of {
+            Some(k) => {
+                let (a, b) = (f64::from(k.cells), f64::from(o.cells));
+                for (p, q) in k.position_m.iter_mut().zip(o.position_m) {
+                    *p = (*p * a + q * b) / (a + b).max(1.0);
+                }
+                k.cells += o.cells;
+            }
+            None => kept.push(o),
+        }
+    }
+    *objects = kept;
 }
 
 /// Writes one cell's masses, keeping the grid's notes true: the block's bits gain the planes
@@ -566,4 +637,40 @@ fn write_cell(perception: &mut PerceptionGrid, idx: usize, m: &[f32; N_SETS]) {
         }
     }
     planes.nonzero[idx / CELLS_PER_BLOCK] |= bits;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn object(id: u64, x: f64, vx: f32, hits: u32, cells: u32) -> MovingObject {
+        MovingObject {
+            id,
+            position_m: [x, 0.0],
+            velocity_mps: [vx, 0.0],
+            sigma_mps: 0.3,
+            age_s: 1.0,
+            hits,
+            existence_probability: 0.99,
+            held_back: false,
+            cells,
+        }
+    }
+
+    #[test]
+    fn two_pieces_of_one_object_are_listed_once_under_the_older_track() {
+        // Pieces 1.5 m apart at 8.0 and 8.4 m/s (within 1 m/s): one object, the id of the one
+        // with more hits, at the cell-weighted centroid (3 cells at 0, 1 at 1.5: 0.375).
+        // A third at 1 m from them but 3 m/s slower is another object.
+        let mut list = vec![
+            object(7, 1.5, 8.4, 3, 1),
+            object(2, 0.0, 8.0, 9, 3),
+            object(5, 1.0, 5.0, 9, 2),
+        ];
+        merge_pieces(&mut list, 2.0);
+        assert_eq!(list.len(), 2, "{list:?}");
+        assert_eq!((list[0].id, list[0].cells), (2, 4));
+        assert!((list[0].position_m[0] - 0.375).abs() < 1e-12);
+        assert_eq!(list[1].id, 5);
+    }
 }

@@ -37,6 +37,34 @@ pub(crate) struct Track {
     /// ([`is_moving`]): once it reaches `mobile_after_travel_m` the object is a
     /// mobile one, so when static it is stopped (S), not infrastructure.
     pub(crate) travel_m: [f64; 2],
+    /// Frames an observation joined the track (its first included).
+    pub(crate) hits: u32,
+    /// Frames the track was predicted but not observed (coasting).
+    pub(crate) misses: u32,
+    /// Frames the track was judged moving ([`evidence::is_moving`]).
+    pub(crate) moving_frames: u32,
+    /// Time the track was judged moving, s: with `travel_m`, what makes it a mobile object.
+    pub(crate) moving_s: f64,
+}
+
+/// Probability that a return-producing cluster is a real object, per frame: of a track being
+/// observed when it exists (detection), and of a cluster appearing where nothing is (false
+/// alarm: noise, a face of a static object reappearing). With them the existence probability
+/// of a track is a binary Bayes filter from even odds: × P_D/P_FA per hit, × (1 − P_D)/(1 −
+/// P_FA) per miss.
+const P_DETECTION: f64 = 0.9;
+/// See [`P_DETECTION`].
+const P_FALSE_ALARM: f64 = 0.3;
+
+impl Track {
+    /// The probability that the object exists: `P_DETECTION` / `P_FALSE_ALARM` Bayes filter over
+    /// its hits and misses, from even odds. 1 hit: 0.75, 2: 0.9, 3: 0.964; a miss divides the
+    /// odds by 7.
+    pub(crate) fn existence_probability(&self) -> f64 {
+        let log_odds = f64::from(self.hits) * (P_DETECTION / P_FALSE_ALARM).ln()
+            + f64::from(self.misses) * ((1.0 - P_DETECTION) / (1.0 - P_FALSE_ALARM)).ln();
+        1.0 / (1.0 + (-log_odds).exp())
+    }
 }
 
 /// Whether the track moves now: fast enough, and registered often enough to say so.
@@ -133,6 +161,10 @@ impl Tracks {
                         first_seen_s: now_s,
                         measurements: 0,
                         travel_m: [0.0; 2],
+                        hits: 0,
+                        misses: 0,
+                        moving_frames: 0,
+                        moving_s: 0.0,
                     });
                     self.assigned[oi] = (self.tracks.len() - 1) as u32;
                     self.tracks.len() - 1
@@ -142,6 +174,7 @@ impl Tracks {
             let t = &mut self.tracks[ti];
             t.position_m = o.centroid_m;
             t.last_seen_s = now_s;
+            t.hits = t.hits.saturating_add(1);
             if let Some((v, variance)) = o.velocity {
                 for (filter, &z) in t.velocity.iter_mut().zip(&v) {
                     filter.update(z, variance);
@@ -152,6 +185,14 @@ impl Tracks {
                 for (d, v) in t.travel_m.iter_mut().zip(&t.velocity) {
                     *d += v.mean_mps * dt_s;
                 }
+                t.moving_frames = t.moving_frames.saturating_add(1);
+                t.moving_s += dt_s;
+            }
+        }
+        // The tracks predicted and not observed coast: one miss each.
+        for (t, &taken) in self.tracks.iter_mut().zip(&self.taken) {
+            if !taken {
+                t.misses = t.misses.saturating_add(1);
             }
         }
     }
@@ -188,6 +229,22 @@ mod tests {
             centroid_m: [x, 0.0],
             velocity: v.map(|v| ([v, 0.0], 1.0)),
         }
+    }
+
+    #[test]
+    fn existence_probability_grows_with_hits_and_falls_with_misses() {
+        let params = MotionParams::default();
+        let mut tracks = Tracks::default();
+        let p = |t: &Tracks| t.tracks[0].existence_probability();
+        tracks.update(&[seen(0.0, None)], 0.0, 0.1, &params);
+        // Odds 3 per hit from even: 1 hit 3/4, 2 hits 9/10.
+        assert!((p(&tracks) - 0.75).abs() < 1e-12);
+        tracks.update(&[seen(0.0, None)], 0.1, 0.1, &params);
+        assert!((p(&tracks) - 0.9).abs() < 1e-12);
+        // A miss: odds 9 · (0.1 / 0.7) = 9/7, p = 9/16.
+        tracks.update(&[], 0.2, 0.1, &params);
+        assert_eq!((tracks.tracks[0].hits, tracks.tracks[0].misses), (2, 1));
+        assert!((p(&tracks) - 9.0 / 16.0).abs() < 1e-12);
     }
 
     #[test]
