@@ -52,9 +52,9 @@
 //! "A Dynamic Points Removal Benchmark in Point Cloud Maps", ITSC 2023; their
 //! `scripts/py/eval/evaluate_all.py`): SA = correctly kept static / all truly static, DA =
 //! correctly flagged dynamic / all truly dynamic, HA = their harmonic mean. For grids: SA is the
-//! fraction of cells whose truth is F, I, U, S (or the previous rule's edge) that are *not* predicted M (unknown counts
-//! as kept: it does not wrongly delete a static object); DA is the fraction of truly M cells
-//! predicted M. Because free cells are most of the static ones, SA is close to 1 for any method
+//! fraction of cells whose truth is F, I, U, S (or the previous rule's edge) that are *not*
+//! predicted M (unknown counts as kept: it does not wrongly delete a static object); DA is the
+//! fraction of truly M cells predicted M. Because free cells are most of the static ones, SA is close to 1 for any method
 //! that rarely says M; **occupied-static accuracy** is the same ratio over truth I, U and S
 //! only, the static objects a method could mistake for moving ones.
 //!
@@ -772,7 +772,10 @@ mod tests {
         assert_eq!(s.never_seen_moving_cell_frames, 3);
         // U: the one predicted U is correct (TP 1, FP 0). S: TP 1, FN 1 (predicted M).
         assert_eq!((s.classes[2].tp, s.classes[2].fp), (1, 0));
-        assert_eq!((s.classes[3].tp, s.classes[3].fp, s.classes[3].fn_), (1, 0, 1));
+        assert_eq!(
+            (s.classes[3].tp, s.classes[3].fp, s.classes[3].fn_),
+            (1, 0, 1)
+        );
         // M: TP 0 (the truly moving cell was not observed), FP 2: precision 0.
         assert_eq!((s.classes[4].tp, s.classes[4].fp), (0, 2));
         // Occupied-static: 3 cells, 2 kept (U, S); static: 6 cells, 4 kept.

@@ -384,10 +384,17 @@ fn run_drive(
         let mut k = 0;
         for span in window.world_order_spans() {
             for idx in span {
-                centre.labels[idx] = centre_world.labels.get(k).copied().unwrap_or(truth::IGNORED);
+                centre.labels[idx] = centre_world
+                    .labels
+                    .get(k)
+                    .copied()
+                    .unwrap_or(truth::IGNORED);
                 centre.band[idx] = centre_world.band.get(k).copied().unwrap_or(false);
-                centre.never_seen_moving[idx] =
-                    centre_world.never_seen_moving.get(k).copied().unwrap_or(false);
+                centre.never_seen_moving[idx] = centre_world
+                    .never_seen_moving
+                    .get(k)
+                    .copied()
+                    .unwrap_or(false);
                 previous_storage[idx] = previous_world.get(k).copied().unwrap_or(truth::IGNORED);
                 outline_storage[idx] = outline_world.get(k).copied().unwrap_or(false);
                 k += 1;

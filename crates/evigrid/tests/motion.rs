@@ -100,8 +100,14 @@ fn a_car_driving_away_is_decided_moving_within_three_frames() {
             // One moving object, the car, with its velocity and the same id every frame.
             assert_eq!(objects.len(), 1, "frame {k}: {objects:?}");
             let car = objects[0];
-            assert!(!car.held_back && car.hits as usize == k + 1, "frame {k}: {car:?}");
-            assert!(car.existence_probability > 0.9 && car.sigma_mps > 0.0, "{car:?}");
+            assert!(
+                !car.held_back && car.hits as usize == k + 1,
+                "frame {k}: {car:?}"
+            );
+            assert!(
+                car.existence_probability > 0.9 && car.sigma_mps > 0.0,
+                "{car:?}"
+            );
             assert!((car.age_s - 0.1 * k as f32).abs() < 1e-3, "{car:?}");
             let [vx, vy] = car.velocity_mps;
             assert!(

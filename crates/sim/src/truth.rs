@@ -292,8 +292,7 @@ pub fn label_window_centre(
                     claim(&mut labels[k], code);
                     never_seen_moving[k] |= parked;
                 } else if code != IGNORED
-                    && a
-                        .footprint
+                    && a.footprint
                         .overlaps_rect(&a.pose, min, Vec2::new(min.x + s, min.y + s))
                 {
                     band[k] = true;
@@ -376,7 +375,6 @@ fn label_buildings(world: &World, window: &CellWindow, n: usize, out: &mut [Labe
             }
         }
     }
-
 }
 
 /// Calls `visit(col, row)` for every cell of a `w × h` grid of `s`-metre cells with origin
@@ -579,7 +577,11 @@ mod tests {
         let world = World::new(vec![], vec![], (Vec2::new(0.0, 0.0), Vec2::new(8.0, 4.0)));
         // Two pedestrians standing, one walking, each on one cell centre.
         let at = |id, x, speed| {
-            let mut a = Actor::fixed(id, ActorKind::Pedestrian, Pose2::new(Vec2::new(x, 1.5), 0.0));
+            let mut a = Actor::fixed(
+                id,
+                ActorKind::Pedestrian,
+                Pose2::new(Vec2::new(x, 1.5), 0.0),
+            );
             a.speed_mps = speed;
             a
         };

@@ -79,20 +79,36 @@ fn every_family_scenario_is_valid_draws_its_route_and_carries_its_family() {
         if file.starts_with("dense360-") {
             assert_eq!((t.moving_cars, t.pedestrians), (40, 60), "{name}");
             assert_eq!(s.sensor.dropout_probability, 0.05, "{name}");
-            assert_eq!(s.sensor.kind, sim::scenario::ScannerKind::Multibeam, "{name}");
+            assert_eq!(
+                s.sensor.kind,
+                sim::scenario::ScannerKind::Multibeam,
+                "{name}"
+            );
         } else if file.starts_with("crawl-") {
             assert_eq!(t.car_speed_mps, [1.5, 4.0], "{name}");
         } else if file.starts_with("fast-") {
             assert_eq!(s.ego.speed_mps, 14.0, "{name}");
             assert_eq!(t.car_speed_mps, [12.0, 20.0], "{name}");
         } else if file.starts_with("pose-noise-0.1-") {
-            assert_eq!((e.pose_sigma_m, e.pose_sigma_heading_deg), (0.1, 0.2), "{name}");
+            assert_eq!(
+                (e.pose_sigma_m, e.pose_sigma_heading_deg),
+                (0.1, 0.2),
+                "{name}"
+            );
             assert_eq!(offset, 0.0, "{name}");
         } else if file.starts_with("pose-noise-0.2-") {
-            assert_eq!((e.pose_sigma_m, e.pose_sigma_heading_deg), (0.2, 0.5), "{name}");
+            assert_eq!(
+                (e.pose_sigma_m, e.pose_sigma_heading_deg),
+                (0.2, 0.5),
+                "{name}"
+            );
             assert_eq!(offset, 0.0, "{name}");
         } else if file.starts_with("pose-offset-") {
-            assert_eq!((e.pose_sigma_m, e.pose_sigma_heading_deg), (0.2, 0.5), "{name}");
+            assert_eq!(
+                (e.pose_sigma_m, e.pose_sigma_heading_deg),
+                (0.2, 0.5),
+                "{name}"
+            );
             assert!((offset - 0.85).abs() < 0.01, "{name}: {offset}");
         } else {
             panic!("{name}: no family");
