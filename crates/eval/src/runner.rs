@@ -448,14 +448,9 @@ fn run_drive(
                 &outline_storage,
             );
             let frame_no = frame.index as u32;
-            for idx in 0..len {
-                r.remanence.update(
-                    idx,
-                    frame_no,
-                    centre.labels[idx],
-                    r.predicted[idx],
-                    observed_now[idx],
-                );
+            let cells = centre.labels.iter().zip(&r.predicted).zip(&observed_now);
+            for (idx, ((&truth, &predicted), &now)) in cells.enumerate() {
+                r.remanence.update(idx, frame_no, truth, predicted, now);
             }
             update_latency(&mut r.latency, drive, &frame, &pose, window, &r.predicted);
         }

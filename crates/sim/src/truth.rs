@@ -564,7 +564,7 @@ mod tests {
             ActorKind::Bollard,
             Pose2::new(Vec2::new(2.05, 3.05), 0.0),
         );
-        let truth = centre(&world, &[thin.clone()], ActorRoles::default());
+        let truth = centre(&world, std::slice::from_ref(&thin), ActorRoles::default());
         assert!(truth.labels.iter().all(|&l| l == Label::F));
         assert_eq!(band_cells(&truth), vec![17, 18, 25, 26]);
         let mut old = Vec::new();
