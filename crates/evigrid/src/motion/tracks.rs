@@ -41,7 +41,7 @@ pub(crate) struct Track {
     pub(crate) hits: u32,
     /// Frames the track was predicted but not observed (coasting).
     pub(crate) misses: u32,
-    /// Frames the track was judged moving ([`evidence::is_moving`]).
+    /// Frames the track was judged moving ([`is_moving`]).
     pub(crate) moving_frames: u32,
     /// Time the track was judged moving, s: with `travel_m`, what makes it a mobile object.
     pub(crate) moving_s: f64,
