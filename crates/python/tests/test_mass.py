@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 from pathlib import Path
@@ -197,7 +198,8 @@ def test_bad_files_name_the_file(tmp_path):
     with pytest.raises(evigrid.FileError) as raised:
         mass.load(missing)
     assert isinstance(raised.value, OSError) and isinstance(raised.value, evigrid.Error)
-    assert f"{missing}: cannot read" in str(raised.value)
+    assert str(raised.value) == f"{missing}: cannot read: No such file or directory"
+    assert raised.value.errno == errno.ENOENT
     with pytest.raises(evigrid.FileError, match="cannot read"):
         mass.load(tmp_path)  # a folder
     huge = tmp_path / "huge.json"

@@ -82,7 +82,9 @@ def load(path: Union[str, "os.PathLike[str]"]) -> MassFunction:
         with open(path, "rb") as file:
             data = file.read(MAX_FILE_BYTES + 1)
     except OSError as error:
-        raise FileError(error.errno, f"{label}: cannot read: {error.strerror or error}") from None
+        failure = FileError(f"{label}: cannot read: {error.strerror or error}")
+        failure.errno = error.errno
+        raise failure from None
     if len(data) > MAX_FILE_BYTES:
         raise InputError(f"{label}: larger than {MAX_FILE_BYTES >> 20} MiB; expected a mass function")
     try:
