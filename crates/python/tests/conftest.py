@@ -41,6 +41,15 @@ def vectors(shared: Path) -> List[Any]:
         return json.load(file)["vectors"]
 
 
+@pytest.fixture(scope="session")
+def kitti(shared: Path) -> Path:
+    """The shared KITTI raw drive (0013, 40 frames): its date folder."""
+    path = shared / "data" / "lidar" / "kitti-raw-0013" / "2011_09_26"
+    if not (path / "calib_imu_to_velo.txt").is_file():
+        _missing(f"the KITTI raw drive at {path}")
+    return path
+
+
 class Cli:
     """Runs the `evigrid` command and reads its JSON output."""
 
@@ -49,7 +58,7 @@ class Cli:
 
     def json(self, *args: str) -> Any:
         done = subprocess.run(
-            [str(self.path), *args], capture_output=True, text=True, timeout=120, check=False
+            [str(self.path), *args], capture_output=True, text=True, timeout=600, check=False
         )
         assert done.returncode == 0, f"evigrid {' '.join(args)}: {done.stderr}"
         return json.loads(done.stdout)
@@ -62,3 +71,11 @@ def cli() -> Cli:
     if not os.access(path, os.X_OK):
         _missing(f"the evigrid command at {path} (set EVIGRID_CLI)")
     return Cli(path)
+
+
+@pytest.fixture(scope="session")
+def cli_run(cli: Cli, kitti: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The output folder of `evigrid run` over the shared KITTI drive (defaults, no recording)."""
+    out = tmp_path_factory.mktemp("cli-run") / "out"
+    cli.json("run", "--drive", str(kitti), "--out", str(out), "--no-mcap", "--json")
+    return out

@@ -1,0 +1,69 @@
+"""The hostile inputs of the command's own campaign (crates/cli/tests/hostile.rs, issue 15) through
+the package: each an evigrid.Error naming the input, never an abort of the interpreter."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import evigrid
+
+
+def pcd(header_lines: str, data: str) -> str:
+    return (
+        "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+        f"{header_lines}\nVIEWPOINT 0 0 0 1 0 0 0\nDATA {data}"
+    )
+
+
+HOSTILE_SCANS = [
+    ("points-4e9", pcd("WIDTH 1\nHEIGHT 1\nPOINTS 4000000000", "ascii\n1 2 3\n")),
+    ("points-max", pcd("WIDTH 1\nHEIGHT 1\nPOINTS 18446744073709551615", "ascii\n1 2 3\n")),
+    ("wh-4e9", pcd("WIDTH 4000000000\nHEIGHT 4000000000", "ascii\n1 2 3\n")),
+    ("points-disagree", pcd("WIDTH 2\nHEIGHT 1\nPOINTS 2", "ascii\n1 2 3\n")),
+    ("size", pcd("WIDTH 1\nHEIGHT 1\nPOINTS 1", "binary\n0123456789ab").replace("SIZE 4 4 4", "SIZE 4 4 18446744073709551612")),
+    ("count", pcd("WIDTH 1\nHEIGHT 1\nPOINTS 1", "ascii\n1 2 3\n").replace("COUNT 1 1 1", "COUNT 1 1 1000000000000")),
+]
+
+
+def folder(tmp_path: Path, name: str, content: str) -> Path:
+    scans = tmp_path / name
+    scans.mkdir()
+    (scans / "a.pcd").write_text(content, encoding="utf-8")
+    return scans
+
+
+@pytest.mark.parametrize("name, content", HOSTILE_SCANS, ids=[c[0] for c in HOSTILE_SCANS])
+def test_a_hostile_scan_is_an_input_error_naming_it(tmp_path, name, content):
+    scans = folder(tmp_path, name, content)
+    poses = tmp_path / "p.txt"
+    poses.write_text("0 0 0 0 0 0 0\n", encoding="utf-8")
+    with pytest.raises(evigrid.InputError, match="a.pcd"):
+        evigrid.run(scans, poses=poses, out=tmp_path / "o")
+    drive = evigrid.open_drive(scans, poses=poses)
+    assert list(drive) == []
+    assert [s["scan"] for s in drive.skipped] == ["a.pcd"]
+    with pytest.raises(evigrid.InputError, match="a.pcd"):
+        list(evigrid.open_drive(scans, poses=poses, strict=True))
+
+
+@pytest.mark.parametrize("width, height", [(4294967296, 1), (100000, 100000), (5000, 5000)])
+def test_a_window_beyond_the_memory_budget_is_refused(tmp_path, width, height):
+    config = tmp_path / "w.toml"
+    config.write_text(f"[window]\nwidth_cells = {width}\nheight_cells = {height}\n", encoding="utf-8")
+    with pytest.raises(evigrid.InputError, match="w.toml"):
+        evigrid.Session(config)
+    with pytest.raises(evigrid.InputError):
+        evigrid.Session({"window": {"width_cells": width, "height_cells": height}})
+
+
+def test_a_map_the_size_of_the_world_is_refused(tmp_path):
+    world = tmp_path / "world.geojson"
+    world.write_text(
+        '{"type":"FeatureCollection","features":[{"type":"Feature","properties":{"highway":"primary"},'
+        '"geometry":{"type":"LineString","coordinates":[[-179,-85],[179,85]]}}]}',
+        encoding="utf-8",
+    )
+    with pytest.raises(evigrid.InputError, match="world.geojson"):
+        evigrid.Session(map=world)
