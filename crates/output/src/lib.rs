@@ -19,6 +19,8 @@
 //!   per cell, `foxglove.Grid`'s JSON layout), the nav2 `map_server` pair ([`nav2`]) and the
 //!   decision map georeferenced for GIS ([`georef`]).
 //! - The run as a Foxglove-ready MCAP recording ([`mcap::McapRecorder`]).
+//! - The one output-folder policy ([`out_dir`]): a folder evigrid did not write is refused,
+//!   one it wrote is cleared of the last run's files first.
 //! - Sinks ([`sink::FrameSink`]): where a session's frames go (the recording, the per-frame
 //!   pictures, `frames.jsonl`, the final figures of [`run_figures`] and the exports), chosen by
 //!   the caller.
@@ -47,6 +49,7 @@ pub mod geotiff;
 mod indexed;
 pub mod mcap;
 pub mod nav2;
+pub mod out_dir;
 pub mod palette;
 pub mod run_figures;
 pub mod sink;

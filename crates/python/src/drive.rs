@@ -197,9 +197,7 @@ impl Frames {
         std::thread::Builder::new()
             .name("evigrid-drive-reader".into())
             .spawn(move || read_frames(&reader, &sender))
-            .map_err(|e| {
-                crate::error::file_error(format!("cannot start the scan reader: {e}"))
-            })?;
+            .map_err(|e| crate::error::file_error(format!("cannot start the scan reader: {e}")))?;
         Ok(Self {
             placed,
             receiver: Mutex::new(receiver),

@@ -28,7 +28,13 @@ pub fn session_error(py: Python<'_>, error: SessionError) -> PyErr {
         SessionError::Stopped { summary, .. } => summary_dict(py, summary).ok(),
         _ => None,
     };
-    let message = error.to_string();
+    let message = match &error {
+        SessionError::Source(drive::SourceError::NeedsProjection { what }) => format!(
+            "{what}: WGS84 poses need map= or origin= (or a KITTI raw drive, placed at its \
+             first fix)"
+        ),
+        other => other.to_string(),
+    };
     let raised = if error.is_interrupted() {
         PyKeyboardInterrupt::new_err(message)
     } else if error.is_bad_input() {

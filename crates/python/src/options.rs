@@ -4,9 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
+use drive::DriveSpec;
 use drive::bag::PoseSource;
 use drive::poses::{Mounting, PoseFormat};
-use drive::{DriveSpec, PoseFileSpec};
+use drive::source::PoseFileSpec;
 use evigrid::{Method, Params};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
@@ -37,8 +38,8 @@ pub fn params(config: Option<&Bound<'_, PyAny>>) -> PyResult<Params> {
             .call_method1("dumps", (dict,))
             .and_then(|t| t.extract())
             .map_err(|e| input_error(format!("config: not in the TOML layout: {e}")))?;
-        let params: Params = serde_json::from_str(&text)
-            .map_err(|e| input_error(format!("config: {e}")))?;
+        let params: Params =
+            serde_json::from_str(&text).map_err(|e| input_error(format!("config: {e}")))?;
         params
             .validate()
             .map_err(|e| input_error(format!("config: {e}")))?;
@@ -73,8 +74,8 @@ pub fn origin(value: Option<&Bound<'_, PyAny>>) -> PyResult<Option<(f64, f64)>> 
         return Ok(None);
     };
     let bad = || input_error("origin: expected (lat, lon) in degrees, or \"LAT,LON\"");
-    let (lat, lon) = if let Ok(text) = value.cast::<PyString>() {
-        let text = text.to_str()?;
+    let (lat, lon) = if value.is_instance_of::<PyString>() {
+        let text: String = value.extract()?;
         let (lat, lon) = text.split_once(',').ok_or_else(bad)?;
         let number = |s: &str| s.trim().parse::<f64>().map_err(|_| bad());
         (number(lat)?, number(lon)?)
@@ -140,6 +141,18 @@ pub struct DriveArgs<'a, 'py> {
     /// A recording's pose source: `auto`, `none`, `tf[:FRAME]`, `odom[:TOPIC]`,
     /// `navsat[:TOPIC]`.
     pub pose_source: Option<&'a str>,
+}
+
+impl DriveArgs<'_, '_> {
+    /// True when any option is given.
+    pub fn any_given(&self) -> bool {
+        [self.poses, self.calib, self.times, self.mounting]
+            .iter()
+            .any(|v| some(*v).is_some())
+            || self.pose_format.is_some()
+            || self.cloud_topic.is_some()
+            || self.pose_source.is_some()
+    }
 }
 
 fn some<'a, 'py>(value: Option<&'a Bound<'py, PyAny>>) -> Option<&'a Bound<'py, PyAny>> {
@@ -234,8 +247,8 @@ pub fn drive_spec(path: &Path, args: &DriveArgs<'_, '_>) -> PyResult<DriveSpec> 
 
 /// The sensor's mounting: `"x,y,z,roll,pitch,yaw"` (metres, degrees) or six numbers.
 fn mounting(value: &Bound<'_, PyAny>) -> PyResult<Mounting> {
-    let text = if let Ok(text) = value.cast::<PyString>() {
-        text.to_str()?.to_owned()
+    let text = if value.is_instance_of::<PyString>() {
+        value.extract::<String>()?
     } else {
         let numbers: Vec<f64> = value.extract().map_err(|_| {
             input_error("mounting: expected \"x,y,z,roll,pitch,yaw\" or six numbers")

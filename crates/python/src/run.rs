@@ -1,13 +1,14 @@
 //! `evigrid.run`: a whole drive as `evigrid run` runs it, every output file written, with the
 //! GIL released and Ctrl-C honoured between frames.
 //!
-//! The drive runs on a thread of its own ([`session::run_drive`] with the sinks `evigrid run`
-//! writes); the calling thread waits with the GIL released and, every 50 ms, takes it back to
-//! let Python see signals. On Ctrl-C it raises the session's stop flag: the session stops
-//! between frames, finishes every output (the summary marked incomplete), and only then is
-//! `KeyboardInterrupt` raised, carrying that summary.
+//! The drive runs on a thread of its own (the session crate's [`session::place`] and
+//! [`session::run_placed`] with the sinks `evigrid run` writes); the calling thread waits with
+//! the GIL released and, every 50 ms, takes it back to let Python see signals. On Ctrl-C it
+//! raises the session's stop flag: the session stops between frames, finishes every output (the
+//! summary marked incomplete), and only then is `KeyboardInterrupt` raised, carrying that
+//! summary.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::time::Duration;
@@ -15,9 +16,10 @@ use std::time::Duration;
 use output::out_dir::{OutDir, OutDirError};
 use output::sink::{DecisionFrames, FinalOutputs, FrameSink, FramesLog, McapSink};
 use pyo3::prelude::*;
+use session::{SessionConfig, SessionError, Summary};
 
 use crate::drive::Drive;
-use crate::error::{file_error, session_error, summary_dict};
+use crate::error::{file_error, input_error, session_error, summary_dict};
 use crate::options::{self, DriveArgs};
 
 /// How often the waiting thread looks for signals.
@@ -64,69 +66,57 @@ pub fn run<'py>(
     force: bool,
     mcap: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let args = DriveArgs {
+        poses,
+        pose_format,
+        calib,
+        times,
+        mounting,
+        cloud_topic,
+        pose_source,
+    };
     let spec = if let Ok(drive) = source.cast::<Drive>() {
-        let given = [poses, calib, times, mounting]
-            .iter()
-            .any(|v| v.is_some_and(|v| !v.is_none()))
-            || pose_format.is_some()
-            || cloud_topic.is_some()
-            || pose_source.is_some();
-        if given {
-            return Err(crate::error::input_error(
+        if args.any_given() {
+            return Err(input_error(
                 "run(drive): the drive was opened with its options; give them to open_drive",
             ));
         }
         drive.get().spec().clone()
     } else {
-        let path = options::path_arg(source, "source")?;
-        let args = DriveArgs {
-            poses,
-            pose_format,
-            calib,
-            times,
-            mounting,
-            cloud_topic,
-            pose_source,
-        };
-        options::drive_spec(&path, &args)?
+        options::drive_spec(&options::path_arg(source, "source")?, &args)?
     };
     let mut config = options::session_config(config, method, map, origin)?;
     config.max_frames = max_frames;
     config.strict = strict;
-    let out_dir = match out.filter(|o| !o.is_none()) {
+    let out = match out.filter(|o| !o.is_none()) {
         Some(out) => {
             let path = options::path_arg(out, "out")?;
-            let prepared = OutDir::prepare(&path, force, "run").map_err(|e| match e {
-                OutDirError::NotOurs { .. } => crate::error::input_error(format!(
-                    "out {e}; choose another out or pass force=True"
-                )),
-                other => crate::error::input_error(format!("out {other}")),
-            })?;
+            // Checked before any work, so that a bad folder costs nothing.
+            OutDir::check(&path, force).map_err(out_dir_error)?;
             config.out = path.display().to_string();
-            Some(prepared)
+            Some(Outputs { path, force, mcap })
         }
         None => None,
     };
-    let drive = py
-        .detach(|| drive::Drive::open(&spec))
-        .map_err(|e| session_error(py, e.into()))?;
-    let mut sinks = match &out_dir {
-        Some(dir) => sinks_of_run(dir.path(), config.map.as_ref(), mcap)?,
-        None => Vec::new(),
-    };
     let stop = AtomicBool::new(false);
     let mut interrupted: Option<PyErr> = None;
-    let result = std::thread::scope(|scope| {
+    let ran = std::thread::scope(|scope| {
         let (done, finished) = mpsc::channel();
+        // Waited on with the GIL released, from this thread only.
+        let finished = std::sync::Mutex::new(finished);
         let stop = &stop;
+        let spec = &spec;
+        let out = out.as_ref();
         scope.spawn(move || {
-            let mut borrowed: Vec<&mut dyn FrameSink> =
-                sinks.iter_mut().map(|s| &mut **s as &mut dyn FrameSink).collect();
-            let _ = done.send(session::run_drive(drive, config, &mut borrowed, stop));
+            let _ = done.send(run_drive(spec, config, out, stop));
         });
         loop {
-            match py.detach(|| finished.recv_timeout(SIGNAL_POLL)) {
-                Ok(result) => return Ok(result),
+            let waited = py.detach(|| match finished.lock() {
+                Ok(finished) => finished.recv_timeout(SIGNAL_POLL),
+                Err(_) => Err(mpsc::RecvTimeoutError::Disconnected),
+            });
+            match waited {
+                Ok(ran) => return Ok(ran),
                 Err(mpsc::RecvTimeoutError::Disconnected) => {
                     return Err(pyo3::exceptions::PyRuntimeError::new_err(
                         "evigrid.run: the drive's thread ended without a result",
@@ -142,68 +132,112 @@ pub fn run<'py>(
             }
         }
     })?;
-    let summary = match &result {
-        Ok(summary) => Some(summary),
-        Err(session::SessionError::Stopped { summary, .. }) => Some(&**summary),
-        Err(_) => None,
+    let (summary, error) = match ran {
+        Ok(ran) => ran,
+        Err(RunError::OutDir(e)) => return Err(out_dir_error(e)),
+        Err(RunError::Output(e)) => return Err(file_error(e.to_string())),
+        Err(RunError::Session(e)) => return Err(interrupted.unwrap_or(session_error(py, e))),
     };
-    if let (Some(dir), Some(summary)) = (&out_dir, summary) {
-        write_summary(dir, summary)?;
-    }
-    match result {
-        Ok(summary) => summary_dict(py, &summary),
-        Err(error) => {
-            if let Some(raised) = interrupted {
-                // The signal's own exception (KeyboardInterrupt, or what a Python handler
-                // raised), with what was done.
-                if let Some(summary) = summary_of(&error) {
-                    let _ = raised.value(py).setattr("summary", summary_dict(py, summary)?);
-                }
-                return Err(raised);
-            }
-            Err(session_error(py, error))
-        }
-    }
+    let Some(error) = error else {
+        return summary_dict(py, &summary);
+    };
+    // The signal's own exception (KeyboardInterrupt, or what a Python handler raised), or the
+    // session's, with what was done.
+    let raised = match interrupted {
+        Some(raised) if error.is_interrupted() => raised,
+        _ => session_error(py, error),
+    };
+    let _ = raised
+        .value(py)
+        .setattr("summary", summary_dict(py, &summary)?);
+    Err(raised)
 }
 
-fn summary_of(error: &session::SessionError) -> Option<&session::Summary> {
+/// Where the outputs go, when they do.
+struct Outputs {
+    path: PathBuf,
+    force: bool,
+    mcap: bool,
+}
+
+/// Why a run ended before its summary.
+enum RunError {
+    Session(SessionError),
+    OutDir(OutDirError),
+    Output(output::OutputError),
+}
+
+/// Places the drive, prepares the output folder, runs the frames through the sinks and writes
+/// the summary: the summary, and the error that stopped the frames early, if any.
+fn run_drive(
+    spec: &drive::DriveSpec,
+    config: SessionConfig,
+    out: Option<&Outputs>,
+    stop: &AtomicBool,
+) -> Result<(Summary, Option<SessionError>), RunError> {
+    let drive = drive::Drive::open(spec).map_err(|e| RunError::Session(e.into()))?;
+    let placement = session::place(drive, &config, stop, &mut ()).map_err(RunError::Session)?;
+    let Some(out) = out else {
+        let outcome = session::run_placed(placement, config, &mut [], stop, &mut ())
+            .map_err(RunError::Session)?;
+        return Ok((outcome.summary, outcome.error));
+    };
+    let dir = OutDir::prepare(&out.path, out.force, "run").map_err(RunError::OutDir)?;
+    let mut sinks =
+        sinks_of_run(&out.path, config.map.as_ref(), out.mcap).map_err(RunError::Output)?;
+    let mut sinks: Vec<&mut dyn FrameSink> = sinks
+        .iter_mut()
+        .map(|sink| &mut **sink as &mut dyn FrameSink)
+        .collect();
+    let outcome = session::run_placed(placement, config, &mut sinks, stop, &mut ())
+        .map_err(RunError::Session)?;
+    let written = write_summary(&out.path, &outcome.summary);
+    // The folder records what was written, even after an early stop.
+    let finished = dir.finish();
+    written.map_err(RunError::Output)?;
+    finished.map_err(RunError::OutDir)?;
+    Ok((outcome.summary, outcome.error))
+}
+
+/// An output folder refused, in the words of the Python arguments.
+fn out_dir_error(error: OutDirError) -> PyErr {
     match error {
-        session::SessionError::Stopped { summary, .. } => Some(summary),
-        _ => None,
+        OutDirError::NotOurs { .. } => input_error(format!(
+            "out {error}; choose another out or pass force=True"
+        )),
+        other => input_error(format!("out {other}")),
     }
 }
 
-/// The sinks of `evigrid run`: the recording, the decision of every frame, the frame records,
-/// the final figures and grids.
+/// The sinks of `evigrid run`, in its order: the recording (unless `mcap` is false), the
+/// decision of every frame, the frame records, the final figures and grids.
 fn sinks_of_run(
     dir: &Path,
     map: Option<&session::Map>,
     mcap: bool,
-) -> PyResult<Vec<Box<dyn FrameSink + Send>>> {
-    let failed = |e: output::OutputError| file_error(e.to_string());
+) -> Result<Vec<Box<dyn FrameSink + Send>>, output::OutputError> {
     let mut sinks: Vec<Box<dyn FrameSink + Send>> = Vec::new();
     if mcap {
         let local = map.map(|m| &m.loaded.map);
-        sinks.push(Box::new(
-            McapSink::create(&dir.join("run.mcap"), local).map_err(failed)?,
-        ));
+        sinks.push(Box::new(McapSink::create(&dir.join("run.mcap"), local)?));
     }
-    sinks.push(Box::new(
-        DecisionFrames::create(&dir.join("frames")).map_err(failed)?,
-    ));
-    sinks.push(Box::new(
-        FramesLog::create(&dir.join(session::FRAMES_FILE)).map_err(failed)?,
-    ));
+    sinks.push(Box::new(DecisionFrames::create(&dir.join("frames"))?));
+    sinks.push(Box::new(FramesLog::create(
+        &dir.join(session::FRAMES_FILE),
+    )?));
     sinks.push(Box::new(FinalOutputs::new(dir)));
     Ok(sinks)
 }
 
-/// `summary.json`, written atomically, and the folder's record of what was written.
-fn write_summary(dir: &OutDir, summary: &session::Summary) -> PyResult<()> {
-    let path = dir.path().join("summary.json");
-    let text = serde_json::to_string_pretty(summary)
-        .map_err(|e| file_error(format!("{}: {e}", path.display())))?;
-    output::write_atomic(&path, |file| std::io::Write::write_all(file, text.as_bytes()))
-        .map_err(|e| file_error(format!("{}: {e}", path.display())))?;
-    dir.finish().map_err(|e| file_error(e.to_string()))
+/// `summary.json`, written atomically, as `evigrid run` writes it.
+fn write_summary(dir: &Path, summary: &Summary) -> Result<(), output::OutputError> {
+    let path = dir.join("summary.json");
+    let text =
+        serde_json::to_string_pretty(summary).map_err(|source| output::OutputError::Json {
+            path: path.clone(),
+            source,
+        })?;
+    output::write_atomic(&path, |file| {
+        std::io::Write::write_all(file, text.as_bytes())
+    })
 }

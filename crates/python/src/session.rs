@@ -13,6 +13,7 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion};
 use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
+use pyo3::types::PyModule;
 
 use crate::arrays::readonly;
 use crate::drive::{Frame, lock};
@@ -139,7 +140,7 @@ impl Session {
             time_s: inner.time_s,
             record,
             geometry,
-            grids: Default::default(),
+            grids: Grids::new(),
         })
     }
 
@@ -170,12 +171,22 @@ struct Geometry {
 }
 
 /// The grids of a result, each made on first access.
-#[derive(Default)]
 struct Grids {
     classes: PyOnceLock<Py<PyAny>>,
     masses: PyOnceLock<Py<PyAny>>,
     betp: PyOnceLock<Py<PyAny>>,
     velocity: PyOnceLock<Py<PyAny>>,
+}
+
+impl Grids {
+    fn new() -> Self {
+        Self {
+            classes: PyOnceLock::new(),
+            masses: PyOnceLock::new(),
+            betp: PyOnceLock::new(),
+            velocity: PyOnceLock::new(),
+        }
+    }
 }
 
 /// What one step gives: the decision and the masses of every cell of the window, their
@@ -370,12 +381,7 @@ fn frame_from_arrays(
 ) -> PyResult<drive::Frame> {
     let py = points.py();
     let numpy = py.import("numpy")?;
-    let as_array = |value: &Bound<'_, PyAny>, dtype: &str, what: &str| {
-        numpy
-            .call_method1("ascontiguousarray", (value, dtype))
-            .map_err(|e| input_error(format!("{what}: not an array of numbers: {e}")))
-    };
-    let points = as_array(points, "float32", "points")?;
+    let points = as_array(&numpy, points, "float32", "points")?;
     let points: PyReadonlyArray2<'_, f32> = points.extract().map_err(|_| {
         input_error("points: expected an N × 3 or N × 4 array (x, y, z[, intensity])")
     })?;
@@ -402,9 +408,11 @@ fn frame_from_arrays(
         intensity.clear();
     }
     if !time_s.is_finite() {
-        return Err(input_error(format!("time {time_s}: not a finite number of seconds")));
+        return Err(input_error(format!(
+            "time {time_s}: not a finite number of seconds"
+        )));
     }
-    let pose = as_array(pose, "float64", "pose")?;
+    let pose = as_array(&numpy, pose, "float64", "pose")?;
     let pose: PyReadonlyArray2<'_, f64> = pose
         .extract()
         .map_err(|_| input_error("pose: expected a 4 × 4 matrix"))?;
@@ -427,6 +435,18 @@ fn frame_from_arrays(
     })
 }
 
+/// `value` as a C-contiguous numpy array of `dtype` (a copy only when it is not one already).
+fn as_array<'py>(
+    numpy: &Bound<'py, PyModule>,
+    value: &Bound<'py, PyAny>,
+    dtype: &str,
+    what: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    numpy
+        .call_method1("ascontiguousarray", (value, dtype))
+        .map_err(|e| input_error(format!("{what}: not an array of numbers: {e}")))
+}
+
 /// The rigid transform of a 4 × 4 matrix given entry by entry, checked: finite, rotation part
 /// orthonormal with determinant +1 (within 1e-6), last row (0, 0, 0, 1).
 fn rigid(entry: impl Fn(usize, usize) -> f64) -> PyResult<Isometry3<f64>> {
@@ -439,14 +459,17 @@ fn rigid(entry: impl Fn(usize, usize) -> f64) -> PyResult<Isometry3<f64>> {
             "pose: last row {last:?}; a rigid transform's is [0, 0, 0, 1]"
         )));
     }
-    let rotation = Matrix3::from_fn(|r, c| entry(r, c));
-    let error = (rotation.transpose() * rotation - Matrix3::identity()).abs().max();
+    let rotation = Matrix3::from_fn(&entry);
+    let error = (rotation.transpose() * rotation - Matrix3::identity())
+        .abs()
+        .max();
     if error > 1e-6 || rotation.determinant() <= 0.0 {
         return Err(input_error(
             "pose: the upper-left 3 × 3 block is not a rotation (orthonormal, determinant +1)",
         ));
     }
-    let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation));
+    let rotation =
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation));
     let translation = Translation3::new(entry(0, 3), entry(1, 3), entry(2, 3));
     Ok(Isometry3::from_parts(translation, rotation))
 }

@@ -1,0 +1,95 @@
+"""How much a session stepped from Python costs over the same session run in Rust.
+
+Over the shared KITTI raw drive (drive 0013, 40 frames), in interleaved rounds:
+
+- Rust: ``evigrid.run(drive, out=None)``, the session crate's frame loop (open, place, read every
+  scan, step it) with no Python between frames and no output written;
+- Python: ``evigrid.open_drive(drive)`` and ``Session.step(frame)`` for each frame from a Python
+  loop (the same opening, placing, reading and stepping, the frame loop in Python);
+- two sessions stepped from Python in two threads against the same two one after the other.
+
+It prints each round and the medians, and the ratios: Python / Rust (the issue's target is at
+most 1.05) and two threads / serial (below 1 when the GIL is released and a core is free).
+
+    EVIGRID_SHARED=../shared python crates/python/benchmarks/overhead.py --rounds 5
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import threading
+import time
+from pathlib import Path
+
+import evigrid
+
+
+def drive_path() -> Path:
+    shared = Path(os.environ.get("EVIGRID_SHARED", Path(__file__).resolve().parents[3].parent / "shared"))
+    path = shared / "data" / "lidar" / "kitti-raw-0013" / "2011_09_26"
+    if not path.is_dir():
+        raise SystemExit(f"the shared KITTI drive is not at {path}; set EVIGRID_SHARED")
+    return path
+
+
+def rust(path: Path) -> float:
+    started = time.perf_counter()
+    summary = evigrid.run(path, out=None)
+    assert summary["complete"]
+    return time.perf_counter() - started
+
+
+def python(path: Path) -> float:
+    started = time.perf_counter()
+    session = evigrid.Session()
+    for frame in evigrid.open_drive(path):
+        session.step(frame)
+    assert session.frames > 0
+    return time.perf_counter() - started
+
+
+def threads(path: Path) -> tuple[float, float]:
+    frames = list(evigrid.open_drive(path))
+
+    def drive() -> None:
+        session = evigrid.Session()
+        for frame in frames:
+            session.step(frame)
+
+    started = time.perf_counter()
+    drive()
+    drive()
+    serial = time.perf_counter() - started
+    workers = [threading.Thread(target=drive) for _ in range(2)]
+    started = time.perf_counter()
+    for worker in workers:
+        worker.start()
+    for worker in workers:
+        worker.join()
+    return serial, time.perf_counter() - started
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (default 3)")
+    args = parser.parse_args()
+    path = drive_path()
+    python(path)  # warm the file cache and the allocator
+    rows = []
+    for k in range(args.rounds):
+        r, p = rust(path), python(path)
+        s, t = threads(path)
+        rows.append((r, p, s, t))
+        print(f"round {k + 1}: rust {r:.3f} s, python {p:.3f} s (ratio {p / r:.3f}); "
+              f"two sessions serial {s:.3f} s, two threads {t:.3f} s (ratio {t / s:.3f})")
+    r, p, s, t = (statistics.median(column) for column in zip(*rows))
+    ratios = [row[1] / row[0] for row in rows]
+    print(f"median: rust {r:.3f} s, python {p:.3f} s; python / rust = {p / r:.3f} "
+          f"(rounds {min(ratios):.3f}-{max(ratios):.3f}); target <= 1.05")
+    print(f"median: two threads / serial = {t / s:.3f}")
+
+
+if __name__ == "__main__":
+    main()
