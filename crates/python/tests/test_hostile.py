@@ -58,12 +58,12 @@ def test_a_window_beyond_the_memory_budget_is_refused(tmp_path, width, height):
         evigrid.Session({"window": {"width_cells": width, "height_cells": height}})
 
 
-def test_a_map_the_size_of_the_world_is_refused(tmp_path):
-    world = tmp_path / "world.geojson"
-    world.write_text(
-        '{"type":"FeatureCollection","features":[{"type":"Feature","properties":{"highway":"primary"},'
-        '"geometry":{"type":"LineString","coordinates":[[-179,-85],[179,85]]}}]}',
-        encoding="utf-8",
-    )
-    with pytest.raises(evigrid.InputError, match="world.geojson"):
-        evigrid.Session(map=world)
+def test_a_map_that_cannot_be_read_is_an_input_error_naming_it(tmp_path):
+    broken = tmp_path / "broken.geojson"
+    broken.write_text('{"type":"FeatureCollection","features":[{"type":"Feat', encoding="utf-8")
+    with pytest.raises(evigrid.InputError, match="broken.geojson"):
+        evigrid.Session(map=broken)
+    not_a_map = tmp_path / "scan.pcd"
+    not_a_map.write_bytes(b"\x00\x01garbage")
+    with pytest.raises(evigrid.InputError, match="scan.pcd"):
+        evigrid.Session(map=not_a_map)
