@@ -213,18 +213,20 @@ def drive():
     session = evigrid.Session()
     for frame in frames:
         session.step(frame)
+def both():
+    threads = [threading.Thread(target=drive) for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+def timed(work):
+    started = time.perf_counter()
+    work()
+    return time.perf_counter() - started
 drive()  # warm the caches
-started = time.perf_counter()
-drive()
-drive()
-serial = time.perf_counter() - started
-threads = [threading.Thread(target=drive) for _ in range(2)]
-started = time.perf_counter()
-for thread in threads:
-    thread.start()
-for thread in threads:
-    thread.join()
-print(json.dumps({"serial": serial, "parallel": time.perf_counter() - started}))
+# Interleaved rounds, the best of each: a busy machine only ever slows a round down.
+rounds = [(timed(lambda: (drive(), drive())), timed(both)) for _ in range(3)]
+print(json.dumps({"serial": min(r[0] for r in rounds), "parallel": min(r[1] for r in rounds)}))
 """
 
 
@@ -233,12 +235,12 @@ def test_two_sessions_in_two_threads_run_faster_than_one_after_the_other(kitti):
     # its step over the machine, and the comparison would measure rayon, not the GIL.
     environment = dict(os.environ, RAYON_NUM_THREADS="1")
     done = subprocess.run(
-        [sys.executable, "-c", TWO_SESSIONS, str(kitti), "12"],
+        [sys.executable, "-c", TWO_SESSIONS, str(kitti), "8"],
         env=environment, capture_output=True, text=True, timeout=600, check=True,
     )
     times = json.loads(done.stdout)
     ratio = times["parallel"] / times["serial"]
-    print(f"two sessions, one rayon thread each: serial {times['serial']:.2f} s, "
+    print(f"two sessions, one rayon thread each (best of 3): serial {times['serial']:.2f} s, "
           f"two threads {times['parallel']:.2f} s, ratio {ratio:.2f}")
     assert ratio < 1.0
 
