@@ -1,0 +1,357 @@
+"""A fleet of drives on Ray: many logs, one table, failures that stay alone.
+
+``evigrid.fleet.run(drives, out=DIR)`` runs every drive as ``evigrid.run`` does, one Ray task per
+drive, each drive's usual outputs under ``DIR/<drive name>/``, and writes ``DIR/fleet.parquet``
+(one row per drive: status, error, frames, CPU time, the drive's duration, the ego-path share,
+moving objects, skipped scans, output folder) with a short report (``fleet.md``, ``fleet.html``,
+``fleet.svg``). The same from the shell: ``python -m evigrid.fleet DRIVE... --out DIR``.
+
+Without ``address`` a local Ray instance is started (on the loopback interface only) and stopped
+at the end; with one, the fleet joins that cluster; inside a script that already called
+``ray.init``, that connection is used and left open.
+
+The one design decision: **a task returns its drive's summary and a few figures, never a grid**.
+The grids, pictures and recordings are written by the worker straight into the drive's folder
+(the fleet folder must be on storage every node sees), so the object store carries a few
+kilobytes per drive and the driver's memory does not grow with the fleet.
+
+Failures stay alone: a drive evigrid refuses is a ``failed`` row naming its error while the
+others run; a worker killed during a drive is retried (``retries``, default 2); a drive's folder
+appears whole by one rename, never half-written. Rerunning the same call skips the drives whose
+folder holds a complete run with the same options (``resumed`` in the table). Ctrl-C cancels the
+tasks, writes the table of what finished, then raises ``KeyboardInterrupt``.
+
+Example (needs ``pip install "evigrid[fleet]"``)::
+
+    import evigrid.fleet
+
+    table = evigrid.fleet.run(["drives/a", "drives/b.mcap", "drives.txt"], out="fleet-out")
+    print(table.to_pandas()[["drive", "status", "frames", "ego_path_share"]])
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import shutil
+import sys
+import time
+import uuid
+from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Union
+
+import evigrid
+from evigrid._errors import InputError
+from evigrid.fleet._drives import DRIVE_OPTIONS, DriveArg, DriveSpec, drive_specs, folder_names
+from evigrid.fleet._report import write_report
+from evigrid.fleet._table import COLUMNS, STATUSES, failed_row, ok_row, write_table
+from evigrid.fleet._task import PARTIAL, STAMP, read_stamp, run_drive
+
+__all__ = ["COLUMNS", "DRIVE_OPTIONS", "MARKER", "STAMP", "STATUSES", "run"]
+
+MARKER = ".evigrid-fleet"
+"""The file that marks a folder as a fleet's output, so that a rerun may write into it."""
+
+# How long, after Ctrl-C, the driver waits for the cancelled tasks to end before it writes the
+# table anyway.
+_CANCEL_WAIT_S = 10.0
+
+Config = Union[str, "os.PathLike[str]", Mapping[str, Any], None]
+
+
+def run(
+    drives: Union[DriveArg, Iterable[DriveArg]],
+    *,
+    out: Union[str, "os.PathLike[str]"],
+    address: Optional[str] = None,
+    num_cpus: Optional[int] = None,
+    retries: int = 2,
+    config: Config = None,
+    method: str = "evigrid",
+    map: Union[str, "os.PathLike[str]", None] = None,
+    cpus_per_drive: int = 1,
+    progress: Optional[Callable[[str], None]] = None,
+) -> Any:
+    """Runs every drive on Ray and returns the fleet's table (a ``pyarrow.Table``, also written
+    to ``out/fleet.parquet``).
+
+    ``drives``: paths ``evigrid.open_drive`` reads (KITTI raw folder, scan folder, ROS 2 bag),
+    dicts ``{"path": ..., "poses": ..., "times": ...}`` with a drive's own options, or text
+    files listing drives one a line (``PATH [--poses FILE] [--times FILE] ...``, paths relative
+    to the list file). ``config``, ``method`` and ``map`` are those of ``evigrid.run``, the same
+    for every drive. ``address``: a Ray cluster to join (``"auto"``, ``"HOST:PORT"``); without
+    it a local instance with ``num_cpus`` CPUs (default all). Each drive's task takes
+    ``cpus_per_drive`` CPUs and evigrid's thread pool is sized to them. A killed worker's drive
+    is tried again up to ``retries`` times. ``progress`` is called with one line per finished
+    drive.
+
+    # Errors
+    ``evigrid.InputError`` before any drive runs when the drives, the options or ``out`` cannot
+    be used (``out`` must be new, empty, or a fleet folder). A drive's own failure is a row,
+    not an exception. ``KeyboardInterrupt`` after the table is written, on Ctrl-C.
+    """
+    started = time.perf_counter()
+    say = progress or (lambda line: None)
+    if retries < 0:
+        raise InputError(f"retries {retries}: must be 0 or more")
+    if cpus_per_drive < 1:
+        raise InputError(f"cpus_per_drive {cpus_per_drive}: must be 1 or more")
+    if num_cpus is not None and (address is not None or num_cpus < 1):
+        raise InputError(
+            f"num_cpus {num_cpus}: must be 1 or more, and only for a local instance (no address)"
+        )
+    specs = drive_specs(drives)
+    names = folder_names(specs)
+    fleet_dir = _fleet_dir(out)
+    options = _run_options(config, method, map)
+    common_key = _options_key(options)
+
+    rows: List[Optional[Dict[str, Any]]] = [None] * len(specs)
+    todo: List[int] = []
+    for i, (spec, name) in enumerate(zip(specs, names)):
+        folder = os.path.join(fleet_dir, name)
+        if not os.path.lexists(folder):
+            todo.append(i)
+            continue
+        stamp = read_stamp(folder)
+        if stamp is None:
+            rows[i] = failed_row(
+                spec.given, name, "failed",
+                f"{folder}: exists and is not a drive folder of this fleet (no {STAMP}); "
+                "move it away",
+            )
+        elif stamp["key"] == _key(spec, common_key):
+            rows[i] = ok_row(spec.given, name, folder, stamp["result"], resumed=True)
+        else:
+            todo.append(i)
+    say(f"evigrid fleet: {len(specs)} drives, {len(specs) - len(todo)} done before or in the way, "
+        f"{len(todo)} to run")
+
+    interrupted, settled = False, True
+    if todo:
+        interrupted, settled = _run_on_ray(
+            specs, names, todo, rows, fleet_dir, options, common_key,
+            address=address, num_cpus=num_cpus, retries=retries,
+            cpus_per_drive=cpus_per_drive, say=say,
+        )
+    final = [
+        row if row is not None else failed_row(specs[i].given, names[i], "interrupted", "not run")
+        for i, row in enumerate(rows)
+    ]
+    table = write_table(final, os.path.join(fleet_dir, "fleet.parquet"))
+    write_report(final, fleet_dir, time.perf_counter() - started)
+    if settled:
+        _remove_partial(fleet_dir)
+    ok = sum(row["status"] == "ok" for row in final)
+    say(f"evigrid fleet: {ok} of {len(final)} drives ok; table {fleet_dir}/fleet.parquet")
+    if interrupted:
+        raise KeyboardInterrupt
+    return table
+
+
+def _run_on_ray(
+    specs: List[DriveSpec],
+    names: List[str],
+    todo: List[int],
+    rows: List[Optional[Dict[str, Any]]],
+    fleet_dir: str,
+    options: Dict[str, Any],
+    common_key: Dict[str, Any],
+    *,
+    address: Optional[str],
+    num_cpus: Optional[int],
+    retries: int,
+    cpus_per_drive: int,
+    say: Callable[[str], None],
+) -> "tuple[bool, bool]":
+    """Runs the drives ``todo`` as Ray tasks, filling their rows. Returns whether Ctrl-C
+    stopped it, and whether every task has ended (else one may still write under ``.partial``)."""
+    ray = _import_ray(local=address is None)
+    started_ray = _connect(ray, address, num_cpus)
+    run_id = uuid.uuid4().hex
+    task = ray.remote(run_drive).options(
+        num_cpus=cpus_per_drive,
+        max_retries=retries,
+        retry_exceptions=False,
+        runtime_env={"env_vars": {"RAYON_NUM_THREADS": str(cpus_per_drive)}},
+    )
+    pending: Dict[Any, int] = {}
+    try:
+        for i in todo:
+            spec = specs[i]
+            ref = task.options(name=f"evigrid-fleet {names[i]}").remote(
+                spec.path, names[i], fleet_dir, {**options, **spec.options},
+                _key(spec, common_key), run_id,
+            )
+            pending[ref] = i
+        done_count = len(specs) - len(todo)
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
+            for ref in ready:
+                i = pending.pop(ref)
+                rows[i] = _collect(ray, ref, specs[i], names[i], fleet_dir, retries)
+                done_count += 1
+                say(_progress_line(done_count, len(specs), rows[i]))
+        return False, True
+    except KeyboardInterrupt:
+        say(f"evigrid fleet: interrupted; cancelling {len(pending)} drives")
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        deadline = time.monotonic() + _CANCEL_WAIT_S
+        while pending and time.monotonic() < deadline:
+            ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=0.5)
+            for ref in ready:
+                i = pending.pop(ref)
+                row = _collect(ray, ref, specs[i], names[i], fleet_dir, retries)
+                # A drive that finished before the cancel keeps its result.
+                rows[i] = row if row["status"] == "ok" else failed_row(
+                    specs[i].given, names[i], "interrupted", "cancelled by Ctrl-C"
+                )
+        return True, not pending
+    finally:
+        if started_ray:
+            ray.shutdown()
+
+
+def _collect(ray: Any, ref: Any, spec: DriveSpec, name: str, fleet_dir: str, retries: int) -> Dict[str, Any]:
+    """The row of a finished task."""
+    from ray import exceptions
+
+    try:
+        result = ray.get(ref)
+    except exceptions.TaskCancelledError:
+        return failed_row(spec.given, name, "interrupted", "cancelled")
+    except exceptions.RayTaskError as error:
+        cause = error.cause
+        if isinstance(cause, KeyboardInterrupt):
+            return failed_row(spec.given, name, "interrupted", "interrupted in its worker")
+        return failed_row(spec.given, name, "failed", f"{type(cause).__name__}: {_one_line(cause)}")
+    except exceptions.WorkerCrashedError:
+        return failed_row(
+            spec.given, name, "failed",
+            f"its worker died on each of {retries + 1} attempts (killed, or out of memory)",
+            attempts=retries + 1,
+        )
+    except exceptions.RayError as error:
+        return failed_row(spec.given, name, "failed", f"{type(error).__name__}: {_one_line(error)}")
+    if "error" in result:
+        return failed_row(spec.given, name, "failed", result["error"], result.get("attempt"))
+    return ok_row(spec.given, name, os.path.join(fleet_dir, name), result, resumed=False)
+
+
+def _progress_line(done: int, total: int, row: Dict[str, Any]) -> str:
+    if row["status"] == "ok":
+        what = f"ok, {row['frames']} frames in {row['run_s']:.1f} s"
+        if (row["attempts"] or 1) > 1:
+            what += f" ({row['attempts']} attempts)"
+    else:
+        what = f"{row['status']}: {row['error']}"
+    return f"evigrid fleet: [{done}/{total}] {row['name']}: {what}"
+
+
+def _import_ray(local: bool) -> Any:
+    """Imports Ray; for a local instance, first makes it listen on the loopback interface only.
+
+    On Linux Ray takes the machine's network address as its node address and its servers listen
+    on every interface; ``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0`` is Ray's own switch to the
+    loopback address (its default on Windows and macOS), read once when Ray is imported.
+    """
+    if local and "ray" not in sys.modules:
+        os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+    try:
+        import ray
+    except ImportError:
+        raise InputError(
+            'evigrid.fleet needs Ray and pyarrow: pip install "evigrid[fleet]"'
+        ) from None
+    return ray
+
+
+def _connect(ray: Any, address: Optional[str], num_cpus: Optional[int]) -> bool:
+    """Connects to Ray unless this process already is; True when this call started it."""
+    if ray.is_initialized():
+        return False
+    quiet = {"log_to_driver": False, "logging_level": logging.WARNING}
+    if address is None:
+        ray.init(num_cpus=num_cpus, include_dashboard=False, **quiet)
+    else:
+        ray.init(address=address, **quiet)
+    return True
+
+
+def _fleet_dir(out: Union[str, "os.PathLike[str]"]) -> str:
+    """The fleet folder, created, or refused when it holds someone else's files."""
+    fleet_dir = os.path.abspath(os.fspath(out))
+    if os.path.exists(fleet_dir):
+        if not os.path.isdir(fleet_dir):
+            raise InputError(f"{fleet_dir}: exists and is not a folder")
+        if os.listdir(fleet_dir) and not os.path.exists(os.path.join(fleet_dir, MARKER)):
+            raise InputError(
+                f"{fleet_dir}: not empty and not a fleet folder (no {MARKER}); "
+                "choose a new or empty folder"
+            )
+    try:
+        os.makedirs(fleet_dir, exist_ok=True)
+        with open(os.path.join(fleet_dir, MARKER), "a", encoding="utf-8"):
+            pass
+    except OSError as error:
+        raise evigrid.FileError(f"{fleet_dir}: cannot be written: {error.strerror}") from None
+    return fleet_dir
+
+
+def _run_options(config: Config, method: str, map: Any) -> Dict[str, Any]:
+    """The options of ``evigrid.run`` common to every drive, paths made absolute (the workers do
+    not share the driver's working folder), checked once here rather than failing every drive."""
+    if config is not None and not isinstance(config, Mapping):
+        config = os.path.abspath(os.fspath(config))
+    if map is not None:
+        map = os.path.abspath(os.fspath(map))
+        if not os.path.isfile(map):
+            raise InputError(f"{map}: the map is not a file")
+    # The configuration and the method, checked by building a session (no map: that can be big).
+    evigrid.Session(dict(config) if isinstance(config, Mapping) else config, method=method)
+    return {"config": dict(config) if isinstance(config, Mapping) else config, "method": method, "map": map}
+
+
+def _options_key(options: Dict[str, Any]) -> Dict[str, Any]:
+    """What a complete drive folder must have been run with to be skipped: the evigrid version,
+    the method, the configuration's content, the map's size and time of change."""
+    config = options["config"]
+    if config is None:
+        config_key = None
+    elif isinstance(config, dict):
+        config_key = _digest(json.dumps(config, sort_keys=True).encode())
+    else:
+        with open(config, "rb") as file:
+            config_key = _digest(file.read())
+    map_key = None
+    if options["map"] is not None:
+        status = os.stat(options["map"])
+        map_key = {"path": options["map"], "size": status.st_size, "mtime_ns": status.st_mtime_ns}
+    return {
+        "evigrid": evigrid.__version__,
+        "method": options["method"],
+        "config": config_key,
+        "map": map_key,
+    }
+
+
+def _key(spec: DriveSpec, common: Dict[str, Any]) -> Dict[str, Any]:
+    key = {**common, "drive": spec.path, "drive_options": spec.options}
+    # As a stamp read back holds it.
+    return json.loads(json.dumps(key, sort_keys=True))
+
+
+def _digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _remove_partial(fleet_dir: str) -> None:
+    """Removes what killed or cancelled tasks left half-written, once no task is alive."""
+    shutil.rmtree(os.path.join(fleet_dir, PARTIAL), ignore_errors=True)
+
+
+def _one_line(error: BaseException) -> str:
+    text = str(error).strip()
+    return text.splitlines()[0] if text else type(error).__name__

@@ -1,0 +1,153 @@
+"""One drive, as a Ray task runs it on a worker: the session through ``evigrid.run``, its outputs
+staged and moved into place whole, and a few figures back to the driver.
+
+A drive's folder appears by one rename once every output and the stamp are written, so a worker
+killed at any moment leaves the folder either complete (from an earlier run) or absent; what it
+was writing stays under ``.partial/`` and the next attempt removes it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import shutil
+import socket
+import time
+from typing import Any, Dict, Optional
+
+__all__ = ["PARTIAL", "STAMP", "read_stamp", "run_drive"]
+
+PARTIAL = ".partial"
+"""The fleet folder's sub-folder where drives are written before they are moved into place."""
+
+STAMP = "fleet-drive.json"
+"""The file in a drive's folder that says it is complete, for which options, with its figures."""
+
+
+def run_drive(
+    path: str,
+    name: str,
+    fleet_dir: str,
+    options: Dict[str, Any],
+    key: Dict[str, Any],
+    run_id: str,
+) -> Dict[str, Any]:
+    """Runs one drive into ``fleet_dir/name`` and returns its summary and figures (no grid).
+
+    A drive evigrid refuses (bad input, unreadable file) comes back as ``{"error": message}``:
+    trying again would not help, so it is not raised for Ray to retry. Anything else raises, and
+    a dead worker is retried by Ray.
+    """
+    import evigrid  # in the worker
+
+    staging = os.path.join(fleet_dir, PARTIAL, name)
+    attempt = _previous_attempt(staging, run_id) + 1
+    shutil.rmtree(staging, ignore_errors=True)
+    os.makedirs(staging)
+    _write_json(
+        os.path.join(staging, "worker.json"),
+        {
+            "run": run_id,
+            "attempt": attempt,
+            "drive": path,
+            "host": socket.gethostname(),
+            "pid": os.getpid(),
+            "started": time.time(),
+        },
+    )
+    out = os.path.join(staging, "out")
+    cpu_start, wall_start = time.process_time(), time.perf_counter()
+    try:
+        summary = evigrid.run(path, out=out, **options)
+    except evigrid.Error as error:
+        shutil.rmtree(staging, ignore_errors=True)
+        return {"error": _one_line(error), "attempt": attempt}
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    run_s = time.perf_counter() - wall_start
+    cpu_s = time.process_time() - cpu_start
+    if not summary.get("complete", False):
+        shutil.rmtree(staging, ignore_errors=True)
+        return {"error": f"stopped: {summary.get('stopped')}", "attempt": attempt}
+    duration_s, moving_objects = _frames_figures(os.path.join(out, "frames.jsonl"))
+    import ray  # in the worker
+
+    result = {
+        "summary": summary,
+        "cpu_s": cpu_s,
+        "run_s": run_s,
+        "duration_s": duration_s,
+        "moving_objects": moving_objects,
+        "node": ray.get_runtime_context().get_node_id(),
+        "attempt": attempt,
+        # The worker's peak resident memory (kilobytes on Linux), over its life so far.
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+    }
+    _write_json(os.path.join(out, STAMP), {"key": key, "result": result})
+    _move_into_place(out, os.path.join(fleet_dir, name), staging)
+    shutil.rmtree(staging, ignore_errors=True)
+    return result
+
+
+def read_stamp(folder: str) -> Optional[Dict[str, Any]]:
+    """The stamp of a drive's folder, or ``None`` when it has none that can be read."""
+    try:
+        with open(os.path.join(folder, STAMP), encoding="utf-8") as file:
+            stamp = json.load(file)
+    except (OSError, ValueError):
+        return None
+    return stamp if isinstance(stamp, dict) and "key" in stamp and "result" in stamp else None
+
+
+def _previous_attempt(staging: str, run_id: str) -> int:
+    """How many attempts of this fleet run started this drive before (0 for the first)."""
+    try:
+        with open(os.path.join(staging, "worker.json"), encoding="utf-8") as file:
+            worker = json.load(file)
+    except (OSError, ValueError):
+        return 0
+    return int(worker.get("attempt", 0)) if worker.get("run") == run_id else 0
+
+
+def _move_into_place(out: str, folder: str, staging: str) -> None:
+    """Renames the finished ``out`` to ``folder``; a folder there from earlier options (a stamp
+    of ours) is moved aside first and removed after, never merged into."""
+    if os.path.lexists(folder):
+        old = os.path.join(staging, "old")
+        os.rename(folder, old)
+    os.rename(out, folder)
+
+
+def _frames_figures(frames_jsonl: str) -> "tuple[Optional[float], int]":
+    """The drive's recorded duration (last scan time − first) and its distinct moving objects,
+    read from the run's ``frames.jsonl``."""
+    first: Optional[float] = None
+    last: Optional[float] = None
+    objects = set()
+    with open(frames_jsonl, encoding="utf-8") as file:
+        for line in file:
+            if not line.strip():
+                continue
+            frame = json.loads(line)
+            time_s = frame.get("time_s")
+            if isinstance(time_s, (int, float)):
+                first = time_s if first is None else first
+                last = time_s
+            for moving in frame.get("moving_objects") or ():
+                objects.add(moving.get("id"))
+    duration = None if first is None or last is None else last - first
+    return duration, len(objects)
+
+
+def _write_json(path: str, value: Any) -> None:
+    temporary = path + ".tmp"
+    with open(temporary, "w", encoding="utf-8") as file:
+        json.dump(value, file)
+    os.replace(temporary, path)
+
+
+def _one_line(error: BaseException) -> str:
+    text = str(error).strip()
+    return text.splitlines()[0] if text else type(error).__name__

@@ -1,0 +1,348 @@
+"""evigrid.fleet on a local Ray instance (2 CPUs, loopback only) over drives made from the shared
+data: the KITTI raw drive split into parts, a scan folder with a pose file, the ROS 2 bag fixture;
+then on a two-node cluster on 127.0.0.1.
+
+Ray and pyarrow come with the package's ``[fleet]`` extra; without them the tests skip, unless
+``EVIGRID_REQUIRE_FLEET=1`` (set by ``.ci/run``) makes them fail.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any, Dict, List
+
+import pytest
+
+# Ray's servers on the loopback interface only: read once, when Ray is imported.
+os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+
+try:
+    import pyarrow.parquet as pq
+    import ray
+    from ray.cluster_utils import Cluster
+except ImportError:  # pragma: no cover - depends on the environment
+    if os.environ.get("EVIGRID_REQUIRE_FLEET") == "1":
+        raise
+    pytest.skip('needs the fleet extra: pip install "evigrid[fleet]"', allow_module_level=True)
+
+import evigrid
+import evigrid.fleet
+from evigrid.fleet._drives import DriveSpec, drive_specs, folder_names
+
+from conftest import REPOSITORY
+
+BAG = REPOSITORY / "crates" / "drive" / "tests" / "fixtures" / "kitti-0013.mcap"
+SYNC = "2011_09_26_drive_0013_sync"
+PARTS = 4
+PART_FRAMES = 10
+# Timing figures and the output folder differ between two runs of one drive; nothing else may.
+TIMING_KEYS = {"total_seconds", "mean_process_ms", "odometry_seconds", "out"}
+
+
+# ---------------------------------------------------------------------------------------------
+# Drives made from the shared data (links to its files, never copies).
+
+
+def _link(source: Path, target: Path) -> None:
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.symlink_to(source)
+
+
+def _kitti_part(kitti: Path, folder: Path, first: int, count: int) -> Path:
+    """Frames first..first+count of the shared KITTI raw drive as a KITTI raw drive of its own
+    (renumbered from 0), with its calibration files: the date folder."""
+    date = folder / "2011_09_26"
+    for name in ("calib_imu_to_velo.txt", "calib_velo_to_cam.txt"):
+        _link(kitti / name, date / name)
+    for stream, suffix in (("velodyne_points", ".bin"), ("oxts", ".txt")):
+        source = kitti / SYNC / stream
+        times = (source / "timestamps.txt").read_text().splitlines()[first : first + count]
+        (date / SYNC / stream).mkdir(parents=True)
+        (date / SYNC / stream / "timestamps.txt").write_text("\n".join(times) + "\n")
+        for k in range(count):
+            _link(source / "data" / f"{first + k:010d}{suffix}", date / SYNC / stream / "data" / f"{k:010d}{suffix}")
+    _link(kitti / SYNC / "oxts" / "dataformat.txt", date / SYNC / "oxts" / "dataformat.txt")
+    return date
+
+
+def _scan_folder(shared: Path, folder: Path, count: int) -> "tuple[Path, Path]":
+    """The first scans of kitti-city-22 and a pose file for them: 10 Hz, 1 m per scan east."""
+    scans = sorted((shared / "data" / "lidar" / "kitti-city-22").glob("*.pcd"))[:count]
+    for scan in scans:
+        _link(scan, folder / "city" / scan.name)
+    poses = folder / "city-poses.txt"
+    poses.write_text(
+        "# time x y z roll pitch yaw\n"
+        + "".join(f"{0.1 * k:.1f} {k} 0 1.73 0 0 0\n" for k in range(count))
+    )
+    return folder / "city", poses
+
+
+@pytest.fixture(scope="session")
+def drives(kitti: Path, shared: Path, tmp_path_factory: pytest.TempPathFactory) -> Dict[str, Any]:
+    """The fleet's drives by role: KITTI parts, the scan folder with poses, the bag, a broken
+    bag (its first kilobyte), and a list file naming a part and the scan folder."""
+    root = tmp_path_factory.mktemp("drives")
+    parts = [
+        _kitti_part(kitti, root / f"part-{k + 1}", k * PART_FRAMES, PART_FRAMES) for k in range(PARTS)
+    ]
+    city, poses = _scan_folder(shared, root, 6)
+    broken = root / "broken.mcap"
+    broken.write_bytes(BAG.read_bytes()[:1024])
+    listed = root / "drives.txt"
+    listed.write_text(
+        f"# two drives\n{parts[0].relative_to(root)}\ncity --poses city-poses.txt\n"
+    )
+    return {
+        "parts": parts,
+        "city": {"path": str(city), "poses": str(poses)},
+        "bag": str(BAG),
+        "broken": str(broken),
+        "list": str(listed),
+    }
+
+
+def _fleet(drives: Dict[str, Any]) -> List[Any]:
+    return [str(part) for part in drives["parts"]] + [drives["city"], drives["bag"]]
+
+
+@pytest.fixture(scope="session")
+def singles(drives: Dict[str, Any], tmp_path_factory: pytest.TempPathFactory) -> Dict[str, Path]:
+    """Each drive of the fleet run alone by ``evigrid.run`` (no Ray): its output folder."""
+    root = tmp_path_factory.mktemp("singles")
+    outs = {}
+    for k, drive in enumerate(_fleet(drives)):
+        spec = drive_specs([drive])[0]
+        out = root / f"drive-{k}"
+        evigrid.run(spec.path, out=str(out), **spec.options)
+        outs[spec.given] = out
+    return outs
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    """A local Ray instance of 2 CPUs on the loopback interface, for this module's tests."""
+    if ray.is_initialized():
+        ray.shutdown()
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    yield ray.get_runtime_context().gcs_address
+    ray.shutdown()
+
+
+@pytest.fixture(scope="module")
+def fleet_out(local_ray: str, drives: Dict[str, Any], tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The fleet folder of one run over every good drive."""
+    out = tmp_path_factory.mktemp("fleet") / "out"
+    evigrid.fleet.run(_fleet(drives), out=out)
+    return out
+
+
+def _rows(out: Path) -> List[Dict[str, Any]]:
+    return pq.read_table(out / "fleet.parquet").to_pylist()
+
+
+def _summary(folder: Path) -> Dict[str, Any]:
+    summary = json.loads((folder / "summary.json").read_text())
+    return {key: value for key, value in summary.items() if key not in TIMING_KEYS}
+
+
+def _same_run(folder: Path, single: Path) -> None:
+    """The outputs of two runs of one drive are the same (but for the timings)."""
+    assert _summary(folder) == _summary(single)
+    for name in ("classes.json", "masses.bin", "occupancy.json"):
+        assert (folder / name).read_bytes() == (single / name).read_bytes(), name
+
+
+def _moving_objects(folder: Path) -> int:
+    ids = set()
+    for line in (folder / "frames.jsonl").read_text().splitlines():
+        ids.update(obj["id"] for obj in json.loads(line)["moving_objects"])
+    return len(ids)
+
+
+# ---------------------------------------------------------------------------------------------
+# Without Ray: the drives and their names.
+
+
+def test_names_are_the_last_component_with_parents_when_they_collide():
+    specs = [DriveSpec(p, p) for p in ("/d/a/2011_09_26", "/d/b/2011_09_26", "/d/c.mcap", "/e/c.mcap", "/e/c.mcap", "/x/fleet.md")]
+    assert folder_names(specs) == ["a-2011_09_26", "b-2011_09_26", "d-c", "e-c", "e-c-2", "drive-fleet.md"]
+
+
+def test_a_list_file_gives_paths_from_its_folder_with_their_options(drives):
+    specs = drive_specs([drives["list"]])
+    root = Path(drives["list"]).parent
+    assert [spec.path for spec in specs] == [str(drives["parts"][0]), str(root / "city")]
+    assert specs[0].options == {}
+    assert specs[1].options == {"poses": str(root / "city-poses.txt")}
+
+
+def test_a_bad_list_line_is_an_input_error_naming_the_file_and_line(tmp_path):
+    listed = tmp_path / "drives.txt"
+    listed.write_text("a\nb --speed 3\n")
+    with pytest.raises(evigrid.InputError, match=r"drives.txt:2: unknown option '--speed'"):
+        drive_specs([str(listed)])
+
+
+def test_a_folder_of_someone_elses_files_is_refused_before_any_work(drives, tmp_path):
+    (tmp_path / "notes.txt").write_text("mine")
+    with pytest.raises(evigrid.InputError, match="not a fleet folder"):
+        evigrid.fleet.run([drives["bag"]], out=tmp_path)
+    assert sorted(os.listdir(tmp_path)) == ["notes.txt"]
+
+
+# ---------------------------------------------------------------------------------------------
+# On a local Ray instance.
+
+
+def test_the_table_equals_the_single_drive_summaries(fleet_out, drives, singles):
+    rows = _rows(fleet_out)
+    assert [row["drive"] for row in rows] == [spec.given for spec in drive_specs(_fleet(drives))]
+    for row in rows:
+        single = singles[row["drive"]]
+        summary = json.loads((single / "summary.json").read_text())
+        times = [json.loads(line)["time_s"] for line in (single / "frames.jsonl").read_text().splitlines()]
+        assert row["status"] == "ok" and row["error"] == "" and not row["resumed"], row
+        assert row["frames"] == summary["frames"]
+        assert row["ego_path_share"] == summary["ego_path"]["share"]
+        assert row["skipped_scans"] == len(summary["skipped_scans"])
+        assert row["moving_objects"] == _moving_objects(single)
+        assert row["duration_s"] == pytest.approx(times[-1] - times[0])
+        assert row["cpu_s"] > 0 and row["attempts"] == 1
+        assert row["out"] == str(fleet_out / row["name"])
+        _same_run(Path(row["out"]), single)
+    assert [row["frames"] for row in rows] == [PART_FRAMES] * PARTS + [6, 4]
+    assert not (fleet_out / ".partial").exists()
+    assert "| drives | 6: 6 ok (0 done before), 0 failed, 0 interrupted |" in (fleet_out / "fleet.md").read_text()
+
+
+def test_a_rerun_skips_finished_drives_and_reruns_one_run_with_other_options(fleet_out, drives):
+    before = {row["name"]: (fleet_out / row["name"] / "summary.json").stat().st_mtime_ns for row in _rows(fleet_out)}
+    # One folder stamped with other options: it must run again.
+    stamp_path = fleet_out / "part-2-2011_09_26" / evigrid.fleet.STAMP
+    stamp = json.loads(stamp_path.read_text())
+    stamp["key"]["method"] = "kurdej2013"
+    stamp_path.write_text(json.dumps(stamp))
+
+    evigrid.fleet.run(_fleet(drives), out=fleet_out)
+
+    rows = _rows(fleet_out)
+    assert [row["name"] for row in rows if not row["resumed"]] == ["part-2-2011_09_26"]
+    assert all(row["status"] == "ok" for row in rows)
+    for row in rows:
+        mtime = (fleet_out / row["name"] / "summary.json").stat().st_mtime_ns
+        assert (mtime == before[row["name"]]) == row["resumed"], row["name"]
+    assert json.loads(stamp_path.read_text())["key"]["method"] == "evigrid"
+
+
+def test_a_corrupt_drive_fails_alone_and_the_command_exits_1(local_ray, drives, tmp_path):
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [sys.executable, "-m", "evigrid.fleet", drives["list"], drives["broken"], "--out", str(out), "--address", local_ray],
+        capture_output=True, text=True, timeout=300, check=False,
+    )
+    assert done.returncode == 1, done.stderr
+    rows = {Path(row["drive"]).name: row for row in _rows(out)}
+    assert [rows[name]["status"] for name in ("2011_09_26", "city", "broken.mcap")] == ["ok", "ok", "failed"]
+    assert drives["broken"] in rows["broken.mcap"]["error"]
+    assert "\n" not in rows["broken.mcap"]["error"]
+    assert rows["broken.mcap"]["frames"] is None and rows["broken.mcap"]["out"] is None
+    assert not (out / "broken").exists()
+    assert "broken.mcap: failed: " in done.stderr
+    assert "[3/3]" in done.stderr
+
+
+def test_a_worker_killed_during_a_drive_is_retried_and_gives_the_same_result(local_ray, drives, singles, tmp_path):
+    part = drives["parts"][-1]
+    name = folder_names(drive_specs([str(part) for part in drives["parts"]]))[-1]
+    out = tmp_path / "out"
+    killed: List[int] = []
+
+    def kill_mid_drive() -> None:
+        staging = out / ".partial" / name
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            try:
+                frames = (staging / "out" / "frames.jsonl").read_text().count("\n")
+                worker = json.loads((staging / "worker.json").read_text())
+            except (OSError, ValueError):
+                frames = 0
+            if frames >= 2:
+                os.kill(worker["pid"], signal.SIGKILL)
+                killed.append(worker["pid"])
+                return
+            time.sleep(0.01)
+
+    killer = threading.Thread(target=kill_mid_drive)
+    killer.start()
+    evigrid.fleet.run([str(p) for p in drives["parts"]], out=out, retries=2)
+    killer.join()
+
+    assert killed, "the drive finished before its worker could be killed"
+    row = next(row for row in _rows(out) if row["name"] == name)
+    assert row["status"] == "ok" and row["attempts"] == 2, row
+    _same_run(out / name, singles[str(part)])
+    assert all(row["status"] == "ok" and row["attempts"] == 1 for row in _rows(out) if row["name"] != name)
+
+
+def test_a_drive_whose_worker_dies_on_every_attempt_fails_alone(local_ray, drives, tmp_path):
+    out = tmp_path / "out"
+    part = str(drives["parts"][0])
+    kills: List[int] = []
+
+    def kill_every_attempt() -> None:
+        staging = out / ".partial" / "2011_09_26"
+        deadline = time.monotonic() + 120
+        while len(kills) < 2 and time.monotonic() < deadline:
+            try:
+                worker = json.loads((staging / "worker.json").read_text())
+                if worker["pid"] not in kills:
+                    os.kill(worker["pid"], signal.SIGKILL)
+                    kills.append(worker["pid"])
+            except (OSError, ValueError):
+                pass
+            time.sleep(0.01)
+
+    killer = threading.Thread(target=kill_every_attempt)
+    killer.start()
+    table = evigrid.fleet.run([part, drives["bag"]], out=out, retries=1)
+    killer.join()
+
+    rows = table.to_pylist()
+    assert len(kills) == 2
+    assert rows[0]["status"] == "failed" and "died on each of 2 attempts" in rows[0]["error"]
+    assert rows[1]["status"] == "ok"
+    assert not (out / "2011_09_26").exists() and not (out / ".partial").exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# On a cluster of two nodes on this machine (last: it replaces the local instance).
+
+
+def test_a_two_node_cluster_runs_tasks_on_both_nodes(local_ray, drives, singles, tmp_path):
+    ray.shutdown()
+    cluster = Cluster(
+        initialize_head=True,
+        head_node_args={"num_cpus": 1, "node_ip_address": "127.0.0.1", "include_dashboard": False},
+    )
+    try:
+        cluster.add_node(num_cpus=1, node_ip_address="127.0.0.1")
+        out = tmp_path / "out"
+        parts = [str(part) for part in drives["parts"]]
+        # Joined by address, as `python -m evigrid.fleet --address` does.
+        evigrid.fleet.run(parts, out=out, address=cluster.address)
+        rows = _rows(out)
+        assert all(row["status"] == "ok" for row in rows)
+        assert len({row["node"] for row in rows}) == 2
+        for row, part in zip(rows, parts):
+            _same_run(out / row["name"], singles[part])
+        assert not ray.is_initialized()
+    finally:
+        cluster.shutdown()
