@@ -255,7 +255,7 @@ def test_a_corrupt_drive_fails_alone_and_the_command_exits_1(local_ray, drives, 
     assert "\n" not in rows["broken.mcap"]["error"]
     assert rows["broken.mcap"]["frames"] is None and rows["broken.mcap"]["out"] is None
     assert not (out / "broken").exists()
-    assert "broken.mcap: failed: " in done.stderr
+    assert "] broken: failed: " in done.stderr, done.stderr
     assert "[3/3]" in done.stderr
 
 

@@ -170,17 +170,18 @@ def _run_on_ray(
     ray = _import_ray(local=address is None)
     started_ray = _connect(ray, address, num_cpus)
     run_id = uuid.uuid4().hex
-    task = ray.remote(run_drive).options(
-        num_cpus=cpus_per_drive,
-        max_retries=retries,
-        retry_exceptions=False,
-        runtime_env={"env_vars": {"RAYON_NUM_THREADS": str(cpus_per_drive)}},
-    )
+    task = ray.remote(run_drive)
+    task_options = {
+        "num_cpus": cpus_per_drive,
+        "max_retries": retries,
+        "retry_exceptions": False,
+        "runtime_env": {"env_vars": {"RAYON_NUM_THREADS": str(cpus_per_drive)}},
+    }
     pending: Dict[Any, int] = {}
     try:
         for i in todo:
             spec = specs[i]
-            ref = task.options(name=f"evigrid-fleet {names[i]}").remote(
+            ref = task.options(name=f"evigrid-fleet {names[i]}", **task_options).remote(
                 spec.path, names[i], fleet_dir, {**options, **spec.options},
                 _key(spec, common_key), run_id,
             )
