@@ -17,6 +17,7 @@ import threading
 import time
 from pathlib import Path
 from typing import Any, Dict, List
+from xml.etree import ElementTree
 
 import pytest
 
@@ -221,6 +222,11 @@ def test_the_table_equals_the_single_drive_summaries(fleet_out, drives, singles)
     assert [row["frames"] for row in rows] == [PART_FRAMES] * PARTS + [6, 4]
     assert not (fleet_out / ".partial").exists()
     assert "| drives | 6: 6 ok (0 done before), 0 failed, 0 interrupted |" in (fleet_out / "fleet.md").read_text()
+    # The plot: one bar per drive, its length the drive's run time.
+    svg = ElementTree.parse(fleet_out / "fleet.svg").getroot()
+    bars = [float(rect.get("width")) for rect in svg.iter("{http://www.w3.org/2000/svg}rect")]
+    longest = max(row["run_s"] for row in rows)
+    assert bars == pytest.approx([max(1.0, 420 * row["run_s"] / longest) for row in rows], abs=0.06)
 
 
 def test_a_rerun_skips_finished_drives_and_reruns_one_run_with_other_options(fleet_out, drives):

@@ -90,6 +90,7 @@ def run(
     ``evigrid.InputError`` before any drive runs when the drives, the options or ``out`` cannot
     be used (``out`` must be new, empty, or a fleet folder). A drive's own failure is a row,
     not an exception. ``KeyboardInterrupt`` after the table is written, on Ctrl-C.
+    ``ImportError`` without Ray or pyarrow (the ``[fleet]`` extra).
     """
     started = time.perf_counter()
     say = progress or (lambda line: None)
@@ -101,6 +102,7 @@ def run(
         raise InputError(
             f"num_cpus {num_cpus}: must be 1 or more, and only for a local instance (no address)"
         )
+    _require_extra()
     specs = drive_specs(drives)
     names = folder_names(specs)
     fleet_dir = _fleet_dir(out)
@@ -125,8 +127,8 @@ def run(
             rows[i] = ok_row(spec.given, name, folder, stamp["result"], resumed=True)
         else:
             todo.append(i)
-    say(f"evigrid fleet: {len(specs)} drives, {len(specs) - len(todo)} done before or in the way, "
-        f"{len(todo)} to run")
+    resumed = sum(row is not None and row["resumed"] for row in rows)
+    say(f"evigrid fleet: {len(specs)} drives, {resumed} done before (skipped), {len(todo)} to run")
 
     interrupted, settled = False, True
     if todo:
@@ -251,6 +253,17 @@ def _progress_line(done: int, total: int, row: Dict[str, Any]) -> str:
     return f"evigrid fleet: [{done}/{total}] {row['name']}: {what}"
 
 
+def _require_extra() -> None:
+    """Ray and pyarrow are the ``[fleet]`` extra's: without them, say how to get them."""
+    import importlib.util
+
+    missing = [name for name in ("ray", "pyarrow") if importlib.util.find_spec(name) is None]
+    if missing:
+        raise ImportError(
+            f"evigrid.fleet needs {' and '.join(missing)}: pip install \"evigrid[fleet]\""
+        )
+
+
 def _import_ray(local: bool) -> Any:
     """Imports Ray; for a local instance, first makes it listen on the loopback interface only.
 
@@ -260,12 +273,8 @@ def _import_ray(local: bool) -> Any:
     """
     if local and "ray" not in sys.modules:
         os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
-    try:
-        import ray
-    except ImportError:
-        raise InputError(
-            'evigrid.fleet needs Ray and pyarrow: pip install "evigrid[fleet]"'
-        ) from None
+    import ray
+
     return ray
 
 

@@ -70,7 +70,7 @@ def main(argv: Optional[List[str]] = None) -> int:
             map=args.map,
             progress=None if args.quiet else progress,
         )
-    except evigrid.Error as error:
+    except (evigrid.Error, ImportError) as error:
         print(f"evigrid fleet: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
