@@ -16,7 +16,7 @@ with the machine's load average (other processes take CPUs from both sides diffe
 CPU seconds spent, and the workers' peak memory. ``--rounds N`` interleaves N rounds of the three
 and keeps the fastest of each.
 
-    python crates/python/benchmarks/fleet_scaling.py [--shared ../shared] [--num-cpus 2] [--rounds 1]
+    python crates/python/benchmarks/fleet_scaling.py [--shared DIR] [--num-cpus 2] [--rounds 1]
 """
 
 from __future__ import annotations
@@ -78,7 +78,9 @@ def main() -> int:
     parser.add_argument("--shared", default=os.environ.get("EVIGRID_SHARED", "../shared"))
     parser.add_argument("--num-cpus", type=int, default=2)
     parser.add_argument(
-        "--rounds", type=int, default=1,
+        "--rounds",
+        type=int,
+        default=1,
         help="rounds of the three runs, interleaved; the fastest of each is kept",
     )
     args = parser.parse_args()
@@ -132,7 +134,9 @@ def main() -> int:
         f"Ray's overhead {overhead:.3f} s per drive = {100 * overhead / drive_s:.1f} % of a "
         f"{FRAMES}-frame drive (target <= 5 %)"
     )
-    memory = max(fleet_table.column("peak_rss_mb").to_pylist() + one_table.column("peak_rss_mb").to_pylist())
+    memory = max(
+        fleet_table.column("peak_rss_mb").to_pylist() + one_table.column("peak_rss_mb").to_pylist()
+    )
     print(f"largest worker peak memory: {memory:.0f} MiB")
     return 0
 

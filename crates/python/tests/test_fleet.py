@@ -68,7 +68,10 @@ def _kitti_part(kitti: Path, folder: Path, first: int, count: int) -> Path:
         (date / SYNC / stream).mkdir(parents=True)
         (date / SYNC / stream / "timestamps.txt").write_text("\n".join(times) + "\n")
         for k in range(count):
-            _link(source / "data" / f"{first + k:010d}{suffix}", date / SYNC / stream / "data" / f"{k:010d}{suffix}")
+            _link(
+                source / "data" / f"{first + k:010d}{suffix}",
+                date / SYNC / stream / "data" / f"{k:010d}{suffix}",
+            )
     _link(kitti / SYNC / "oxts" / "dataformat.txt", date / SYNC / "oxts" / "dataformat.txt")
     return date
 
@@ -92,15 +95,14 @@ def drives(kitti: Path, shared: Path, tmp_path_factory: pytest.TempPathFactory) 
     bag (its first kilobyte), and a list file naming a part and the scan folder."""
     root = tmp_path_factory.mktemp("drives")
     parts = [
-        _kitti_part(kitti, root / f"part-{k + 1}", k * PART_FRAMES, PART_FRAMES) for k in range(PARTS)
+        _kitti_part(kitti, root / f"part-{k + 1}", k * PART_FRAMES, PART_FRAMES)
+        for k in range(PARTS)
     ]
     city, poses = _scan_folder(shared, root, 6)
     broken = root / "broken.mcap"
     broken.write_bytes(BAG.read_bytes()[:1024])
     listed = root / "drives.txt"
-    listed.write_text(
-        f"# two drives\n{parts[0].relative_to(root)}\ncity --poses city-poses.txt\n"
-    )
+    listed.write_text(f"# two drives\n{parts[0].relative_to(root)}\ncity --poses city-poses.txt\n")
     return {
         "parts": parts,
         "city": {"path": str(city), "poses": str(poses)},
@@ -138,7 +140,9 @@ def local_ray():
 
 
 @pytest.fixture(scope="module")
-def fleet_out(local_ray: str, drives: Dict[str, Any], tmp_path_factory: pytest.TempPathFactory) -> Path:
+def fleet_out(
+    local_ray: str, drives: Dict[str, Any], tmp_path_factory: pytest.TempPathFactory
+) -> Path:
     """The fleet folder of one run over every good drive."""
     out = tmp_path_factory.mktemp("fleet") / "out"
     evigrid.fleet.run(_fleet(drives), out=out)
@@ -173,8 +177,25 @@ def _moving_objects(folder: Path) -> int:
 
 
 def test_names_are_the_last_component_with_parents_when_they_collide():
-    specs = [DriveSpec(p, p) for p in ("/d/a/2011_09_26", "/d/b/2011_09_26", "/d/c.mcap", "/e/c.mcap", "/e/c.mcap", "/x/fleet.md")]
-    assert folder_names(specs) == ["a-2011_09_26", "b-2011_09_26", "d-c", "e-c", "e-c-2", "drive-fleet.md"]
+    specs = [
+        DriveSpec(p, p)
+        for p in (
+            "/d/a/2011_09_26",
+            "/d/b/2011_09_26",
+            "/d/c.mcap",
+            "/e/c.mcap",
+            "/e/c.mcap",
+            "/x/fleet.md",
+        )
+    ]
+    assert folder_names(specs) == [
+        "a-2011_09_26",
+        "b-2011_09_26",
+        "d-c",
+        "e-c",
+        "e-c-2",
+        "drive-fleet.md",
+    ]
 
 
 def test_a_list_file_gives_paths_from_its_folder_with_their_options(drives):
@@ -209,7 +230,10 @@ def test_the_table_equals_the_single_drive_summaries(fleet_out, drives, singles)
     for row in rows:
         single = singles[row["drive"]]
         summary = json.loads((single / "summary.json").read_text())
-        times = [json.loads(line)["time_s"] for line in (single / "frames.jsonl").read_text().splitlines()]
+        times = [
+            json.loads(line)["time_s"]
+            for line in (single / "frames.jsonl").read_text().splitlines()
+        ]
         assert row["status"] == "ok" and row["error"] == "" and not row["resumed"], row
         assert row["frames"] == summary["frames"]
         assert row["ego_path_share"] == summary["ego_path"]["share"]
@@ -221,7 +245,10 @@ def test_the_table_equals_the_single_drive_summaries(fleet_out, drives, singles)
         _same_run(Path(row["out"]), single)
     assert [row["frames"] for row in rows] == [PART_FRAMES] * PARTS + [6, 4]
     assert not (fleet_out / ".partial").exists()
-    assert "| drives | 6: 6 ok (0 done before), 0 failed, 0 interrupted |" in (fleet_out / "fleet.md").read_text()
+    assert (
+        "| drives | 6: 6 ok (0 done before), 0 failed, 0 interrupted |"
+        in (fleet_out / "fleet.md").read_text()
+    )
     # The plot: one bar per drive, its length the drive's run time.
     svg = ElementTree.parse(fleet_out / "fleet.svg").getroot()
     bars = [float(rect.get("width")) for rect in svg.iter("{http://www.w3.org/2000/svg}rect")]
@@ -230,7 +257,10 @@ def test_the_table_equals_the_single_drive_summaries(fleet_out, drives, singles)
 
 
 def test_a_rerun_skips_finished_drives_and_reruns_one_run_with_other_options(fleet_out, drives):
-    before = {row["name"]: (fleet_out / row["name"] / "summary.json").stat().st_mtime_ns for row in _rows(fleet_out)}
+    before = {
+        row["name"]: (fleet_out / row["name"] / "summary.json").stat().st_mtime_ns
+        for row in _rows(fleet_out)
+    }
     # One folder stamped with other options: it must run again.
     stamp_path = fleet_out / "part-2-2011_09_26" / evigrid.fleet.STAMP
     stamp = json.loads(stamp_path.read_text())
@@ -251,12 +281,29 @@ def test_a_rerun_skips_finished_drives_and_reruns_one_run_with_other_options(fle
 def test_a_corrupt_drive_fails_alone_and_the_command_exits_1(local_ray, drives, tmp_path):
     out = tmp_path / "out"
     done = subprocess.run(
-        [sys.executable, "-m", "evigrid.fleet", drives["list"], drives["broken"], "--out", str(out), "--address", local_ray],
-        capture_output=True, text=True, timeout=300, check=False,
+        [
+            sys.executable,
+            "-m",
+            "evigrid.fleet",
+            drives["list"],
+            drives["broken"],
+            "--out",
+            str(out),
+            "--address",
+            local_ray,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
     )
     assert done.returncode == 1, done.stderr
     rows = {Path(row["drive"]).name: row for row in _rows(out)}
-    assert [rows[name]["status"] for name in ("2011_09_26", "city", "broken.mcap")] == ["ok", "ok", "failed"]
+    assert [rows[name]["status"] for name in ("2011_09_26", "city", "broken.mcap")] == [
+        "ok",
+        "ok",
+        "failed",
+    ]
     assert drives["broken"] in rows["broken.mcap"]["error"]
     assert "\n" not in rows["broken.mcap"]["error"]
     assert rows["broken.mcap"]["frames"] is None and rows["broken.mcap"]["out"] is None
@@ -265,7 +312,42 @@ def test_a_corrupt_drive_fails_alone_and_the_command_exits_1(local_ray, drives, 
     assert "[3/3]" in done.stderr
 
 
-def test_a_worker_killed_during_a_drive_is_retried_and_gives_the_same_result(local_ray, drives, singles, tmp_path):
+def test_ctrl_c_cancels_the_drives_and_still_writes_the_table(local_ray, drives, tmp_path):
+    out = tmp_path / "out"
+    command = [
+        sys.executable,
+        "-m",
+        "evigrid.fleet",
+        *map(str, drives["parts"]),
+        "--out",
+        str(out),
+        "--address",
+        local_ray,
+    ]
+    fleet = subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
+    lines = []
+    for line in fleet.stderr:
+        lines.append(line)
+        if "[1/4]" in line:
+            fleet.send_signal(signal.SIGINT)
+            break
+    rest = fleet.communicate(timeout=120)[1]
+    assert fleet.returncode == 130, "".join(lines) + rest
+    rows = _rows(out)
+    statuses = [row["status"] for row in rows]
+    assert statuses.count("ok") >= 1 and statuses.count("interrupted") >= 1, statuses
+    for row in rows:
+        folder = out / row["name"]
+        assert folder.is_dir() == (row["status"] == "ok"), row
+        if row["status"] == "interrupted":
+            assert row["error"] == "cancelled by Ctrl-C" and row["frames"] is None
+    assert not (out / ".partial").exists()
+    assert "interrupted; the table holds what finished" in rest
+
+
+def test_a_worker_killed_during_a_drive_is_retried_and_gives_the_same_result(
+    local_ray, drives, singles, tmp_path
+):
     part = drives["parts"][-1]
     name = folder_names(drive_specs([str(part) for part in drives["parts"]]))[-1]
     out = tmp_path / "out"
@@ -295,7 +377,9 @@ def test_a_worker_killed_during_a_drive_is_retried_and_gives_the_same_result(loc
     row = next(row for row in _rows(out) if row["name"] == name)
     assert row["status"] == "ok" and row["attempts"] == 2, row
     _same_run(out / name, singles[str(part)])
-    assert all(row["status"] == "ok" and row["attempts"] == 1 for row in _rows(out) if row["name"] != name)
+    assert all(
+        row["status"] == "ok" and row["attempts"] == 1 for row in _rows(out) if row["name"] != name
+    )
 
 
 def test_a_drive_whose_worker_dies_on_every_attempt_fails_alone(local_ray, drives, tmp_path):

@@ -46,7 +46,7 @@ from evigrid._errors import InputError
 from evigrid.fleet._drives import DRIVE_OPTIONS, DriveArg, DriveSpec, drive_specs, folder_names
 from evigrid.fleet._report import write_report
 from evigrid.fleet._table import COLUMNS, STATUSES, failed_row, ok_row, write_table
-from evigrid.fleet._task import PARTIAL, STAMP, read_stamp, run_drive
+from evigrid.fleet._task import PARTIAL, STAMP, one_line, read_stamp, run_drive
 
 __all__ = ["COLUMNS", "DRIVE_OPTIONS", "MARKER", "STAMP", "STATUSES", "run"]
 
@@ -119,7 +119,9 @@ def run(
         stamp = read_stamp(folder)
         if stamp is None:
             rows[i] = failed_row(
-                spec.given, name, "failed",
+                spec.given,
+                name,
+                "failed",
                 f"{folder}: exists and is not a drive folder of this fleet (no {STAMP}); "
                 "move it away",
             )
@@ -133,9 +135,18 @@ def run(
     interrupted, settled = False, True
     if todo:
         interrupted, settled = _run_on_ray(
-            specs, names, todo, rows, fleet_dir, options, common_key,
-            address=address, num_cpus=num_cpus, retries=retries,
-            cpus_per_drive=cpus_per_drive, say=say,
+            specs,
+            names,
+            todo,
+            rows,
+            fleet_dir,
+            options,
+            common_key,
+            address=address,
+            num_cpus=num_cpus,
+            retries=retries,
+            cpus_per_drive=cpus_per_drive,
+            say=say,
         )
     final = [
         row if row is not None else failed_row(specs[i].given, names[i], "interrupted", "not run")
@@ -184,8 +195,12 @@ def _run_on_ray(
         for i in todo:
             spec = specs[i]
             ref = task.options(name=f"evigrid-fleet {names[i]}", **task_options).remote(
-                spec.path, names[i], fleet_dir, {**options, **spec.options},
-                _key(spec, common_key), run_id,
+                spec.path,
+                names[i],
+                fleet_dir,
+                {**options, **spec.options},
+                _key(spec, common_key),
+                run_id,
             )
             pending[ref] = i
         done_count = len(specs) - len(todo)
@@ -208,8 +223,10 @@ def _run_on_ray(
                 i = pending.pop(ref)
                 row = _collect(ray, ref, specs[i], names[i], fleet_dir, retries)
                 # A drive that finished before the cancel keeps its result.
-                rows[i] = row if row["status"] == "ok" else failed_row(
-                    specs[i].given, names[i], "interrupted", "cancelled by Ctrl-C"
+                rows[i] = (
+                    row
+                    if row["status"] == "ok"
+                    else failed_row(specs[i].given, names[i], "interrupted", "cancelled by Ctrl-C")
                 )
         return True, not pending
     finally:
@@ -217,7 +234,9 @@ def _run_on_ray(
             ray.shutdown()
 
 
-def _collect(ray: Any, ref: Any, spec: DriveSpec, name: str, fleet_dir: str, retries: int) -> Dict[str, Any]:
+def _collect(
+    ray: Any, ref: Any, spec: DriveSpec, name: str, fleet_dir: str, retries: int
+) -> Dict[str, Any]:
     """The row of a finished task."""
     from ray import exceptions
 
@@ -229,15 +248,17 @@ def _collect(ray: Any, ref: Any, spec: DriveSpec, name: str, fleet_dir: str, ret
         cause = error.cause
         if isinstance(cause, KeyboardInterrupt):
             return failed_row(spec.given, name, "interrupted", "interrupted in its worker")
-        return failed_row(spec.given, name, "failed", f"{type(cause).__name__}: {_one_line(cause)}")
+        return failed_row(spec.given, name, "failed", f"{type(cause).__name__}: {one_line(cause)}")
     except exceptions.WorkerCrashedError:
         return failed_row(
-            spec.given, name, "failed",
+            spec.given,
+            name,
+            "failed",
             f"its worker died on each of {retries + 1} attempts (killed, or out of memory)",
             attempts=retries + 1,
         )
     except exceptions.RayError as error:
-        return failed_row(spec.given, name, "failed", f"{type(error).__name__}: {_one_line(error)}")
+        return failed_row(spec.given, name, "failed", f"{type(error).__name__}: {one_line(error)}")
     if "error" in result:
         return failed_row(spec.given, name, "failed", result["error"], result.get("attempt"))
     return ok_row(spec.given, name, os.path.join(fleet_dir, name), result, resumed=False)
@@ -260,7 +281,7 @@ def _require_extra() -> None:
     missing = [name for name in ("ray", "pyarrow") if importlib.util.find_spec(name) is None]
     if missing:
         raise ImportError(
-            f"evigrid.fleet needs {' and '.join(missing)}: pip install \"evigrid[fleet]\""
+            f'evigrid.fleet needs {" and ".join(missing)}: pip install "evigrid[fleet]"'
         )
 
 
@@ -321,7 +342,11 @@ def _run_options(config: Config, method: str, map: Any) -> Dict[str, Any]:
             raise InputError(f"{map}: the map is not a file")
     # The configuration and the method, checked by building a session (no map: that can be big).
     evigrid.Session(dict(config) if isinstance(config, Mapping) else config, method=method)
-    return {"config": dict(config) if isinstance(config, Mapping) else config, "method": method, "map": map}
+    return {
+        "config": dict(config) if isinstance(config, Mapping) else config,
+        "method": method,
+        "map": map,
+    }
 
 
 def _options_key(options: Dict[str, Any]) -> Dict[str, Any]:
@@ -360,8 +385,3 @@ def _digest(data: bytes) -> str:
 def _remove_partial(fleet_dir: str) -> None:
     """Removes what killed or cancelled tasks left half-written, once no task is alive."""
     shutil.rmtree(os.path.join(fleet_dir, PARTIAL), ignore_errors=True)
-
-
-def _one_line(error: BaseException) -> str:
-    text = str(error).strip()
-    return text.splitlines()[0] if text else type(error).__name__

@@ -36,15 +36,21 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument("drives", nargs="+", metavar="DRIVE", help="drives, or files listing them")
     parser.add_argument("--out", required=True, metavar="DIR", help="the fleet's output folder")
     parser.add_argument(
-        "--address", metavar="ADDR",
+        "--address",
+        metavar="ADDR",
         help="a Ray cluster to join (HOST:PORT, or auto); by default a local instance",
     )
     parser.add_argument(
-        "--num-cpus", type=int, metavar="N",
+        "--num-cpus",
+        type=int,
+        metavar="N",
         help="CPUs of the local instance (default: all); drives run N at a time",
     )
     parser.add_argument(
-        "--retries", type=int, default=2, metavar="N",
+        "--retries",
+        type=int,
+        default=2,
+        metavar="N",
         help="tries again a drive whose worker died, N times (default: 2)",
     )
     parser.add_argument("--config", metavar="C", help="parameters (TOML), as for evigrid run")

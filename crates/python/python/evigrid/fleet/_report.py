@@ -32,8 +32,11 @@ def _totals(rows: List[Dict[str, Any]], wall_s: float) -> List["tuple[str, str]"
     cpu_s = sum(row["cpu_s"] or 0.0 for row in ok if not row["resumed"])
     duration_s = sum(row["duration_s"] or 0.0 for row in ok)
     return [
-        ("drives", f"{len(rows)}: {count['ok']} ok ({resumed} done before), "
-         f"{count['failed']} failed, {count['interrupted']} interrupted"),
+        (
+            "drives",
+            f"{len(rows)}: {count['ok']} ok ({resumed} done before), "
+            f"{count['failed']} failed, {count['interrupted']} interrupted",
+        ),
         ("frames", f"{frames}"),
         ("recorded time", f"{duration_s:.1f} s"),
         ("CPU time of this run", f"{cpu_s:.1f} s"),
@@ -51,7 +54,13 @@ def _slowest(rows: List[Dict[str, Any]]) -> List[Dict[str, Any]]:
 def _markdown(rows: List[Dict[str, Any]], wall_s: float) -> str:
     lines = ["# evigrid fleet", "", "| | |", "| --- | --- |"]
     lines += [f"| {what} | {value} |" for what, value in _totals(rows, wall_s)]
-    lines += ["", "## Slowest drives", "", "| drive | frames | s | s / frame |", "| --- | --- | --- | --- |"]
+    lines += [
+        "",
+        "## Slowest drives",
+        "",
+        "| drive | frames | s | s / frame |",
+        "| --- | --- | --- | --- |",
+    ]
     for row in _slowest(rows):
         per_frame = row["run_s"] / row["frames"] if row["frames"] else math.nan
         lines.append(f"| {row['name']} | {row['frames']} | {row['run_s']:.2f} | {per_frame:.3f} |")
@@ -74,7 +83,8 @@ def _html(rows: List[Dict[str, Any]], wall_s: float, svg: str) -> str:
     def table(header: List[str], body: List[List[Any]]) -> str:
         head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
         cells = "".join(
-            "<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in line) + "</tr>" for line in body
+            "<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in line) + "</tr>"
+            for line in body
         )
         return f"<table><tr>{head}</tr>{cells}</table>"
 
@@ -123,7 +133,9 @@ def _plot(rows: List[Dict[str, Any]]) -> str:
             note = f"{row['frames']} frames" + (", done before" if row["resumed"] else "")
             out.append(f"<text x='{label_w + width + 4:.1f}' y='{y + 12}'>{note}</text>")
         else:
-            out.append(f"<rect x='{label_w}' y='{y}' width='{bar_h}' height='{bar_h}' fill='{colour}'/>")
+            out.append(
+                f"<rect x='{label_w}' y='{y}' width='{bar_h}' height='{bar_h}' fill='{colour}'/>"
+            )
             out.append(f"<text x='{label_w + bar_h + 4}' y='{y + 12}'>{row['status']}</text>")
     out.append("</svg>")
     return "\n".join(out) + "\n"

@@ -32,7 +32,9 @@ COLUMNS: Dict[str, "tuple[str, str]"] = {
 }
 
 
-def ok_row(drive: str, name: str, out: str, result: Dict[str, Any], resumed: bool) -> Dict[str, Any]:
+def ok_row(
+    drive: str, name: str, out: str, result: Dict[str, Any], resumed: bool
+) -> Dict[str, Any]:
     """The row of a drive done, from its task's result (or the stamp of an earlier run)."""
     summary = result["summary"]
     ego_path = summary.get("ego_path") or {}
@@ -60,7 +62,9 @@ def failed_row(
     drive: str, name: str, status: str, error: str, attempts: Optional[int] = None
 ) -> Dict[str, Any]:
     """The row of a drive that failed or was interrupted; its figures are null."""
-    return _row(drive=drive, name=name, status=status, error=error, resumed=False, attempts=attempts)
+    return _row(
+        drive=drive, name=name, status=status, error=error, resumed=False, attempts=attempts
+    )
 
 
 def _row(**values: Any) -> Dict[str, Any]:
@@ -75,7 +79,12 @@ def write_table(rows: List[Dict[str, Any]], path: str) -> Any:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    types = {"string": pa.string(), "bool": pa.bool_(), "int64": pa.int64(), "float64": pa.float64()}
+    types = {
+        "string": pa.string(),
+        "bool": pa.bool_(),
+        "int64": pa.int64(),
+        "float64": pa.float64(),
+    }
     schema = pa.schema(
         [
             pa.field(column, types[kind], metadata={"description": meaning})

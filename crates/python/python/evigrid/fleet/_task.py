@@ -16,7 +16,7 @@ import socket
 import time
 from typing import Any, Dict, Optional
 
-__all__ = ["PARTIAL", "STAMP", "read_stamp", "run_drive"]
+__all__ = ["PARTIAL", "STAMP", "one_line", "read_stamp", "run_drive"]
 
 PARTIAL = ".partial"
 """The fleet folder's sub-folder where drives are written before they are moved into place."""
@@ -62,7 +62,7 @@ def run_drive(
         summary = evigrid.run(path, out=out, **options)
     except evigrid.Error as error:
         shutil.rmtree(staging, ignore_errors=True)
-        return {"error": _one_line(error), "attempt": attempt}
+        return {"error": one_line(error), "attempt": attempt}
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
@@ -148,6 +148,7 @@ def _write_json(path: str, value: Any) -> None:
     os.replace(temporary, path)
 
 
-def _one_line(error: BaseException) -> str:
+def one_line(error: BaseException) -> str:
+    """An exception's message, its first line (Ray's and Python's may run on with details)."""
     text = str(error).strip()
     return text.splitlines()[0] if text else type(error).__name__
