@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import json
 import os
-import resource
 import shutil
 import socket
+import sys
 import time
 from typing import Any, Dict, Optional
 
@@ -82,8 +82,7 @@ def run_drive(
         "moving_objects": moving_objects,
         "node": ray.get_runtime_context().get_node_id(),
         "attempt": attempt,
-        # The worker's peak resident memory (kilobytes on Linux), over its life so far.
-        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "peak_rss_mb": _peak_rss_mb(),
     }
     _write_json(os.path.join(out, STAMP), {"key": key, "result": result})
     _move_into_place(out, os.path.join(fleet_dir, name), staging)
@@ -99,6 +98,18 @@ def read_stamp(folder: str) -> Optional[Dict[str, Any]]:
     except (OSError, ValueError):
         return None
     return stamp if isinstance(stamp, dict) and "key" in stamp and "result" in stamp else None
+
+
+def _peak_rss_mb() -> Optional[float]:
+    """The worker's peak resident memory over its life so far, MiB (``None`` where the platform
+    does not say: Windows)."""
+    try:
+        import resource
+    except ImportError:
+        return None
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    # Kilobytes on Linux, bytes on macOS.
+    return peak / (1024.0 * 1024.0) if sys.platform == "darwin" else peak / 1024.0
 
 
 def _previous_attempt(staging: str, run_id: str) -> int:
