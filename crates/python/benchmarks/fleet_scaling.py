@@ -29,8 +29,11 @@ import tempfile
 import time
 from pathlib import Path
 
-# Ray's servers on the loopback interface only (read when Ray is imported).
+# Ray's servers on the loopback interface only (read when Ray is imported), and its workers at
+# this process's priority, as evigrid.fleet starts a local instance (Ray's default is niceness
+# 15, which on a shared machine measures the other tenants, not the fleet).
 os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+os.environ.setdefault("RAY_worker_niceness", str(os.nice(0)))
 
 import evigrid  # noqa: E402
 import evigrid.fleet  # noqa: E402
