@@ -10,9 +10,13 @@ Pillow, PyYAML, tifffile, foxglove-schemas-protobuf and (optionally) pyproj:
 
 - run.mcap: channels, schema names and encodings, message counts, every first message valid
   against its channel's JSON Schema and parsed into Foxglove's own protobuf type
-  (foxglove-schemas-protobuf: no unknown field, every type right), times on the scans' timeline (with --kitti-drive: equal to
-  the drive's velodyne timestamps.txt), and the last decision grid decoded equal to
-  occupancy.json and classes.json;
+  (foxglove-schemas-protobuf: no unknown field, every type right), every channel's schema
+  holding every field of Foxglove's current definition (LocationFix's heading, velocity,
+  colour), times after 2000 on the scans' timeline (with --kitti-drive: equal to the drive's
+  velodyne timestamps.txt), the scene right in 3-D (in each frame the grid at most 3 m under
+  the sensor of /tf, the first at z = 0, the first scan's ground on it; with --kitti-drive the
+  scan's intensity), and the last decision grid decoded equal to occupancy.json and
+  classes.json, one colour per class;
 - occupancy.json: exactly the fields of ROS 2 nav_msgs/OccupancyGrid, valid against
   docs/schemas/occupancy.schema.json; classes.json and masses.json against theirs;
 - map.pgm + map.yaml: loaded with nav2 map_server's rules (written here) equal occupancy.json;
@@ -311,6 +315,8 @@ def check_against_foxglove(schema_name, value):
 def check_mcap(out, frames, occ, classes, kitti_drive, with_map):
     counts, times, first = {}, {}, {}
     last_grid, last_tf, map_points = None, None, []
+    # Heights by log time: the grid is written at 2 Hz (and the last frame), /tf every frame.
+    tf_z, grid_z = {}, {}
     with open(out / "run.mcap", "rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()
@@ -320,6 +326,8 @@ def check_mcap(out, frames, occ, classes, kitti_drive, with_map):
             check(channel.message_encoding == "json", f"{channel.topic} message encoding")
             check(schema.encoding == "jsonschema", f"{channel.topic} schema encoding")
             check(json.loads(schema.data)["title"] == schema.name, f"{schema.name} schema title")
+            check_schema_is_current(schema.name, json.loads(schema.data))
+        first_tf, first_grid, first_scan = None, None, None
         for schema, channel, message in reader.iter_messages(log_time_order=False):
             topic = channel.topic
             value = json.loads(message.data)
@@ -335,10 +343,17 @@ def check_mcap(out, frames, occ, classes, kitti_drive, with_map):
                 first[topic] = True
                 validate(value, json.loads(schema.data), f"{topic} first message vs its schema")
                 check_against_foxglove(schema.name, value)
+            check(message.log_time >= YEAR_2000_NS, f"{topic} time after 2000 (not 1970)")
             if topic == "/evigrid/decision":
                 last_grid = value
+                first_grid = first_grid or value
+                grid_z[message.log_time] = value["pose"]["position"]["z"]
             elif topic == "/tf":
                 last_tf = value
+                first_tf = first_tf or value
+                tf_z[message.log_time] = value["translation"]["z"]
+            elif topic == "/scan" and first_scan is None:
+                first_scan = value
             elif topic == "/map":
                 for entity in value["entities"]:
                     if entity["id"] == "buildings":
@@ -372,6 +387,7 @@ def check_mcap(out, frames, occ, classes, kitti_drive, with_map):
             len(velodyne) == frames and worst < 1000,
             f"log times are the velodyne timestamps.txt (worst {worst} ns)",
         )
+    check_scene(first_tf, first_grid, first_scan, tf_z, grid_z, kitti_drive)
     # The last grid decoded: field by field from its own description.
     g = last_grid
     fields = {fl["name"]: fl for fl in g["fields"]}
@@ -385,7 +401,13 @@ def check_mcap(out, frames, occ, classes, kitti_drive, with_map):
     info = occ["info"]
     check((g["column_count"], rows) == (info["width"], info["height"]), "grid size")
     check(g["cell_size"]["x"] == info["resolution"], "grid cell size")
-    check(g["pose"]["position"] == info["origin"]["position"], "grid pose = occupancy origin")
+    # The grid's corner is occupancy.json's origin in x and y; its z is the ground under the
+    # sensor of its frame (check_scene), where occupancy.json's map plane is z = 0.
+    position, origin = g["pose"]["position"], info["origin"]["position"]
+    check(
+        (position["x"], position["y"]) == (origin["x"], origin["y"]),
+        "grid pose = occupancy origin in x, y",
+    )
     check(np.array_equal(occupancy, np.array(occ["data"])), "MCAP grid = occupancy.json")
     check(np.array_equal(cls, np.array(classes["data"])), "MCAP grid classes = classes.json")
     betp = sum(
@@ -393,7 +415,84 @@ def check_mcap(out, frames, occ, classes, kitti_drive, with_map):
     ).reshape(-1)
     # betP sums to 1 where the cell has any mass (255 ± rounding of five terms).
     check(np.all((betp >= 252) & (betp <= 258)), "betP fields sum to 255 ± rounding")
+    # The colour fields: one colour per class, a different one for each (the figures' palette).
+    rgb = np.stack(
+        [cells[:, :, fields[c]["offset"]].reshape(-1) for c in ("red", "green", "blue")], axis=1
+    )
+    colour_of = {}
+    for code in np.unique(cls):
+        colours = np.unique(rgb[cls == code], axis=0)
+        check(len(colours) == 1, f"class {code}: one colour in the grid ({len(colours)})")
+        colour_of[int(code)] = tuple(colours[0])
+    check(
+        len(set(colour_of.values())) == len(colour_of),
+        f"a different colour for each class {colour_of}",
+    )
     return last_tf, map_points
+
+
+# 2000-01-01T00:00:00Z in nanoseconds: a recording before it has lost its clock.
+YEAR_2000_NS = 946_684_800 * 10**9
+
+
+def check_schema_is_current(schema_name, schema):
+    """Every field of Foxglove's current definition (foxglove-schemas-protobuf) is a property
+    of the channel's JSON Schema: the schema is not an older copy."""
+    name = schema_name.split(".")[1]
+    module = importlib.import_module(f"foxglove_schemas_protobuf.{name}_pb2")
+    fields = {f.name for f in getattr(module, name).DESCRIPTOR.fields}
+    missing = sorted(fields - set(schema.get("properties", {})))
+    check(not missing, f"{schema_name} schema lacks current fields {missing}")
+
+
+def quaternion_matrix(q):
+    x, y, z, w = q["x"], q["y"], q["z"], q["w"]
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def check_scene(tf, grid, scan, tf_z, grid_z, kitti_drive):
+    """The scene is right in 3-D: in every frame with a grid it lies at most 3 m below the sensor
+    (its height above the ground: 1.73 m for KITTI's Velodyne, 0 for a planar scanner), the
+    first frame's grid at z = 0, and the first scan's lowest returns (its ground), put in the
+    map frame by /tf, lie on the grid. With KITTI the scan carries its intensity."""
+    gaps = [tf_z[ns] - z for ns, z in grid_z.items() if ns in tf_z]
+    check(
+        len(gaps) == len(grid_z) > 0 and all(-1e-6 <= d <= 3.0 for d in gaps),
+        f"/tf z - grid z within 0..3 m in every frame with a grid"
+        f" ({min(gaps, default=0):.3f}..{max(gaps, default=0):.3f})",
+    )
+    first_z = grid_z[min(grid_z)] if grid_z else float("nan")
+    check(abs(first_z) < 1e-9, f"first grid at z = 0 ({first_z})")
+    fields = {f["name"]: f for f in scan["fields"]}
+    stride = scan["point_stride"]
+    raw = np.frombuffer(base64.b64decode(scan["data"]), dtype=np.uint8).reshape(-1, stride)
+    xyz = np.stack(
+        [raw[:, fields[c]["offset"] : fields[c]["offset"] + 4].copy().view("<f4")[:, 0]
+         for c in "xyz"],
+        axis=1,
+    ).astype(float)
+    t = tf["translation"]
+    in_map = xyz @ quaternion_matrix(tf["rotation"]).T + np.array([t["x"], t["y"], t["z"]])
+    low = float(np.percentile(in_map[:, 2], 10))
+    gz = grid["pose"]["position"]["z"]
+    check(abs(low - gz) < 0.5, f"first scan's ground (10th percentile z {low:.2f}) on the grid ({gz:.2f})")
+    print(f"scene: sensor {tf_z[min(tf_z)]:.2f} m above the first grid; scan ground at {low:.2f} m")
+    if kitti_drive:
+        intensity = fields.get("intensity")
+        check(
+            intensity is not None and intensity["type"] == 7 and stride >= 16,
+            "/scan has a FLOAT32 intensity field",
+        )
+        if intensity is not None:
+            off = intensity["offset"]
+            values = raw[:, off : off + 4].copy().view("<f4")[:, 0]
+            check(np.ptp(values) > 0, "/scan intensity varies over the scan")
 
 
 def scan_times(drive):

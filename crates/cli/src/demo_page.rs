@@ -59,7 +59,7 @@ fn page(report: &EvalReport, colours: &ClassColours, markdown: &str) -> String {
          the method <code>evigrid</code> (the paper's evidential grid fused with the map, with \
          motion evidence) decided. Files: \
          <a href=\"report.md\">report.md</a>, <a href=\"metrics.json\">metrics.json</a>, \
-         per-frame figures in <a href=\"frames/\">frames/</a>.</p>"
+         the Foxglove recording <a href=\"run.mcap\">run.mcap</a>.</p>"
     );
 
     h.push_str("<h2>Animation</h2>\n<div class=\"row\">\n");
@@ -122,6 +122,7 @@ fn legend_html(colours: &ClassColours) -> String {
         Label::S,
         Label::M,
         Label::Unknown,
+        Label::O,
         Label::Edge,
     ] {
         let _ = writeln!(
@@ -306,7 +307,7 @@ mod tests {
 
     #[test]
     fn legend_names_every_class_in_its_colour() {
-        let h = legend_html(&ClassColours::OKABE_ITO);
+        let h = legend_html(&output::COLOURS);
         assert!(
             h.contains("rgb(213, 94, 0)") && h.contains("M  moving object"),
             "{h}"
@@ -316,6 +317,16 @@ mod tests {
             "{h}"
         );
         assert!(h.contains("ego path"));
+        // Every code the page's pictures can show, the truth's edge band included, has an
+        // entry in the one palette's colour (code 6, O, was missing).
+        for label in Label::ALL {
+            let [r, g, b] = output::COLOURS.of(label);
+            let entry = format!(
+                "<li><span class=\"swatch\" style=\"background: rgb({r}, {g}, {b})\"></span>{}</li>",
+                escape(class_name(label))
+            );
+            assert!(h.contains(&entry), "{label:?}: {h}");
+        }
         assert_eq!(
             escape("<a href=\"x\">&</a>"),
             "&lt;a href=&quot;x&quot;&gt;&amp;&lt;/a&gt;"

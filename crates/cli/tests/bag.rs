@@ -127,3 +127,33 @@ fn run_reads_a_recording_with_each_pose_source() -> Result<(), Box<dyn std::erro
     assert!(text(&output.stderr).contains("need --map or --origin"));
     Ok(())
 }
+
+/// A rosbag2 folder (as `ros2 bag record` writes it) is read as its MCAP file; before, `--bag`
+/// and `bag info` failed on it with "Is a directory (os error 21)".
+#[test]
+fn a_rosbag2_folder_is_read_as_its_recording() -> Result<(), Box<dyn std::error::Error>> {
+    let dir = tempfile::tempdir()?;
+    let bag = dir.path().join("kitti_0013");
+    std::fs::create_dir(&bag)?;
+    std::fs::copy(fixture(), bag.join("kitti_0013_0.mcap"))?;
+    std::fs::write(
+        bag.join("metadata.yaml"),
+        "rosbag2_bagfile_information:\n  version: 9\n  storage_identifier: mcap\n  \
+         relative_file_paths:\n    - kitti_0013_0.mcap\n",
+    )?;
+    let output = evigrid(&["bag", "info", bag.to_str().ok_or("path")?, "--json"])?;
+    assert!(output.status.success(), "{}", text(&output.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout)?;
+    assert_eq!(json["messages"], 125);
+    assert_eq!(json["drive"]["scans"], 4);
+    // A folder of SQLite storage says what to do, in one line, as bad input.
+    let sqlite = dir.path().join("old");
+    std::fs::create_dir(&sqlite)?;
+    std::fs::write(sqlite.join("old_0.db3"), b"")?;
+    let output = evigrid(&["bag", "info", sqlite.to_str().ok_or("path")?])?;
+    assert_eq!(output.status.code(), Some(2));
+    let stderr = text(&output.stderr);
+    assert!(stderr.contains("ros2 bag convert"), "{stderr}");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+    Ok(())
+}

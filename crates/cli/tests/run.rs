@@ -77,6 +77,16 @@ fn runs_end_to_end_on_real_scans() {
     );
     let mut summary: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
     assert_eq!(summary["frames"], 3);
+    // What wrote the run, and how to run it again.
+    assert_eq!(
+        summary["tool"],
+        concat!("evigrid ", env!("CARGO_PKG_VERSION"))
+    );
+    let command = summary["command_line"].as_str().unwrap();
+    assert!(
+        command.contains(" run --json --map ") && command.contains("bavarian-village.osm"),
+        "{command}"
+    );
     // The per-frame records are streamed to frames.jsonl, one object per line.
     let frames: Vec<serde_json::Value> = std::fs::read_to_string(out.join("frames.jsonl"))
         .unwrap()
@@ -120,6 +130,15 @@ fn runs_end_to_end_on_real_scans() {
     ] {
         assert!(out.join(name).is_file(), "{name} missing");
     }
+    // A frame's picture: the 200 × 160 map, the ego marked, a legend strip under it.
+    let frame = image::open(out.join("frames/decision-000000.png"))
+        .unwrap()
+        .to_rgb8();
+    assert_eq!(frame.dimensions(), (200, 160 + output::STRIP_PX));
+    assert!(
+        frame.pixels().any(|p| p.0 == output::PATH.0),
+        "the ego is marked"
+    );
     let occupancy: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("occupancy.json")).unwrap()).unwrap();
     assert_eq!(occupancy["data"].as_array().unwrap().len(), 200 * 160);
@@ -243,7 +262,8 @@ fn poses_far_from_the_map_are_an_error_naming_the_first() {
     assert!(
         stderr.contains("poses.txt")
             && stderr.contains("pose 1 (scan 1)")
-            && stderr.contains("m outside the extent"),
+            && stderr.contains("m outside the extent")
+            && stderr.contains("give that point as --origin LAT,LON"),
         "{stderr}"
     );
     assert!(output.stdout.is_empty());

@@ -47,9 +47,9 @@ pub enum ReadError {
     },
     /// A data line has a column count that matches no pose format.
     #[error(
-        "{path}:{line}: {found} columns; a pose file has 7 (evigrid: `t x y z roll pitch yaw`, \
-         or `t lat lon alt roll pitch yaw` after `# frame: wgs84`), 8 (TUM: `t x y z qx qy qz qw`) \
-         or 12 (KITTI odometry: a 3x4 row-major matrix)"
+        "{path}:{line}: {found} columns{hint}; a pose file has 7 (evigrid: `t x y z roll pitch \
+         yaw`, or `t lat lon alt roll pitch yaw` after `# frame: wgs84`), 8 (TUM: `t x y z qx qy \
+         qz qw`) or 12 (KITTI odometry: a 3x4 row-major matrix)"
     )]
     Columns {
         /// The file.
@@ -58,6 +58,9 @@ pub enum ReadError {
         line: usize,
         /// Columns found.
         found: usize,
+        /// Why the count may be wrong, with a leading space (empty when there is no clue): a
+        /// comma-separated line is one column, since columns are separated by white space.
+        hint: String,
     },
     /// A time does not increase on the previous data line's.
     #[error("{path}:{line}: time {time} s does not increase on the previous time {previous} s")]

@@ -734,10 +734,16 @@ impl PoseFormat {
             return Err(file_error(path, "no pose lines to tell the format from"));
         };
         let found = data.split_whitespace().count();
+        let hint = if data.contains(',') {
+            " (separated by commas? columns are separated by spaces or tabs:              `tr ',' ' ' < FILE.csv`)"
+        } else {
+            ""
+        };
         PoseFormat::from_columns(found).ok_or_else(|| ReadError::Columns {
             path: path.to_path_buf(),
             line,
             found,
+            hint: hint.to_owned(),
         })
     }
 }

@@ -86,6 +86,43 @@ impl Legend {
     }
 }
 
+/// The mixtures the pignistic view's key shows: the classes mixed, in equal parts, and what
+/// such a colour means.
+pub const PIGNISTIC_MIXES: [(&[Label], &str); 3] = [
+    (&[Label::F, Label::M], "F + M half each: free or moving"),
+    (&[Label::U, Label::S], "U + S half each: static, which?"),
+    (
+        &[Label::F, Label::I, Label::U, Label::S, Label::M],
+        "all five equal: no evidence",
+    ),
+];
+
+/// The colour the pignistic view gives a cell whose betP is spread equally over `labels`: the
+/// mean of their colours, rounded as `pignistic_image` rounds.
+pub fn mixed_colour(colours: &ClassColours, labels: &[Label]) -> [u8; 3] {
+    let mut rgb = [0.0f32; 3];
+    for &label in labels {
+        for (sum, c) in rgb.iter_mut().zip(colours.of(label)) {
+            *sum += f32::from(c) / labels.len().max(1) as f32;
+        }
+    }
+    rgb.map(|v| v.round().clamp(0.0, 255.0) as u8)
+}
+
+impl Legend {
+    /// The pignistic view's legend: the classes' pure colours, then a key to the mixed ones
+    /// ([`PIGNISTIC_MIXES`]), under `note`.
+    pub fn pignistic(colours: &ClassColours, note: &str) -> Self {
+        let mut legend = Self::classes(colours, false, note);
+        for (labels, name) in PIGNISTIC_MIXES {
+            legend
+                .entries
+                .push((mixed_colour(colours, labels), name.to_owned()));
+        }
+        legend
+    }
+}
+
 /// A label's name for people: its letter and what it stands for.
 pub fn class_name(label: Label) -> &'static str {
     match label {

@@ -15,21 +15,29 @@ use image::RgbaImage;
 
 use crate::atomic::write_atomic;
 use crate::error::{OutputError, check_len};
+use crate::views::COLOURS;
 
-/// Colours of the classes (Okabe–Ito, told apart with any colour vision); unknown cells are
-/// transparent so the base map shows through.
+/// `rgb` with opacity `alpha`.
+const fn with_alpha(rgb: [u8; 3], alpha: u8) -> [u8; 4] {
+    [rgb[0], rgb[1], rgb[2], alpha]
+}
+
+/// Colours of the classes: the one palette of every output ([`COLOURS`], Okabe–Ito), free
+/// cells a little see-through and unknown cells transparent, so the base map shows through.
 pub const GIS_COLOURS: [(Label, [u8; 4]); 8] = [
-    (Label::Unknown, [0, 0, 0, 0]),
-    (Label::F, [0, 158, 115, 160]),
-    (Label::I, [0, 114, 178, 255]),
-    (Label::U, [230, 159, 0, 255]),
-    (Label::S, [204, 121, 167, 255]),
-    (Label::M, [213, 94, 0, 255]),
-    (Label::O, [80, 80, 80, 255]),
-    (Label::Edge, [80, 80, 80, 255]),
+    (Label::Unknown, with_alpha(COLOURS.unknown, 0)),
+    (Label::F, with_alpha(COLOURS.classes[0], 160)),
+    (Label::I, with_alpha(COLOURS.classes[1], 255)),
+    (Label::U, with_alpha(COLOURS.classes[2], 255)),
+    (Label::S, with_alpha(COLOURS.classes[3], 255)),
+    (Label::M, with_alpha(COLOURS.classes[4], 255)),
+    (Label::O, with_alpha(COLOURS.occupied, 255)),
+    (Label::Edge, with_alpha(COLOURS.occupied, 255)),
 ];
 
-fn colour(label: Label) -> [u8; 4] {
+/// The colour of `label` in [`GIS_COLOURS`] (red, green, blue, alpha); the Foxglove grid's
+/// colour fields are these too.
+pub fn gis_colour(label: Label) -> [u8; 4] {
     GIS_COLOURS
         .iter()
         .find(|(l, _)| *l == label)
@@ -96,7 +104,7 @@ pub fn write_georeferenced_png(
         image.put_pixel(
             size(col),
             size(height - 1 - row),
-            image::Rgba(colour(label)),
+            image::Rgba(gis_colour(label)),
         );
     }
     let mut encoded = Vec::new();
@@ -157,8 +165,8 @@ mod tests {
             write_georeferenced_png(&w, &d, &projection, &dir.path().join("d.png")).unwrap();
         assert_eq!(files.len(), 4);
         let image = image::open(dir.path().join("d.png")).unwrap().to_rgba8();
-        assert_eq!(image.get_pixel(2, 0).0, colour(Label::M));
-        assert_eq!(image.get_pixel(0, 1).0, colour(Label::F));
+        assert_eq!(image.get_pixel(2, 0).0, gis_colour(Label::M));
+        assert_eq!(image.get_pixel(0, 1).0, gis_colour(Label::F));
         assert_eq!(image.get_pixel(0, 0).0[3], 0);
         let prj = std::fs::read_to_string(dir.path().join("d.prj")).unwrap();
         assert!(

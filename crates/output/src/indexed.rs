@@ -11,6 +11,7 @@ use std::io::Write as _;
 use std::path::Path;
 
 use evigrid::{Label, Window};
+use image::RgbImage;
 
 use crate::atomic::write_atomic;
 use crate::error::{OutputError, check_len};
@@ -41,7 +42,8 @@ fn bit_depth(entries: usize) -> (png::BitDepth, u32) {
     match entries {
         0..=2 => (png::BitDepth::One, 1),
         3..=4 => (png::BitDepth::Two, 2),
-        _ => (png::BitDepth::Four, 4),
+        5..=16 => (png::BitDepth::Four, 4),
+        _ => (png::BitDepth::Eight, 8),
     }
 }
 
@@ -79,6 +81,66 @@ pub fn write_decision_png(
             pixel += 1;
         }
     }
+    write_palette_png(path, (w, h), &entries, depth, &packed)
+}
+
+/// Writes `image` to `path` as a palette PNG with fast compression, atomically: the frame
+/// picture ([`frame_picture`](crate::frame_picture): the decision map, the ego's cross and the
+/// legend strip) has a few dozen colours (the classes', the ego's, the strip's paper, ink and
+/// the text's grey edges), so one byte a pixel at most instead of three, the same pixels for
+/// every decoder. A picture of more than 256 colours is written as RGB ([`write_png`](crate::write_png)).
+///
+/// # Errors
+///
+/// [`OutputError::Image`] or [`OutputError::Io`] naming `path`.
+pub fn write_indexed_png(image: &RgbImage, path: &Path) -> Result<(), OutputError> {
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    let mut entries: Vec<[u8; 3]> = Vec::new();
+    let mut codes = Vec::with_capacity(w * h);
+    // Runs of one colour are the rule (a map's cells): look up only when the colour changes.
+    let mut last: Option<([u8; 3], u8)> = None;
+    for pixel in image.pixels() {
+        let colour = pixel.0;
+        let code = match last {
+            Some((c, code)) if c == colour => code,
+            _ => {
+                let code = match entries.iter().position(|&c| c == colour) {
+                    Some(at) => at,
+                    None if entries.len() < 256 => {
+                        entries.push(colour);
+                        entries.len() - 1
+                    }
+                    None => return crate::write_png(image, path),
+                };
+                // At most 256 entries, so the index fits a byte.
+                let code = code as u8;
+                last = Some((colour, code));
+                code
+            }
+        };
+        codes.push(code);
+    }
+    let (depth, bits) = bit_depth(entries.len());
+    let per_byte = (8 / bits) as usize;
+    let row_bytes = w.div_ceil(per_byte);
+    let mut packed = vec![0u8; row_bytes * h];
+    for (k, &code) in codes.iter().enumerate() {
+        let (x, row) = (k % w, k / w);
+        let shift = 8 - bits * (1 + (x % per_byte) as u32);
+        packed[row * row_bytes + x / per_byte] |= ((u32::from(code)) << shift) as u8;
+    }
+    write_palette_png(path, (w, h), &entries, depth, &packed)
+}
+
+/// Encodes packed palette indices (`depth` bits a pixel, rows padded to a byte) with `entries`
+/// as the palette, fast compression, and writes them to `path` atomically.
+fn write_palette_png(
+    path: &Path,
+    (w, h): (usize, usize),
+    entries: &[[u8; 3]],
+    depth: png::BitDepth,
+    packed: &[u8],
+) -> Result<(), OutputError> {
     let image_error = |source: png::EncodingError| OutputError::Image {
         path: path.to_path_buf(),
         source: image::ImageError::Encoding(image::error::EncodingError::new(
@@ -94,7 +156,7 @@ pub fn write_decision_png(
         encoder.set_palette(entries.concat());
         encoder.set_compression(png::Compression::Fast);
         let mut writer = encoder.write_header().map_err(image_error)?;
-        writer.write_image_data(&packed).map_err(image_error)?;
+        writer.write_image_data(packed).map_err(image_error)?;
         writer.finish().map_err(image_error)?;
     }
     write_atomic(path, |file| file.write_all(&encoded))
@@ -150,6 +212,7 @@ mod tests {
         assert_eq!(index, [0, 1, 2, 2, 2, 3, 2, 2]);
         assert_eq!(bit_depth(4), (png::BitDepth::Two, 2));
         assert_eq!(bit_depth(5), (png::BitDepth::Four, 4));
+        assert_eq!(bit_depth(17), (png::BitDepth::Eight, 8));
         // Header byte 24 of a PNG is the IHDR's bit depth, byte 25 its colour type (3: palette).
         let w = window();
         let d = vec![Label::F; w.len()];
@@ -158,6 +221,30 @@ mod tests {
         write_decision_png(&w, &d, &ClassColours::THREE_CLASSES, &path).unwrap();
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!((bytes[24], bytes[25]), (2, 3));
+    }
+
+    #[test]
+    fn the_frame_picture_is_written_as_a_palette_png_with_its_pixels() {
+        // The legend strip's text, the ego's cross and every class: the same pixels as RGB,
+        // one byte a pixel at most (colour type 3).
+        let (w, d) = scene();
+        let picture = crate::frame_picture(&w, &d, [3.0, -1.0], &crate::COLOURS).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("f.png");
+        write_indexed_png(&picture, &path).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(bytes[25], 3);
+        assert!(bytes[24] <= 8);
+        assert_eq!(image::open(&path).unwrap().to_rgb8(), picture);
+        // 257 colours fall back to RGB (colour type 2), the same pixels.
+        let mut many = RgbImage::new(257, 1);
+        for (x, _, p) in many.enumerate_pixels_mut() {
+            p.0 = [(x % 256) as u8, (x / 256) as u8, 7];
+        }
+        write_indexed_png(&many, &path).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(bytes[25], 2);
+        assert_eq!(image::open(&path).unwrap().to_rgb8(), many);
     }
 
     #[test]

@@ -8,11 +8,13 @@
 //!
 //! - Pictures after the paper's Fig. 2, north-up, one pixel per cell: the decision map
 //!   ([`decision_image`]), the pignistic view ([`pignistic_image`], betP of eq 15 weighted
-//!   colours) and the trace of moving objects ([`trace_image`]); colours in [`ClassColours`]
-//!   ([`ClassColours::OKABE_ITO`] the colour-blind-safe one, checked with [`palette`]).
+//!   colours) and the trace of moving objects ([`trace_image`]); colours in [`ClassColours`],
+//!   one palette for every output ([`COLOURS`], the colour-blind-safe Okabe–Ito one, checked
+//!   with [`palette`]).
 //! - Figures for people ([`figure`]): those pictures enlarged ([`readable_scale`]), side by side,
 //!   with map outlines and the ego's path ([`Overlay`]), a [`Legend`], a scale bar and a north
-//!   arrow; text in an embedded DejaVu Sans ([`text`]).
+//!   arrow; text in an embedded DejaVu Sans ([`text`]). A run's per-frame pictures
+//!   ([`frame_picture`]): the decision map with the ego marked and a legend strip.
 //! - Exports ([`write_grid_exports`]): [`OccupancyGridExport`], ROS 2 `nav_msgs/OccupancyGrid`
 //!   exactly (0 free, 100 occupied, −1 unknown), each cell's [`Label`](evigrid::Label) code in
 //!   [`ClassesExport`], [`write_masses`] (every focal set's mass as one little-endian `f32` field
@@ -44,6 +46,7 @@ mod atomic;
 mod error;
 mod export;
 mod figure;
+mod frame;
 pub mod georef;
 pub mod geotiff;
 mod indexed;
@@ -66,7 +69,9 @@ pub use export::{
     file_names, focal_set_name, write_grid_exports, write_masses,
 };
 pub use figure::{
-    Legend, OUTLINE, Overlay, PATH, READABLE_SIDE_PX, class_name, figure, readable_scale,
+    Legend, OUTLINE, Overlay, PATH, PIGNISTIC_MIXES, READABLE_SIDE_PX, class_name, figure,
+    mixed_colour, readable_scale,
 };
-pub use indexed::write_decision_png;
-pub use views::{ClassColours, decision_image, pignistic_image, trace_image};
+pub use frame::{STRIP_LABELS, STRIP_PX, frame_picture, strip_entries, strip_name};
+pub use indexed::{write_decision_png, write_indexed_png};
+pub use views::{COLOURS, ClassColours, decision_image, pignistic_image, trace_image};

@@ -104,6 +104,7 @@ pub fn min_pairwise_delta_e(colours: &[[u8; 3]], deficiency: Deficiency) -> f64 
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
     use crate::views::ClassColours;
@@ -113,6 +114,121 @@ mod tests {
         let mut v = vec![c.unknown];
         v.extend(c.classes);
         v
+    }
+
+    /// Base64 (RFC 4648, padded) back to bytes.
+    fn unbase64(text: &str) -> Vec<u8> {
+        let value = |c: u8| match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' => 62,
+            _ => 63,
+        };
+        let mut out = Vec::new();
+        for chunk in text.as_bytes().chunks(4) {
+            let n = chunk
+                .iter()
+                .take_while(|&&c| c != b'=')
+                .fold((0u32, 0), |(n, k), &c| {
+                    (n | u32::from(value(c)) << (18 - 6 * k), k + 1)
+                });
+            out.extend_from_slice(&n.0.to_be_bytes()[1..n.1]);
+        }
+        out
+    }
+
+    #[test]
+    fn every_code_of_every_output_has_a_legend_entry_in_the_one_colour() {
+        use crate::figure::{Legend, class_name};
+        use crate::frame::{STRIP_LABELS, strip_entries, strip_name};
+        use crate::georef::{GIS_COLOURS, gis_colour};
+        use crate::views::COLOURS;
+        use evigrid::{Label, PerceptionGrid, Window};
+
+        assert_eq!(unbase64("Zm9vYg=="), b"foob");
+        let decided: Vec<Label> = Label::ALL
+            .into_iter()
+            .filter(|&l| l != Label::Edge)
+            .collect();
+        // Figures: every decided class and O (the baselines' unresolved occupied).
+        let figure = Legend::classes(&COLOURS, true, "");
+        let pignistic = Legend::pignistic(&COLOURS, "");
+        for &label in &decided {
+            let entry = (COLOURS.of(label), class_name(label).to_owned());
+            assert!(figure.entries.contains(&entry), "figure legend: {label:?}");
+            if label != Label::O {
+                assert!(pignistic.entries.contains(&entry), "pignistic: {label:?}");
+            }
+        }
+        // The pignistic view's mixtures have a key: F and M half each is their mean colour.
+        let f_m = crate::figure::mixed_colour(&COLOURS, &[Label::F, Label::M]);
+        assert_eq!(f_m, [107, 126, 58]);
+        assert!(pignistic.entries.iter().any(|(c, _)| *c == f_m));
+        // Per-frame pictures: the strip names every code a decision map holds.
+        let strip = strip_entries(&COLOURS);
+        assert_eq!(STRIP_LABELS.len(), decided.len());
+        for &label in &decided {
+            assert!(
+                strip.contains(&(COLOURS.of(label), strip_name(label))),
+                "{label:?}"
+            );
+        }
+        // GeoTIFF and georeferenced PNG: every code in the palette, in the same colour (free
+        // a little see-through, unknown the transparent no-data).
+        for label in Label::ALL {
+            let [r, g, b, _] = gis_colour(label);
+            assert_eq!([r, g, b], COLOURS.of(label), "GIS {label:?}");
+            assert!(GIS_COLOURS.iter().any(|(l, _)| *l == label));
+        }
+        // The Foxglove grid: every cell carries its class's colour in red, green, blue.
+        let window = Window::new(decided.len(), 1, 0.5).unwrap();
+        let pg = PerceptionGrid::new(decided.len(), 1);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.mcap");
+        let mut recorder = crate::mcap::McapRecorder::create(&path, None).unwrap();
+        recorder
+            .write_frame(&crate::mcap::McapFrame {
+                time_s: 1.0,
+                window: &window,
+                decisions: &decided,
+                perception: &pg,
+                world_from_sensor: &evigrid::Isometry3::IDENTITY,
+                points_in_sensor: &[],
+                intensity: &[],
+                sensor_height_m: 0.0,
+                fix: None,
+            })
+            .unwrap();
+        recorder.finish(None).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let grid: serde_json::Value = ::mcap::MessageStream::new(&bytes)
+            .unwrap()
+            .map(|m| m.unwrap())
+            .find(|m| m.channel.topic == crate::mcap::TOPIC_DECISION)
+            .map(|m| serde_json::from_slice(&m.data).unwrap())
+            .unwrap();
+        let offset = |name: &str| {
+            grid["fields"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|f| f["name"] == name)
+                .and_then(|f| f["offset"].as_u64())
+                .unwrap() as usize
+        };
+        let stride = grid["cell_stride"].as_u64().unwrap() as usize;
+        let data = unbase64(grid["data"].as_str().unwrap());
+        for (k, &label) in decided.iter().enumerate() {
+            let cell = &data[k * stride..(k + 1) * stride];
+            assert_eq!(cell[offset("class")], label as u8);
+            let rgb = [
+                cell[offset("red")],
+                cell[offset("green")],
+                cell[offset("blue")],
+            ];
+            assert_eq!(rgb, COLOURS.of(label), "Foxglove {label:?}");
+        }
     }
 
     #[test]

@@ -15,7 +15,7 @@ use crate::{
 pub const OSM_ATTRIBUTION: &str = "Map data © OpenStreetMap contributors, ODbL";
 
 /// The class colours of every figure.
-pub const COLOURS: ClassColours = ClassColours::OKABE_ITO;
+pub const COLOURS: ClassColours = crate::views::COLOURS;
 
 /// How to read each view, under its legend: the decision view.
 pub const DECISION_NOTE: &str = "colour: the class decided (SPEC §6)";
@@ -89,22 +89,17 @@ pub fn final_figures(
         velocities: &arrows,
     };
     let scale = readable_scale(window);
-    let one = |title: &str, cells: RgbImage, note: &str| {
-        figure(
-            window,
-            &[(title, &cells)],
-            &overlay,
-            &Legend::classes(&COLOURS, false, note),
-            scale,
-        )
+    let one = |title: &str, cells: RgbImage, legend: Legend| {
+        figure(window, &[(title, &cells)], &overlay, &legend, scale)
     };
+    let classes = |note: &str| Legend::classes(&COLOURS, false, note);
     Ok(vec![
         (
             "decision.png",
             one(
                 "decision",
                 decision_image(window, views.decisions, &COLOURS)?,
-                DECISION_NOTE,
+                classes(DECISION_NOTE),
             )?,
         ),
         (
@@ -112,7 +107,7 @@ pub fn final_figures(
             one(
                 "pignistic probability betP",
                 pignistic_image(window, views.perception, &COLOURS)?,
-                PIGNISTIC_NOTE,
+                Legend::pignistic(&COLOURS, PIGNISTIC_NOTE),
             )?,
         ),
         (
@@ -120,7 +115,7 @@ pub fn final_figures(
             one(
                 "trace of moving objects",
                 trace_image(window, views.decisions, views.trace, &COLOURS)?,
-                TRACE_NOTE,
+                classes(TRACE_NOTE),
             )?,
         ),
     ])

@@ -17,7 +17,8 @@ use evigrid::{GisGrid, Isometry3, Label, MovingTrace, PerceptionGrid, SensorGrid
 use crate::mcap::{GnssFix, McapFrame, McapGrid, McapRecorder};
 use crate::run_figures::{Views, final_figures};
 use crate::{
-    ClassColours, GridExports, OutputError, write_decision_png, write_grid_exports, write_png,
+    COLOURS, GridExports, OutputError, frame_picture, write_grid_exports, write_indexed_png,
+    write_png,
 };
 
 /// One processed frame, as the grids stand after it (borrowed: nothing is copied).
@@ -43,6 +44,11 @@ pub struct FrameView<'a> {
     pub world_from_sensor: &'a Isometry3,
     /// The scan, sensor frame.
     pub points_in_sensor: &'a [[f32; 3]],
+    /// The intensity of each point, or empty when the scan has none.
+    pub intensity: &'a [f32],
+    /// The sensor's height above the ground under it, metres (`sensor.ground.sensor_height_m`):
+    /// where the recording draws the grid below the sensor.
+    pub sensor_height_m: f64,
     /// The GNSS fix taken with the scan, if any.
     pub fix: Option<GnssFix>,
 }
@@ -129,6 +135,8 @@ impl FrameSink for McapSink {
             perception: frame.perception,
             world_from_sensor: frame.world_from_sensor,
             points_in_sensor: frame.points_in_sensor,
+            intensity: frame.intensity,
+            sensor_height_m: frame.sensor_height_m,
             fix: frame.fix,
         })
     }
@@ -150,7 +158,7 @@ impl FrameSink for McapSink {
 }
 
 /// The decision map of every frame, `decision-NNNNNN.png` (north up, one pixel per cell, the
-/// three-class colours).
+/// one palette, the ego marked, a legend strip under it: [`frame_picture`]).
 pub struct DecisionFrames {
     dir: PathBuf,
 }
@@ -174,15 +182,12 @@ impl DecisionFrames {
 
 impl FrameSink for DecisionFrames {
     fn on_frame(&mut self, frame: &FrameView<'_>) -> Result<(), OutputError> {
+        let [x, y, _] = frame.world_from_sensor.translation;
+        let image = frame_picture(frame.window, frame.decisions, [x, y], &COLOURS)?;
         let name = format!("decision-{:06}.png", frame.index);
-        // A 2-bit palette PNG: the same pixels as `decision_image` + `write_png`, a third of
-        // the bytes (docs/benchmarks.md).
-        write_decision_png(
-            frame.window,
-            frame.decisions,
-            &ClassColours::THREE_CLASSES,
-            &self.dir.join(name),
-        )
+        // A palette PNG (the picture has a few dozen colours): the same pixels as RGB with a
+        // third of the bytes or fewer to filter and deflate (docs/benchmarks.md).
+        write_indexed_png(&image, &self.dir.join(name))
     }
 
     fn finish(&mut self, _last: &FinalView<'_>) -> Result<(), OutputError> {

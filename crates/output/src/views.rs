@@ -2,9 +2,8 @@
 //!
 //! Images are north-up: image row 0 is the window's northmost row, column 0 its westmost column,
 //! one pixel per cell. Three pictures follow the paper's Fig. 2:
-//! - the decision map ([`decision_image`]): free green, moving red, static blue (mapped
-//!   infrastructure, unmapped infrastructure and stopped objects in three shades of blue with
-//!   [`ClassColours::FIVE_CLASSES`], one blue with [`ClassColours::THREE_CLASSES`]), unknown black;
+//! - the decision map ([`decision_image`]): one colour per class, in [`COLOURS`] (the
+//!   Okabe–Ito palette) wherever evigrid draws or exports classes;
 //! - the pignistic view ([`pignistic_image`]): the mean of the class colours weighted by betP
 //!   (eq 15), black where the cell was never observed;
 //! - the trace of moving objects ([`trace_image`]): the decision map with every cell ever decided
@@ -14,6 +13,12 @@ use evigrid::{Label, MovingTrace, PerceptionGrid, Window, betp};
 use image::{Rgb, RgbImage};
 
 use crate::error::{OutputError, check_len};
+
+/// The class colours of every picture, export and recording evigrid writes: figures, per-frame
+/// pictures, the GeoTIFF and georeferenced PNG ([`crate::georef::GIS_COLOURS`]), the Foxglove
+/// grid's colour fields and the demo page. One palette, so that a class reads the same
+/// wherever a person meets it (checked by `palette`'s tests).
+pub const COLOURS: ClassColours = ClassColours::OKABE_ITO;
 
 /// The colour of each label: unknown, the classes F, I, U, S, M, and the unresolved occupied O
 /// of the two-class baselines.

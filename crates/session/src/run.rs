@@ -132,7 +132,11 @@ pub fn place(
     }
     if let Some(map) = &config.map {
         check_poses_on_map(&poses, &map.loaded.map.extent).map_err(|e| {
-            SessionError::Input(format!("{}: {e} of the map {}", poses.origin, map.name))
+            SessionError::Input(format!(
+                "{}: {e} of the map {} (a map of another place, or poses in metres from another \
+                 point: give that point as --origin LAT,LON)",
+                poses.origin, map.name
+            ))
         })?;
     }
     Ok(Placement {

@@ -322,6 +322,8 @@ impl Session {
             motion: pipeline.fusion().motion(),
             world_from_sensor: pipeline.front_end().world_from_sensor(),
             points_in_sensor: &frame.points_in_sensor,
+            intensity: &frame.intensity,
+            sensor_height_m: self.params.sensor.ground.sensor_height_m,
             fix: frame.fix.map(|f| output::mcap::GnssFix {
                 time_s: f.time_s,
                 lat_deg: f.lat_deg,

@@ -28,7 +28,7 @@ pub enum BagCommand {
 /// Arguments of `evigrid bag info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The recording (`.mcap`, ROS 2 CDR messages).
+    /// The recording (`.mcap`, ROS 2 CDR messages), or the rosbag2 folder holding it.
     file: PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]

@@ -8,9 +8,9 @@
 //! (`assets/helsinki-demo.geojson`, cropped from the OpenStreetMap extract with `evigrid map crop`;
 //! map data © OpenStreetMap contributors, ODbL). [`VARIANTS`] are scored against the
 //! simulator's truth exactly as `evigrid eval` does (cells in view first), in one pass over the
-//! drive; the [`VIEWS_OF`] method's views of the paper's Fig. 2 are rendered after every frame of that pass and encoded
-//! (PNG per frame, animated GIF) on a second thread, so the minute-long drive stays well under a
-//! minute of wall time.
+//! drive; the [`VIEWS_OF`] method's decision beside the truth is rendered after every frame of
+//! that pass and encoded into an animated GIF on a second thread, and its three views of the
+//! paper's Fig. 2 after the last frame. No per-frame PNG: the page shows the drive as the GIF.
 //!
 //! Wiring only: the drive is `sim::Drive`'s, the perception evigrid's (`FrontEnd` and
 //! `Fusion`), the scoring `eval::evaluate_observed`'s.
@@ -31,7 +31,7 @@ use image::{Delay, DynamicImage, RgbImage};
 use output::mcap::{McapFrame, McapRecorder};
 use output::{
     GridExports, Legend, Overlay, class_name, decision_image, figure, pignistic_image,
-    readable_scale, trace_image, write_atomic, write_grid_exports, write_png, write_png_fast,
+    readable_scale, trace_image, write_atomic, write_grid_exports, write_png,
 };
 use rayon::prelude::*;
 use sim::Scenario;
@@ -46,6 +46,10 @@ const SCENARIO_TOML: &str = include_str!("../../assets/demo-scenario.toml");
 /// Origin (lat, lon) of the full Helsinki extract's local frame, in which the scenario's
 /// waypoints are given; the crop is loaded with it so that both share one frame.
 const FULL_MAP_ORIGIN: (f64, f64) = (60.171_634_0, 24.944_295_4);
+/// When the simulated drive starts on the recording's timeline, seconds since the Unix epoch
+/// (2025-06-02 09:00:00 UTC, a Monday morning in Helsinki): the simulator counts from 0, and a
+/// recording that starts in 1970 reads as a broken clock in Foxglove.
+const DEMO_START_UNIX_S: f64 = 1_748_854_800.0;
 /// The variants scored, in table order: the default method, the paper's, and no map.
 const VARIANTS: [Variant; 3] = [Variant::Evigrid, Variant::Kurdej2013, Variant::NoMap];
 /// The variant whose views are rendered: the default method of `evigrid run`.
@@ -76,17 +80,15 @@ const OUTPUTS_HELP: &str = "\
 Outputs (in --out):
   index.html                   open this: the animation, legend, final views, tables and plots
                                (self-contained, relative links only)
-  frames/decision-NNNNNN.png   per frame: the simulator's truth beside `evigrid`'s decision,   
-                               2 px per 0.5 m cell, Okabe-Ito colours (F bluish green, I blue,
-                               U sky blue, S yellow, M vermillion, black = unknown), map outlines
-                               in white, the ego's path, legend, scale bar, north arrow
-  frames/pignistic-NNNNNN.png  per frame: truth beside the betP colour mix, 1 px per cell
-  frames/trace-NNNNNN.png      per frame: truth beside the decision map with every cell ever
-                               decided moving in M's colour (trace of moving objects), 1 px
+  decision.gif                 the simulator's truth beside `evigrid`'s decision over the whole
+                               drive, 1 px per 0.5 m cell, 10 frames per second, Okabe-Ito
+                               colours (F bluish green, I blue, U sky blue, S yellow,
+                               M vermillion, black = unknown; the page's legend names them)
   decision.png, pignistic.png, trace.png
-                               the same after the last frame, enlarged to >= 800 px a panel
-  decision.gif                 truth beside decision over the whole drive, 1 px per cell,
-                               10 frames per second
+                               after the last frame: truth beside the decision, the betP colour
+                               mix (with a key to the mixtures) and the trace of moving objects,
+                               enlarged to >= 800 px a panel, map outlines in white, the ego's
+                               path, legend, scale bar, north arrow
   metrics.json                 evaluation of evigrid, kurdej2013 and no-map against the truth
   report.md                    its tables (cells in view first), parameters and the command line
   confusion-<variant>.png      row-normalised confusion matrix per variant, cells in view
@@ -123,14 +125,11 @@ pub fn run(args: DemoArgs) -> Result<()> {
         ..EvalConfig::default()
     };
     let out_dir = crate::out_dir::OutDir::prepare(&args.out, args.force, "demo")?;
-    let frames_dir = args.out.join("frames");
-    fs::create_dir_all(&frames_dir)
-        .with_context(|| format!("cannot create {}", frames_dir.display()))?;
     let delay_ms = (1000.0 / scenario.sensor.rate_hz).round() as u32;
 
     // One pass over the drive: the evaluation runs the variants frame by frame, and the
     // views are rendered from its `VIEWS_OF` method, not from a second run of it. Encoding the
-    // PNGs and the GIF is the other half of the work; it runs on its own thread, fed through a
+    // GIF is the other half of the work; it runs on its own thread, fed through a
     // short queue (memory stays bounded), while the pipelines go on with the next frames.
     let bar = crate::progress::bar(frames as u64, "demo");
     let (views_tx, views_rx) = mpsc::sync_channel::<FrameViews>(QUEUED_FRAMES);
@@ -223,12 +222,16 @@ fn record_frame(
     let (window, fusion) = (f.front_end.window(), f.fusion);
     if let Some(recorder) = recorder {
         recorder.write_frame(&McapFrame {
-            time_s: f.time_s,
+            time_s: DEMO_START_UNIX_S + f.time_s,
             window,
             decisions: fusion.decisions(),
             perception: fusion.perception(),
             world_from_sensor: f.world_from_sensor,
             points_in_sensor: f.points_in_sensor,
+            // The simulated scanner gives no intensity.
+            intensity: &[],
+            // A planar scanner: its returns lie in its own plane, where the grid is drawn.
+            sensor_height_m: 0.0,
             fix: None,
         })?;
     }
@@ -239,7 +242,7 @@ fn record_frame(
                 window,
                 decisions: fusion.decisions(),
                 perception: fusion.perception(),
-                time_s: f.time_s,
+                time_s: DEMO_START_UNIX_S + f.time_s,
                 projection: Some(&loaded.projection),
             },
         )?;
@@ -247,46 +250,32 @@ fn record_frame(
     Ok(())
 }
 
-/// Frames rendered ahead of the encoder at most (three 320 × 320 RGB images each, 300 kB).
-/// Frames rendered ahead of the encoder at most (figures of about 2 Mpx and a GIF frame each,
-/// some 7 MB).
+/// Frames rendered ahead of the encoder at most (a GIF frame each, some 250 kB; the last frame
+/// also its three final figures).
 const QUEUED_FRAMES: usize = 8;
-
-/// Enlargement of the per-frame decision figure: 2 px a cell (the pignistic and trace figures
-/// of each frame, 1 px a cell) keeps 600 frames within the demo's time and its folder near
-/// 120 MB; the final figures use `readable_scale`, ≥ 800 px a panel.
-const FRAME_SCALE: u32 = 2;
-
-/// How a figure is compressed: the large per-frame decision figures fast, the others with the
-/// encoder's default (smaller files).
-#[derive(Clone, Copy)]
-enum Compression {
-    Fast,
-    Default,
-}
 
 /// The views of one frame, composed and waiting to be encoded.
 struct FrameViews {
-    /// File name, figure and compression: per-frame PNGs, and after the last frame the final
-    /// ones.
-    figures: Vec<(String, RgbImage, Compression)>,
+    /// File name and figure: after the last frame, the final figures (no per-frame PNG: the
+    /// page shows the drive as the GIF).
+    figures: Vec<(String, RgbImage)>,
     /// The GIF frame: truth beside decision, one pixel per cell.
     gif: RgbImage,
 }
 
-/// The legend of the demo's figures: the decided classes, and the truth's edge band.
-fn demo_legend(note: &str) -> Legend {
-    let mut legend = Legend::classes(&COLOURS, false, note);
+/// The legend of the demo's figures: `legend` (the decided classes, or the pignistic view's
+/// with its key to the mixtures), and the truth's edge band.
+fn demo_legend(mut legend: Legend) -> Legend {
     legend
         .entries
         .push((COLOURS.of(Label::Edge), class_name(Label::Edge).to_owned()));
     legend
 }
 
-/// Renders the [`VIEWS_OF`] method's three views of the paper's Fig. 2 after frame `index`,
-/// each beside the simulator's truth, with the map's outlines and `path` (the ego so far);
-/// after the last frame (`last`) also the final figures at [`readable_scale`]. Frames are
-/// `period_s` apart.
+/// Renders the [`VIEWS_OF`] method's decision beside the simulator's truth after frame `index`
+/// (the GIF's frame), and after the last frame (`last`) its three views of the paper's Fig. 2
+/// beside the truth at [`readable_scale`], with the map's outlines and `path` (the ego so far).
+/// Frames are `period_s` apart.
 fn render_views(
     frame: &FusionFrame<'_>,
     index: usize,
@@ -297,54 +286,47 @@ fn render_views(
     let (window, fusion) = (frame.front_end.window(), frame.fusion);
     let truth = decision_image(window, frame.truth, &COLOURS)?;
     let decision = decision_image(window, fusion.decisions(), &COLOURS)?;
-    let pignistic = pignistic_image(window, fusion.perception(), &COLOURS)?;
-    let trace = trace_image(window, fusion.decisions(), fusion.trace(), &COLOURS)?;
-    let arrows = output::run_figures::velocity_arrows(window, fusion.motion());
-    let overlay = Overlay {
-        gis: Some(frame.front_end.gis()),
-        path,
-        velocities: &arrows,
-    };
-    let name = VIEWS_OF.name();
-    let views = [
-        ("decision", &decision, DECISION_NOTE),
-        ("pignistic", &pignistic, PIGNISTIC_NOTE),
-        ("trace", &trace, TRACE_NOTE),
-    ];
-    let time = format!("{:.1} s", index as f64 * period_s);
-    let compose = |view: &str, cells: &RgbImage, note: &str, scale: u32| {
-        figure(
-            window,
-            &[
-                (&format!("truth, {time}"), &truth),
-                (&format!("{name}: {view}"), cells),
-            ],
-            &overlay,
-            &demo_legend(note),
-            scale,
-        )
-    };
-    let mut figures = Vec::with_capacity(6);
-    for (view, cells, note) in views {
-        let scale = if view == "decision" { FRAME_SCALE } else { 1 };
-        figures.push((
-            format!("frames/{view}-{index:06}.png"),
-            compose(view, cells, note, scale)?,
-            if view == "decision" {
-                Compression::Fast
-            } else {
-                Compression::Default
-            },
-        ));
-    }
+    let mut figures = Vec::with_capacity(3);
     if last {
-        let scale = readable_scale(window);
-        for (view, cells, note) in views {
-            figures.push((
-                format!("{view}.png"),
-                compose(view, cells, note, scale)?,
-                Compression::Default,
-            ));
+        let pignistic = pignistic_image(window, fusion.perception(), &COLOURS)?;
+        let trace = trace_image(window, fusion.decisions(), fusion.trace(), &COLOURS)?;
+        let arrows = output::run_figures::velocity_arrows(window, fusion.motion());
+        let overlay = Overlay {
+            gis: Some(frame.front_end.gis()),
+            path,
+            velocities: &arrows,
+        };
+        let name = VIEWS_OF.name();
+        let time = format!("{:.1} s", index as f64 * period_s);
+        let views = [
+            (
+                "decision",
+                &decision,
+                Legend::classes(&COLOURS, false, DECISION_NOTE),
+            ),
+            (
+                "pignistic",
+                &pignistic,
+                Legend::pignistic(&COLOURS, PIGNISTIC_NOTE),
+            ),
+            (
+                "trace",
+                &trace,
+                Legend::classes(&COLOURS, false, TRACE_NOTE),
+            ),
+        ];
+        for (view, cells, legend) in views {
+            let composed = figure(
+                window,
+                &[
+                    (&format!("truth, {time}"), &truth),
+                    (&format!("{name}: {view}"), cells),
+                ],
+                &overlay,
+                &demo_legend(legend),
+                readable_scale(window),
+            )?;
+            figures.push((format!("{view}.png"), composed));
         }
     }
     // The GIF: both panels at one pixel a cell with a strip between them, no text (the page
@@ -373,10 +355,7 @@ fn encode_views(views: mpsc::Receiver<FrameViews>, out: &Path, delay_ms: u32) ->
             // The figures are independent: encode them side by side.
             v.figures
                 .par_iter()
-                .try_for_each(|(name, image, compression)| match compression {
-                    Compression::Fast => write_png_fast(image, &out.join(name)),
-                    Compression::Default => write_png(image, &out.join(name)),
-                })?;
+                .try_for_each(|(name, image)| write_png(image, &out.join(name)))?;
             gif.encode_frame(gif_frame(v.gif, delay_ms))?;
         }
         // Dropping the encoder writes the GIF trailer.

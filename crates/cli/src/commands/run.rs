@@ -80,7 +80,11 @@ pub fn run(args: RunArgs) -> Result<()> {
             .map_err(session_error)?
     };
     let summary = outcome.summary;
-    let text = serde_json::to_string_pretty(&summary)?;
+    let text = serde_json::to_string_pretty(&WrittenSummary {
+        tool: concat!("evigrid ", env!("CARGO_PKG_VERSION")),
+        command_line: crate::input::command_line(),
+        summary: &summary,
+    })?;
     let summary_path = args.out.join("summary.json");
     let summary_written = output::write_atomic(&summary_path, |file| {
         std::io::Write::write_all(file, text.as_bytes())
@@ -114,6 +118,17 @@ pub fn run(args: RunArgs) -> Result<()> {
         report::print_summary(&summary);
     }
     Ok(())
+}
+
+/// `summary.json`: what wrote it and how to run it again, then the session's summary.
+#[derive(serde::Serialize)]
+struct WrittenSummary<'a> {
+    /// `evigrid <version>`.
+    tool: &'static str,
+    /// The command line, as given (arguments quoted where needed).
+    command_line: String,
+    #[serde(flatten)]
+    summary: &'a session::Summary,
 }
 
 /// The outputs of a run: the recording (unless `--no-mcap`), the per-frame pictures, the

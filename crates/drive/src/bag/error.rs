@@ -85,6 +85,14 @@ pub enum BagError {
         /// The topics present, `topic (type, count)`, comma-separated.
         available: String,
     },
+    /// A folder given as the recording that is not a rosbag2 folder of one MCAP file.
+    #[error("{path}: {message}")]
+    Folder {
+        /// The folder.
+        path: PathBuf,
+        /// What it holds, and what to do.
+        message: String,
+    },
     /// The poses cannot be built from the chosen source (no tf chain, no fixes, …).
     #[error("{path}: poses: {message}")]
     Poses {

@@ -24,14 +24,18 @@
 //! [`MAX_RECORD_BYTES`] are refused; the cloud's `x`, `y`, `z` must be FLOAT32 or FLOAT64
 //! (`intensity` may be any numeric type); a topic's clouds must share one `frame_id`. ROS 1 bags
 //! (`.bag`) and rosbag2's SQLite storage (`.db3`) are not read: convert them with `mcap convert`.
+//! A rosbag2 folder (`metadata.yaml` beside the files) may be given for its one MCAP file
+//! ([`recording_file`]).
 
 mod cdr;
 pub mod error;
+mod folder;
 mod msgs;
 pub mod navsat;
 mod tf;
 
 pub use error::BagError;
+pub use folder::recording_file;
 pub use msgs::{NAVSATFIX, ODOMETRY, POINTCLOUD2, TFMESSAGE};
 pub use navsat::{GeodeticFix, GeodeticTrack};
 
@@ -234,6 +238,7 @@ fn schema_name<'m>(message: &'m mcap::Message<'_>) -> &'m str {
 ///
 /// [`BagError`]: unreadable file, malformed container, unsupported compression.
 pub fn list_topics(path: &Path) -> Result<Vec<TopicInfo>, BagError> {
+    let path = &recording_file(path)?;
     let mut topics = BTreeMap::new();
     for (seen, message) in (0u64..).zip(reader(path)?) {
         let message = message.map_err(|e| mcap_error(path, seen, e))?;
@@ -297,6 +302,7 @@ impl BagDrive {
     /// the topics), a topic of the wrong type, a malformed message (topic and index), or poses
     /// that cannot be built from the chosen source.
     pub fn open(path: &Path, options: &BagOptions) -> Result<Self, BagError> {
+        let path = &recording_file(path)?;
         let wanted = match &options.pose_source {
             PoseSource::Auto => Wanted {
                 tf: true,

@@ -392,6 +392,14 @@ fn format_detection_and_dispatch() {
             && text.contains("12 (KITTI"),
         "{text}"
     );
+    assert!(!text.contains("commas"), "{text}");
+    // A CSV file reads as one column a line: the error says why.
+    let csv = write(&dir, "f.csv", "t,x,y,z,roll,pitch,yaw\n0.0,1,2,3,0,0,0\n");
+    let text = PoseFormat::detect(&csv).unwrap_err().to_string();
+    assert!(
+        text.contains("f.csv:1: 1 columns (separated by commas? columns are separated by spaces"),
+        "{text}"
+    );
     assert!(PoseFormat::detect(&write(&dir, "e.txt", "# nothing\n")).is_err());
 
     assert_eq!("TUM".parse::<PoseFormat>().unwrap(), PoseFormat::Tum);

@@ -4,15 +4,19 @@
 use evigrid::{Isometry3, Label, PerceptionGrid, Window, betp_cells};
 use serde_json::{Value, json};
 
+use crate::georef::gis_colour;
+
 /// `foxglove.NumericType` codes used here.
 pub(crate) const UINT8: u8 = 1;
 pub(crate) const INT8: u8 = 2;
 pub(crate) const FLOAT32: u8 = 7;
 
 /// The cell fields of the decision grid, in byte order: the decided class ([`Label`] code,
-/// 0 unknown … 5 M), the ROS occupancy (−1, 0, 100), then betP of F, I, U, S, M scaled to
-/// 0–255 (`round(255·betP)`).
-pub const GRID_FIELDS: [(&str, u8); 7] = [
+/// 0 unknown … 5 M), the ROS occupancy (−1, 0, 100), betP of F, I, U, S, M scaled to 0–255
+/// (`round(255·betP)`), then the class's colour as `red`, `green`, `blue`, `alpha` (the one
+/// palette of every output, [`gis_colour`]: Foxglove's 3D panel draws them with its
+/// "RGBA (separate fields)" colour mode, `docs/foxglove-layout.json`).
+pub const GRID_FIELDS: [(&str, u8); 11] = [
     ("class", UINT8),
     ("occupancy", INT8),
     ("betp_F", UINT8),
@@ -20,6 +24,10 @@ pub const GRID_FIELDS: [(&str, u8); 7] = [
     ("betp_U", UINT8),
     ("betp_S", UINT8),
     ("betp_M", UINT8),
+    ("red", UINT8),
+    ("green", UINT8),
+    ("blue", UINT8),
+    ("alpha", UINT8),
 ];
 
 const BASE64: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -140,9 +148,9 @@ pub fn quaternion(r: &[[f64; 3]; 3]) -> [f64; 4] {
     q.map(|c| c / norm)
 }
 
-fn identity_pose(x: f64, y: f64) -> Value {
+fn identity_pose(x: f64, y: f64, z: f64) -> Value {
     json!({
-        "position": {"x": x, "y": y, "z": 0.0},
+        "position": {"x": x, "y": y, "z": z},
         "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
     })
 }
@@ -158,14 +166,16 @@ pub fn occupancy(label: Label) -> i8 {
 }
 
 /// The decision grid after a frame as a `foxglove.Grid` in `frame_id`, cells in
-/// [`GRID_FIELDS`] layout, row-major from the south-west cell (as `nav_msgs/OccupancyGrid`).
-/// `decisions` and `grid` have the window's size (checked by the caller).
+/// [`GRID_FIELDS`] layout, row-major from the south-west cell (as `nav_msgs/OccupancyGrid`),
+/// in the plane z = `ground_z_m`. `decisions` and `grid` have the window's size (checked by the
+/// caller).
 pub(crate) fn grid(
     ns: u64,
     frame_id: &str,
     window: &Window,
     decisions: &[Label],
     grid: &PerceptionGrid,
+    ground_z_m: f64,
 ) -> WithBytes {
     let s = window.cell_size_m();
     let stride = GRID_FIELDS.len();
@@ -182,6 +192,7 @@ pub(crate) fn grid(
             for pk in &probabilities {
                 data.push((255.0 * pk[i].clamp(0.0, 1.0)).round() as u8);
             }
+            data.extend_from_slice(&gis_colour(label));
         }
     }
     let fields: Vec<Value> = GRID_FIELDS
@@ -193,7 +204,11 @@ pub(crate) fn grid(
         value: json!({
             "timestamp": stamp(ns),
             "frame_id": frame_id,
-            "pose": identity_pose(window.first_col() as f64 * s, window.first_row() as f64 * s),
+            "pose": identity_pose(
+                window.first_col() as f64 * s,
+                window.first_row() as f64 * s,
+                ground_z_m,
+            ),
             "column_count": window.width(),
             "cell_size": {"x": s, "y": s},
             "row_stride": stride * window.width(),
@@ -205,26 +220,44 @@ pub(crate) fn grid(
     }
 }
 
-/// A scan as a `foxglove.PointCloud` of `x, y, z` FLOAT32 little-endian in the sensor's frame;
-/// non-finite points are left out (a viewer would place them at infinity).
-pub(crate) fn point_cloud(ns: u64, frame_id: &str, points: &[[f32; 3]]) -> WithBytes {
-    let mut data = Vec::with_capacity(12 * points.len());
-    for p in points.iter().filter(|p| p.iter().all(|c| c.is_finite())) {
+/// A scan as a `foxglove.PointCloud` of `x, y, z` FLOAT32 little-endian in the sensor's frame,
+/// and `intensity` (FLOAT32) after them when the scan has one per point; non-finite points are
+/// left out (a viewer would place them at infinity).
+pub(crate) fn point_cloud(
+    ns: u64,
+    frame_id: &str,
+    points: &[[f32; 3]],
+    intensity: &[f32],
+) -> WithBytes {
+    let with_intensity = !points.is_empty() && intensity.len() == points.len();
+    let stride = if with_intensity { 16 } else { 12 };
+    let mut data = Vec::with_capacity(stride * points.len());
+    for (k, p) in points.iter().enumerate() {
+        if !p.iter().all(|c| c.is_finite()) {
+            continue;
+        }
         for c in p {
             data.extend_from_slice(&c.to_le_bytes());
         }
+        if with_intensity {
+            data.extend_from_slice(&intensity[k].to_le_bytes());
+        }
+    }
+    let mut fields = vec![
+        json!({"name": "x", "offset": 0, "type": FLOAT32}),
+        json!({"name": "y", "offset": 4, "type": FLOAT32}),
+        json!({"name": "z", "offset": 8, "type": FLOAT32}),
+    ];
+    if with_intensity {
+        fields.push(json!({"name": "intensity", "offset": 12, "type": FLOAT32}));
     }
     WithBytes {
         value: json!({
             "timestamp": stamp(ns),
             "frame_id": frame_id,
-            "pose": identity_pose(0.0, 0.0),
-            "point_stride": 12,
-            "fields": [
-                {"name": "x", "offset": 0, "type": FLOAT32},
-                {"name": "y", "offset": 4, "type": FLOAT32},
-                {"name": "z", "offset": 8, "type": FLOAT32},
-            ],
+            "pose": identity_pose(0.0, 0.0, 0.0),
+            "point_stride": stride,
+            "fields": fields,
         }),
         field: "data",
         base64: base64(&data),
@@ -244,8 +277,10 @@ pub(crate) fn frame_transform(ns: u64, parent: &str, child: &str, pose: &Isometr
     })
 }
 
-/// A GNSS fix as a `foxglove.LocationFix` (covariance unknown).
+/// A GNSS fix as a `foxglove.LocationFix` (covariance unknown; no heading or velocity: the
+/// fix carries none), drawn in the ego path's colour.
 pub(crate) fn location_fix(ns: u64, frame_id: &str, fix: &super::GnssFix) -> Value {
+    let [r, g, b] = crate::figure::PATH.0.map(|c| f64::from(c) / 255.0);
     json!({
         "timestamp": stamp(ns),
         "frame_id": frame_id,
@@ -254,6 +289,8 @@ pub(crate) fn location_fix(ns: u64, frame_id: &str, fix: &super::GnssFix) -> Val
         "altitude": fix.alt_m,
         "position_covariance": ([0.0f64; 9]),
         "position_covariance_type": 0,
+        "color": {"r": r, "g": g, "b": b, "a": 1.0},
+        "metadata": [],
     })
 }
 
@@ -274,7 +311,7 @@ pub(crate) fn outline_entity(
                 .collect();
             json!({
                 "type": 1,
-                "pose": identity_pose(0.0, 0.0),
+                "pose": identity_pose(0.0, 0.0, 0.0),
                 "thickness": 2.0,
                 "scale_invariant": true,
                 "points": points,

@@ -2,7 +2,7 @@
 //! frame by frame (memory stays flat over the drive) through [`AtomicFile`].
 //!
 //! Every channel is JSON with a `jsonschema` schema named after the `foxglove.*` message it
-//! holds ([`schemas`]): no protobuf descriptor set to carry, any MCAP reader decodes it, and
+//! holds, Foxglove's own ([`schemas`]): no protobuf descriptor set to carry, any MCAP reader decodes it, and
 //! Foxglove's panels recognise the schema names. Topics (frames: `map` the map's local frame,
 //! x east, y north; `sensor` the scanner):
 //!
@@ -21,6 +21,13 @@
 //! latest grid at every instant, so writing it at 2 Hz (the scan, pose and fix at every frame)
 //! cut the default KITTI run's CPU by about a tenth (`docs/benchmarks.md`). The last frame's grid
 //! is always written ([`McapRecorder::finish`]), so the recording ends on the run's final grid.
+//!
+//! Heights are relative to the ground under the first pose, so that the scene is right in 3-D:
+//! the first frame's ground (the sensor's z less its height above the ground,
+//! [`McapFrame::sensor_height_m`]) is z = 0 of `map`; `/tf` places the sensor at its height
+//! over it, and each frame's grid lies on the ground under the sensor of that frame. A drive's
+//! absolute altitude (KITTI's poses carry the GPS altitude, 115 m in Karlsruhe) would otherwise
+//! float the scan far above a grid at z = 0. The map's outlines lie at z = 0.
 
 mod messages;
 pub mod schemas;
@@ -91,6 +98,12 @@ pub struct McapFrame<'a> {
     pub world_from_sensor: &'a Isometry3,
     /// The scan, sensor frame.
     pub points_in_sensor: &'a [[f32; 3]],
+    /// The intensity of each point, or empty when the scan has none (then `/scan` has no
+    /// intensity field).
+    pub intensity: &'a [f32],
+    /// The sensor's height above the ground under it, metres: the grid is drawn this far below
+    /// the sensor (`sensor.ground.sensor_height_m`, 1.73 m for KITTI's Velodyne).
+    pub sensor_height_m: f64,
     /// The GNSS fix taken with the scan, if any.
     pub fix: Option<GnssFix>,
 }
@@ -143,6 +156,10 @@ pub struct McapRecorder {
     last_grid_ns: Option<u64>,
     /// Time of the last frame written, nanoseconds.
     last_frame_ns: Option<u64>,
+    /// The map-frame z of the ground under the first pose: subtracted from every height.
+    ground_z_origin_m: Option<f64>,
+    /// The last frame's ground z relative to the origin: where [`McapRecorder::finish`]'s grid lies.
+    last_ground_z_m: f64,
 }
 
 impl std::fmt::Debug for McapRecorder {
@@ -200,9 +217,8 @@ impl McapRecorder {
             .library(concat!("evigrid-output ", env!("CARGO_PKG_VERSION")))
             .create(BufWriter::new(file))
             .map_err(mcap_error)?;
-        let mut channel = |topic: &str, name: &str, schema: serde_json::Value| {
-            let text = schema.to_string();
-            let schema_id = writer.add_schema(name, schemas::SCHEMA_ENCODING, text.as_bytes())?;
+        let mut channel = |topic: &str, name: &str, schema: &str| {
+            let schema_id = writer.add_schema(name, schemas::SCHEMA_ENCODING, schema.as_bytes())?;
             writer.add_channel(
                 schema_id,
                 topic,
@@ -212,15 +228,15 @@ impl McapRecorder {
         };
         let channels = (|| {
             Ok::<_, ::mcap::McapError>(Channels {
-                decision: channel(TOPIC_DECISION, "foxglove.Grid", schemas::grid())?,
+                decision: channel(TOPIC_DECISION, "foxglove.Grid", schemas::GRID)?,
                 tf: channel(
                     TOPIC_TF,
                     "foxglove.FrameTransform",
-                    schemas::frame_transform(),
+                    schemas::FRAME_TRANSFORM,
                 )?,
-                scan: channel(TOPIC_SCAN, "foxglove.PointCloud", schemas::point_cloud())?,
-                map: channel(TOPIC_MAP, "foxglove.SceneUpdate", schemas::scene_update())?,
-                gnss: channel(TOPIC_GNSS, "foxglove.LocationFix", schemas::location_fix())?,
+                scan: channel(TOPIC_SCAN, "foxglove.PointCloud", schemas::POINT_CLOUD)?,
+                map: channel(TOPIC_MAP, "foxglove.SceneUpdate", schemas::SCENE_UPDATE)?,
+                gnss: channel(TOPIC_GNSS, "foxglove.LocationFix", schemas::LOCATION_FIX)?,
             })
         })()
         .map_err(mcap_error)?;
@@ -235,6 +251,8 @@ impl McapRecorder {
             grid_interval_ns: seconds_to_ns(GRID_INTERVAL_S),
             last_grid_ns: None,
             last_frame_ns: None,
+            ground_z_origin_m: None,
+            last_ground_z_m: 0.0,
         })
     }
 
@@ -250,7 +268,14 @@ impl McapRecorder {
     fn send_grid(&mut self, ns: u64, grid: &McapGrid<'_>) -> Result<(), OutputError> {
         check_len("decisions", grid.decisions.len(), grid.window)?;
         check_len("perception grid", grid.perception.len(), grid.window)?;
-        let message = messages::grid(ns, FRAME_MAP, grid.window, grid.decisions, grid.perception);
+        let message = messages::grid(
+            ns,
+            FRAME_MAP,
+            grid.window,
+            grid.decisions,
+            grid.perception,
+            self.last_ground_z_m,
+        );
         self.send(
             self.channels.decision,
             TOPIC_DECISION,
@@ -309,7 +334,13 @@ impl McapRecorder {
             });
             self.send(self.channels.map, TOPIC_MAP, ns, &update.to_string())?;
         }
-        let tf = messages::frame_transform(ns, FRAME_MAP, FRAME_SENSOR, frame.world_from_sensor);
+        // Heights relative to the first pose's ground (module docs).
+        let mut world_from_sensor = *frame.world_from_sensor;
+        let ground_z_m = world_from_sensor.translation[2] - frame.sensor_height_m;
+        let origin_m = *self.ground_z_origin_m.get_or_insert(ground_z_m);
+        world_from_sensor.translation[2] -= origin_m;
+        self.last_ground_z_m = ground_z_m - origin_m;
+        let tf = messages::frame_transform(ns, FRAME_MAP, FRAME_SENSOR, &world_from_sensor);
         self.send(self.channels.tf, TOPIC_TF, ns, &tf.to_string())?;
         let grid_due = self
             .last_grid_ns
@@ -323,7 +354,7 @@ impl McapRecorder {
             self.send_grid(ns, &grid)?;
         }
         self.last_frame_ns = Some(ns);
-        let scan = messages::point_cloud(ns, FRAME_SENSOR, frame.points_in_sensor);
+        let scan = messages::point_cloud(ns, FRAME_SENSOR, frame.points_in_sensor, frame.intensity);
         self.send(self.channels.scan, TOPIC_SCAN, ns, &scan.to_json())?;
         if let (Some(fix), Some(fix_ns)) = (frame.fix, fix_ns) {
             let message = messages::location_fix(fix_ns, FRAME_GNSS, &fix);
@@ -393,6 +424,8 @@ mod tests {
                     perception: &pg,
                     world_from_sensor: &pose,
                     points_in_sensor: &[[1.0, 2.0, 3.0], [f32::NAN, 0.0, 0.0]],
+                    intensity: &[],
+                    sensor_height_m: 1.73,
                     fix: (k == 1).then_some(GnssFix {
                         time_s: 100.1,
                         lat_deg: 60.0,
@@ -426,7 +459,7 @@ mod tests {
             if message.channel.topic == TOPIC_DECISION {
                 times.push(message.log_time);
                 assert_eq!(value["column_count"], 3);
-                assert_eq!(value["cell_stride"], 7);
+                assert_eq!(value["cell_stride"], 11);
                 // First cell (10, -1): F, occupancy 0; second: S, 100.
                 let data = value["data"].as_str().unwrap();
                 assert!(data.starts_with(&base64(&[1, 0])[..2]), "{data}");
@@ -468,6 +501,8 @@ mod tests {
                 perception: &pg,
                 world_from_sensor: &Isometry3::IDENTITY,
                 points_in_sensor: &[],
+                intensity: &[],
+                sensor_height_m: 0.0,
                 fix: None,
             };
             recorder.write_frame(&frame).unwrap();
@@ -502,6 +537,70 @@ mod tests {
         assert_eq!(grid_times(&times[..1], 0.5), [100]);
     }
 
+    /// The messages of `topic` in a recording, decoded.
+    fn messages_of(bytes: &[u8], topic: &str) -> Vec<serde_json::Value> {
+        ::mcap::MessageStream::new(bytes)
+            .unwrap()
+            .map(|m| m.unwrap())
+            .filter(|m| m.channel.topic == topic)
+            .map(|m| serde_json::from_slice(&m.data).unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn the_grid_lies_on_the_ground_under_the_sensor_and_scans_keep_their_intensity() {
+        // A KITTI-like pose: the sensor at the GPS altitude, 115.5 m, then 0.5 m higher. With
+        // 1.73 m above the ground, the first frame's ground (113.77 m) becomes z = 0: the sensor
+        // at 1.73 then 2.23 m, each frame's grid at 0 then 0.5 m, under the sensor.
+        let w = window();
+        let d = decisions(&w, |_, _| Label::F);
+        let pg = PerceptionGrid::new(w.width(), w.height());
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.mcap");
+        let mut recorder = McapRecorder::create(&path, None).unwrap();
+        for (k, z) in [115.5, 116.0].into_iter().enumerate() {
+            let pose = Isometry3 {
+                rotation: Isometry3::IDENTITY.rotation,
+                translation: [3.0, 4.0, z],
+            };
+            recorder
+                .write_frame(&McapFrame {
+                    time_s: 1.0 + k as f64,
+                    window: &w,
+                    decisions: &d,
+                    perception: &pg,
+                    world_from_sensor: &pose,
+                    points_in_sensor: &[[1.0, 2.0, 3.0], [f32::NAN, 0.0, 0.0], [4.0, 5.0, 6.0]],
+                    intensity: &[0.25, 0.5, 0.75],
+                    sensor_height_m: 1.73,
+                    fix: None,
+                })
+                .unwrap();
+        }
+        recorder.finish(None).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let tf = messages_of(&bytes, TOPIC_TF);
+        let grids = messages_of(&bytes, TOPIC_DECISION);
+        for (k, (sensor_z, grid_z)) in [(1.73, 0.0), (2.23, 0.5)].into_iter().enumerate() {
+            let tf_z = tf[k]["translation"]["z"].as_f64().unwrap();
+            let pose_z = grids[k]["pose"]["position"]["z"].as_f64().unwrap();
+            assert!((tf_z - sensor_z).abs() < 1e-9, "frame {k}: {tf_z}");
+            assert!((pose_z - grid_z).abs() < 1e-9, "frame {k}: {pose_z}");
+            assert_eq!(tf[k]["translation"]["x"], 3.0);
+        }
+        // Two finite points of x, y, z, intensity: 32 bytes, the NaN point and its intensity
+        // left out; the second point's intensity is 0.75.
+        let scan = &messages_of(&bytes, TOPIC_SCAN)[0];
+        assert_eq!(scan["point_stride"], 16);
+        assert_eq!(scan["fields"][3]["name"], "intensity");
+        let data = scan["data"].as_str().unwrap();
+        let mut expected = Vec::new();
+        for v in [1.0f32, 2.0, 3.0, 0.25, 4.0, 5.0, 6.0, 0.75] {
+            expected.extend_from_slice(&v.to_le_bytes());
+        }
+        assert_eq!(data, base64(&expected));
+    }
+
     #[test]
     fn a_negative_time_is_refused_and_leaves_no_file() {
         let w = window();
@@ -518,6 +617,8 @@ mod tests {
                 perception: &pg,
                 world_from_sensor: &Isometry3::IDENTITY,
                 points_in_sensor: &[],
+                intensity: &[],
+                sensor_height_m: 0.0,
                 fix: None,
             })
             .unwrap_err();

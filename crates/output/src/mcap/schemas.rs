@@ -2,220 +2,59 @@
 //!
 //! Foxglove recognises a channel by its schema *name* (`foxglove.Grid`, …) and decodes its
 //! messages as JSON when the schema encoding is `jsonschema`: timestamps are `{sec, nsec}`,
-//! byte arrays base64 strings (`contentEncoding: base64`), enums their integer values. The
-//! schemas below state exactly the fields this crate writes, after the published
-//! `foxglove.*` message definitions, so that any JSON Schema validator can check a message.
-
-use serde_json::{Value, json};
+//! byte arrays base64 strings (`contentEncoding: base64`), enums their integer values.
+//!
+//! The schemas are Foxglove's own, not copies by hand: the files in `schemas/` are generated
+//! from the official `@foxglove/schemas` package (`scripts/foxglove_schemas.sh`, version in
+//! `schemas/VERSION`) and embedded as they are. Why not the `foxglove` crate, which ships the
+//! same definitions: its messages are protobuf (JSON needs its `serde` feature and brings no
+//! JSON Schema), and even without default features it adds the SDK's logging context,
+//! `prost` and a proc-macro to the first build (ARCHITECTURE.md, `crates/output`).
 
 /// Schema encoding of every channel of the recording.
 pub const SCHEMA_ENCODING: &str = "jsonschema";
 /// Message encoding of every channel of the recording.
 pub const MESSAGE_ENCODING: &str = "json";
-
-fn object(title: &str, properties: Value) -> Value {
-    let required: Vec<String> = properties
-        .as_object()
-        .map(|p| p.keys().cloned().collect())
-        .unwrap_or_default();
-    json!({
-        "title": title,
-        "type": "object",
-        "properties": properties,
-        "required": required,
-    })
-}
-
-fn time() -> Value {
-    object(
-        "time",
-        json!({
-            "sec": {"type": "integer", "minimum": 0},
-            "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999},
-        }),
-    )
-}
-
-fn vector3() -> Value {
-    object(
-        "foxglove.Vector3",
-        json!({"x": {"type": "number"}, "y": {"type": "number"}, "z": {"type": "number"}}),
-    )
-}
-
-fn vector2() -> Value {
-    object(
-        "foxglove.Vector2",
-        json!({"x": {"type": "number"}, "y": {"type": "number"}}),
-    )
-}
-
-fn quaternion() -> Value {
-    object(
-        "foxglove.Quaternion",
-        json!({
-            "x": {"type": "number"}, "y": {"type": "number"},
-            "z": {"type": "number"}, "w": {"type": "number"},
-        }),
-    )
-}
-
-fn pose() -> Value {
-    object(
-        "foxglove.Pose",
-        json!({"position": vector3(), "orientation": quaternion()}),
-    )
-}
-
-fn color() -> Value {
-    object(
-        "foxglove.Color",
-        json!({
-            "r": {"type": "number"}, "g": {"type": "number"},
-            "b": {"type": "number"}, "a": {"type": "number"},
-        }),
-    )
-}
-
-/// `foxglove.PackedElementField`; `type` is `foxglove.NumericType` (1 UINT8, 2 INT8, 7 FLOAT32).
-fn packed_fields() -> Value {
-    json!({
-        "type": "array",
-        "items": object(
-            "foxglove.PackedElementField",
-            json!({
-                "name": {"type": "string"},
-                "offset": {"type": "integer", "minimum": 0},
-                "type": {"type": "integer", "minimum": 0, "maximum": 8},
-            }),
-        ),
-    })
-}
-
-fn bytes() -> Value {
-    json!({"type": "string", "contentEncoding": "base64"})
-}
-
-fn with_schema_keyword(mut schema: Value) -> Value {
-    if let Some(map) = schema.as_object_mut() {
-        map.insert(
-            "$schema".to_string(),
-            json!("https://json-schema.org/draft/2020-12/schema"),
-        );
-    }
-    schema
-}
+/// The `@foxglove/schemas` release the schemas come from.
+pub const FOXGLOVE_SCHEMAS_VERSION: &str = include_str!("schemas/VERSION");
 
 /// `foxglove.Grid`.
-pub fn grid() -> Value {
-    with_schema_keyword(object(
-        "foxglove.Grid",
-        json!({
-            "timestamp": time(),
-            "frame_id": {"type": "string"},
-            "pose": pose(),
-            "column_count": {"type": "integer", "minimum": 0},
-            "cell_size": vector2(),
-            "row_stride": {"type": "integer", "minimum": 0},
-            "cell_stride": {"type": "integer", "minimum": 0},
-            "fields": packed_fields(),
-            "data": bytes(),
-        }),
-    ))
-}
-
+pub const GRID: &str = include_str!("schemas/Grid.json");
 /// `foxglove.PointCloud`.
-pub fn point_cloud() -> Value {
-    with_schema_keyword(object(
-        "foxglove.PointCloud",
-        json!({
-            "timestamp": time(),
-            "frame_id": {"type": "string"},
-            "pose": pose(),
-            "point_stride": {"type": "integer", "minimum": 0},
-            "fields": packed_fields(),
-            "data": bytes(),
-        }),
-    ))
-}
-
+pub const POINT_CLOUD: &str = include_str!("schemas/PointCloud.json");
 /// `foxglove.FrameTransform`.
-pub fn frame_transform() -> Value {
-    with_schema_keyword(object(
-        "foxglove.FrameTransform",
-        json!({
-            "timestamp": time(),
-            "parent_frame_id": {"type": "string"},
-            "child_frame_id": {"type": "string"},
-            "translation": vector3(),
-            "rotation": quaternion(),
-        }),
-    ))
-}
+pub const FRAME_TRANSFORM: &str = include_str!("schemas/FrameTransform.json");
+/// `foxglove.LocationFix`.
+pub const LOCATION_FIX: &str = include_str!("schemas/LocationFix.json");
+/// `foxglove.SceneUpdate`.
+pub const SCENE_UPDATE: &str = include_str!("schemas/SceneUpdate.json");
 
-/// `foxglove.LocationFix`; `position_covariance_type` 0 is UNKNOWN.
-pub fn location_fix() -> Value {
-    with_schema_keyword(object(
-        "foxglove.LocationFix",
-        json!({
-            "timestamp": time(),
-            "frame_id": {"type": "string"},
-            "latitude": {"type": "number"},
-            "longitude": {"type": "number"},
-            "altitude": {"type": "number"},
-            "position_covariance": {
-                "type": "array", "items": {"type": "number"}, "minItems": 9, "maxItems": 9,
-            },
-            "position_covariance_type": {"type": "integer", "minimum": 0, "maximum": 3},
-        }),
-    ))
-}
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
 
-/// `foxglove.SceneUpdate` with line primitives only (`type` 0 LINE_STRIP, 1 LINE_LOOP,
-/// 2 LINE_LIST); the other primitive arrays are written empty.
-pub fn scene_update() -> Value {
-    let empty_array = json!({"type": "array", "maxItems": 0});
-    let line = object(
-        "foxglove.LinePrimitive",
-        json!({
-            "type": {"type": "integer", "minimum": 0, "maximum": 2},
-            "pose": pose(),
-            "thickness": {"type": "number"},
-            "scale_invariant": {"type": "boolean"},
-            "points": {"type": "array", "items": vector3()},
-            "color": color(),
-            "colors": empty_array,
-            "indices": empty_array,
-        }),
-    );
-    let entity = object(
-        "foxglove.SceneEntity",
-        json!({
-            "timestamp": time(),
-            "frame_id": {"type": "string"},
-            "id": {"type": "string"},
-            "lifetime": {
-                "title": "duration", "type": "object",
-                "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}},
-                "required": ["sec", "nsec"],
-            },
-            "frame_locked": {"type": "boolean"},
-            "metadata": empty_array,
-            "arrows": empty_array,
-            "cubes": empty_array,
-            "spheres": empty_array,
-            "cylinders": empty_array,
-            "lines": {"type": "array", "items": line},
-            "triangles": empty_array,
-            "texts": empty_array,
-            "models": empty_array,
-        }),
-    );
-    with_schema_keyword(object(
-        "foxglove.SceneUpdate",
-        json!({
-            "deletions": empty_array,
-            "entities": {"type": "array", "items": entity},
-        }),
-    ))
+    #[test]
+    fn each_schema_is_foxglove_s_own_under_its_name() {
+        for (text, title) in [
+            (GRID, "foxglove.Grid"),
+            (POINT_CLOUD, "foxglove.PointCloud"),
+            (FRAME_TRANSFORM, "foxglove.FrameTransform"),
+            (LOCATION_FIX, "foxglove.LocationFix"),
+            (SCENE_UPDATE, "foxglove.SceneUpdate"),
+        ] {
+            let schema: serde_json::Value = serde_json::from_str(text).unwrap();
+            assert_eq!(schema["title"], title);
+            assert_eq!(
+                schema["$comment"], "Generated by https://github.com/foxglove/foxglove-sdk",
+                "{title}"
+            );
+        }
+        // The current LocationFix: heading, velocity and colour, which the copy by hand lacked.
+        let fix: serde_json::Value = serde_json::from_str(LOCATION_FIX).unwrap();
+        for field in ["heading", "velocity", "color", "metadata"] {
+            assert!(fix["properties"].get(field).is_some(), "{field}");
+        }
+        assert!(FOXGLOVE_SCHEMAS_VERSION.starts_with("@foxglove/schemas 2."));
+    }
 }

@@ -47,7 +47,8 @@ pub struct RunArgs {
     /// Scans, their timestamps, the OXTS poses and `calib_imu_to_velo.txt` are read from it.
     #[arg(long, conflicts_with = "bag")]
     pub drive: Option<PathBuf>,
-    /// A ROS 2 recording (MCAP): `sensor_msgs/PointCloud2` scans with poses from tf, an
+    /// A ROS 2 recording (an MCAP file, or the rosbag2 folder holding one):
+    /// `sensor_msgs/PointCloud2` scans with poses from tf, an
     /// Odometry or a NavSatFix topic (see --pose-source), or from the lidar odometry.
     #[arg(long, conflicts_with_all = ["poses", "times", "calib", "mounting"])]
     pub bag: Option<PathBuf>,
