@@ -1,4 +1,5 @@
-//! Exit codes: 0 success, 1 failure of the tool itself, 2 bad input (Unix habit, as grep).
+//! Exit codes: 0 success, 1 the environment failed (a full disk, a write error), 2 bad input or
+//! usage (Unix habit, as grep), 128 + n ended by signal n (130 SIGINT, 143 SIGTERM, 129 SIGHUP).
 
 use std::fmt;
 use std::process::ExitCode;
@@ -47,16 +48,21 @@ pub fn one_line_chain(error: &anyhow::Error) -> String {
 
 /// Prints the error chain on one line to standard error and chooses the exit status.
 pub fn report(result: anyhow::Result<()>) -> ExitCode {
+    // A command that did its work but could not print it failed all the same.
+    let result = result.and_then(|()| match crate::stdout::failure() {
+        Some(failure) => Err(anyhow::anyhow!(failure)),
+        None => Ok(()),
+    });
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
             let message = one_line_chain(&error);
-            eprintln!("evigrid: {message}");
+            crate::errln!("evigrid: {message}");
             if error
                 .chain()
                 .any(|cause| cause.is::<crate::interrupt::Interrupted>())
             {
-                ExitCode::from(crate::interrupt::INTERRUPTED_EXIT)
+                ExitCode::from(crate::interrupt::interrupted_exit())
             } else if error.chain().any(|cause| cause.is::<BadInput>()) {
                 ExitCode::from(2)
             } else {

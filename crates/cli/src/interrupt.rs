@@ -1,40 +1,170 @@
-//! Ctrl-C and SIGTERM as a request to stop: long commands check [`Interrupt::requested`] between
-//! frames, stop, and still write what they have (the summary marked incomplete). A second signal
-//! ends the process at once, for a run that does not stop quickly enough.
+//! SIGINT, SIGTERM and SIGHUP, handled alike.
+//!
+//! - **A command that stops between frames** (`run`, `odometry`) calls [`Interrupt::install`]
+//!   and checks [`Interrupt::flag`] between frames: the first signal makes it stop and
+//!   still write what it has (the summary or pose file marked incomplete).
+//! - **A command that cannot stop midway** (`demo`, `eval`, `tune`, `bench`: their libraries run
+//!   a drive to its end) calls [`Interrupt::install_ending`]: the first signal ends it as a second
+//!   signal ends the others.
+//! - **Ending at once**: the temporary files of the output folders registered with
+//!   [`remove_temporaries_on_exit`] are removed, the folders' markers say the run was
+//!   interrupted, and the process exits 128 + the signal (130 SIGINT, 143 SIGTERM, 129 SIGHUP).
+//!   A record being written ([`output::WholeLines`]) is finished first, so no file ends in a torn
+//!   record.
+//!
+//! The signals are received by a thread of their own (`signal_hook`'s iterator), not in a
+//! signal handler, so removing files and taking a lock are allowed.
 
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 
-use signal_hook::consts::{SIGINT, SIGTERM};
+use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 
-/// The exit status after an interruption (128 + SIGINT), as shells report it.
-pub const INTERRUPTED_EXIT: u8 = 130;
+/// The signals a long command handles, all alike.
+const HANDLED: [i32; 3] = [SIGINT, SIGTERM, SIGHUP];
 
-/// Set once SIGINT or SIGTERM arrives.
+/// The first signal received (0: none).
+static RECEIVED: AtomicI32 = AtomicI32::new(0);
+
+/// Raised with [`RECEIVED`]: the stop flag the libraries poll between frames.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+/// Output folders whose temporary files are removed when the process ends on a signal.
+static FOLDERS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// The exit status after `signal`, as shells report it: 128 + its number.
+pub fn exit_status(signal: i32) -> u8 {
+    u8::try_from(128 + signal).unwrap_or(255)
+}
+
+/// The exit status of a command that stopped on the signal received (130, SIGINT, if none was).
+pub fn interrupted_exit() -> u8 {
+    match RECEIVED.load(Ordering::Relaxed) {
+        0 => exit_status(SIGINT),
+        signal => exit_status(signal),
+    }
+}
+
+/// The signal's name, for messages.
+fn name(signal: i32) -> &'static str {
+    match signal {
+        SIGINT => "SIGINT",
+        SIGTERM => "SIGTERM",
+        SIGHUP => "SIGHUP",
+        _ => "a signal",
+    }
+}
+
+/// A handle on the stop request of the handled signals.
 #[derive(Clone, Debug)]
-pub struct Interrupt(Arc<AtomicBool>);
+pub struct Interrupt(());
 
 impl Interrupt {
-    /// Installs the handlers. If they cannot be installed, the signals keep their default
+    /// The first signal asks the command to stop ([`Interrupt::flag`]); a second ends the
+    /// process at once. If the handlers cannot be installed, the signals keep their default
     /// action (the process ends), which loses the summary but nothing else.
     pub fn install() -> Self {
-        let flag = Arc::new(AtomicBool::new(false));
-        for signal in [SIGINT, SIGTERM] {
-            // Registered first, so that it sees the flag as the previous signal left it: the
-            // second signal exits.
-            let _ = signal_hook::flag::register_conditional_shutdown(
-                signal,
-                i32::from(INTERRUPTED_EXIT),
-                Arc::clone(&flag),
-            );
-            let _ = signal_hook::flag::register(signal, Arc::clone(&flag));
-        }
-        Self(flag)
+        listen(false);
+        Self(())
     }
 
-    /// The flag a signal raises, for a library that polls it between frames.
-    pub fn flag(&self) -> &AtomicBool {
-        &self.0
+    /// The first signal ends the process at once (temporary files removed, folders marked):
+    /// for commands that have no point to stop at.
+    pub fn install_ending() {
+        listen(true);
+    }
+
+    /// The flag the first signal raises, for a library that polls it between frames.
+    pub fn flag(&self) -> &'static AtomicBool {
+        &STOP
+    }
+}
+
+/// Starts the thread that receives the signals.
+fn listen(end_on_first: bool) {
+    let Ok(mut signals) = signal_hook::iterator::Signals::new(HANDLED) else {
+        return;
+    };
+    let started = std::thread::Builder::new()
+        .name("signals".into())
+        .spawn(move || {
+            for signal in signals.forever() {
+                let first = RECEIVED
+                    .compare_exchange(0, signal, Ordering::SeqCst, Ordering::SeqCst)
+                    .is_ok();
+                STOP.store(true, Ordering::SeqCst);
+                if !first || end_on_first {
+                    end_now(signal);
+                }
+            }
+        });
+    // Without the thread the signals would be caught and never acted on: give them back their
+    // default action.
+    if started.is_err() {
+        for signal in HANDLED {
+            let _ = signal_hook::low_level::emulate_default_handler(signal);
+        }
+    }
+}
+
+/// Ends the process on `signal`: waits for the record being written, removes the registered
+/// folders' temporary files, marks the folders interrupted, exits 128 + `signal`.
+fn end_now(signal: i32) -> ! {
+    // Waits for the record being written; none is started after it.
+    output::stop_records();
+    // Then no thread (the demo's encoder) creates a temporary after they are removed.
+    output::stop_temporaries();
+    let folders = FOLDERS.lock().map(|f| f.clone()).unwrap_or_default();
+    let suffix = format!(".tmp-{}", std::process::id());
+    for folder in &folders {
+        remove_temporaries(folder, &suffix, 0);
+        mark_interrupted(folder, signal);
+    }
+    let _ = std::io::stderr().lock().write_all(
+        format!(
+            "evigrid: interrupted by {}: stopped at once, outputs incomplete\n",
+            name(signal)
+        )
+        .as_bytes(),
+    );
+    signal_hook::low_level::exit(i32::from(exit_status(signal)))
+}
+
+/// Registers an output folder: when the process ends on a signal, the temporary files this
+/// process left in it are removed and its marker says the run was interrupted.
+pub fn remove_temporaries_on_exit(folder: &Path) {
+    if let Ok(mut folders) = FOLDERS.lock() {
+        folders.push(folder.to_path_buf());
+    }
+}
+
+/// Removes the files under `dir` whose names end with `suffix` (this process's temporaries),
+/// not following links, at most 8 folders deep.
+fn remove_temporaries(dir: &Path, suffix: &str, depth: usize) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let Ok(kind) = entry.file_type() else {
+            continue;
+        };
+        if kind.is_dir() && depth < 8 {
+            remove_temporaries(&entry.path(), suffix, depth + 1);
+        } else if kind.is_file() && entry.file_name().to_string_lossy().ends_with(suffix) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
+/// Adds `interrupted: SIGNAL` to an output folder's marker, if it has one.
+fn mark_interrupted(folder: &Path, signal: i32) {
+    let marker = folder.join(crate::out_dir::MARKER);
+    if marker.is_file()
+        && let Ok(mut file) = std::fs::OpenOptions::new().append(true).open(&marker)
+    {
+        let _ = writeln!(file, "interrupted: {}", name(signal));
     }
 }
 
@@ -44,8 +174,44 @@ pub struct Interrupted;
 
 impl std::fmt::Display for Interrupted {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("interrupted by SIGINT or SIGTERM")
+        write!(
+            f,
+            "interrupted by {}",
+            name(match RECEIVED.load(Ordering::Relaxed) {
+                0 => SIGINT,
+                signal => signal,
+            })
+        )
     }
 }
 
 impl std::error::Error for Interrupted {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exit_statuses_are_128_plus_the_signal() {
+        assert_eq!(exit_status(SIGINT), 130);
+        assert_eq!(exit_status(SIGTERM), 143);
+        assert_eq!(exit_status(SIGHUP), 129);
+    }
+
+    #[test]
+    fn only_this_process_temporaries_are_removed() -> std::io::Result<()> {
+        let tmp = tempfile::tempdir()?;
+        let suffix = format!(".tmp-{}", std::process::id());
+        std::fs::create_dir(tmp.path().join("frames"))?;
+        let ours = tmp.path().join(format!("frames/.a.png{suffix}"));
+        let other = tmp.path().join(".b.png.tmp-1");
+        let kept = tmp.path().join("summary.json");
+        for file in [&ours, &other, &kept] {
+            std::fs::write(file, "x")?;
+        }
+        remove_temporaries(tmp.path(), &suffix, 0);
+        assert!(!ours.exists());
+        assert!(other.exists() && kept.exists());
+        Ok(())
+    }
+}

@@ -10,6 +10,7 @@ mod input;
 mod interrupt;
 mod out_dir;
 mod progress;
+mod stdout;
 
 use clap::{Parser, Subcommand};
 
@@ -80,7 +81,20 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
-    let cli = Cli::parse();
+    // Not `Cli::parse()`: it exits without a word when `--help` cannot be written (`>/dev/full`).
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error) => {
+            let printed = error.print();
+            return match printed {
+                Err(e) if !error.use_stderr() && e.kind() != std::io::ErrorKind::BrokenPipe => {
+                    errln!("evigrid: standard output: {e}");
+                    std::process::ExitCode::from(1)
+                }
+                _ => std::process::ExitCode::from(u8::try_from(error.exit_code()).unwrap_or(2)),
+            };
+        }
+    };
     init_logging(cli.verbose, cli.quiet);
     let result = match cli.command {
         Command::Mass(cmd) => commands::mass::run(cmd),

@@ -24,7 +24,9 @@
 
 use crate::calib::read_velo_from_imu;
 use crate::error::ReadError;
-use crate::oxts::{OxtsPacket, ProjectionError, read_oxts_packet, world_from_imu};
+use crate::oxts::{
+    OxtsPacket, ProjectionError, check_packet_jumps, read_oxts_packet, world_from_imu,
+};
 use crate::poses::{PoseTrack, TrackError};
 use crate::timestamp::read_timestamps;
 use nalgebra::Isometry3;
@@ -320,6 +322,7 @@ impl KittiRawDrive {
             .iter()
             .map(|p| read_oxts_packet(p))
             .collect::<Result<Vec<_>, _>>()?;
+        check_packet_jumps(&oxts_paths, &oxts_times, &oxts)?;
         Ok(Self {
             drive_dir,
             scan_paths,

@@ -22,7 +22,7 @@
 //! map, [`KittiMercator`] is the devkit's own projection.
 
 use crate::error::ReadError;
-use crate::text::{data_lines, file_error, line_error, numbers_on_line, read_text};
+use crate::text::{data_lines, file_error, line_error, numbers_on_line, read_text, show};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use std::path::Path;
 
@@ -82,6 +82,7 @@ pub fn parse_oxts_line(path: &Path, line: usize, text: &str) -> Result<OxtsPacke
          wx wy wz wf wl wu pos_accuracy vel_accuracy navstat numsats posmode velmode orimode",
     )?;
     check_lat_lon(v[0], v[1]).map_err(|m| line_error(path, line, m))?;
+    check_plausible(v[2], [v[3], v[4], v[5]]).map_err(|m| line_error(path, line, m))?;
     Ok(OxtsPacket {
         lat_deg: v[0],
         lon_deg: v[1],
@@ -97,6 +98,79 @@ pub fn parse_oxts_line(path: &Path, line: usize, text: &str) -> Result<OxtsPacke
         pos_accuracy_m: v[23],
         vel_accuracy_mps: v[24],
     })
+}
+
+/// Lowest altitude of a packet, metres: below any land surface (the Dead Sea shore is at -430 m).
+pub const MIN_ALTITUDE_M: f64 = -1_000.0;
+
+/// Highest altitude of a packet, metres: above any road (the highest are near 5,800 m).
+pub const MAX_ALTITUDE_M: f64 = 10_000.0;
+
+/// Largest roll, pitch or yaw of a packet, radians: the devkit gives them within ±π; a full
+/// turn either way allows an unwrapped heading near ±π.
+pub const MAX_ANGLE_RAD: f64 = 2.0 * std::f64::consts::PI;
+
+/// Fastest a vehicle is taken to move between two packets, m/s (360 km/h).
+pub const MAX_SPEED_MPS: f64 = 100.0;
+
+/// What a GPS fix may jump between two packets beyond [`MAX_SPEED_MPS`], metres.
+pub const FIX_JUMP_SLACK_M: f64 = 10.0;
+
+/// Checks a packet's altitude and angles against physical bounds ([`MIN_ALTITUDE_M`],
+/// [`MAX_ALTITUDE_M`], [`MAX_ANGLE_RAD`]).
+fn check_plausible(alt_m: f64, angles: [f64; 3]) -> Result<(), String> {
+    if !(MIN_ALTITUDE_M..=MAX_ALTITUDE_M).contains(&alt_m) {
+        return Err(format!(
+            "altitude {} m outside [{MIN_ALTITUDE_M}, {MAX_ALTITUDE_M}] m",
+            show(alt_m)
+        ));
+    }
+    for (name, angle) in ["roll", "pitch", "yaw"].into_iter().zip(angles) {
+        if angle.abs() > MAX_ANGLE_RAD {
+            return Err(format!(
+                "{name} {} rad outside [-2π, 2π] (the devkit gives ±π)",
+                show(angle)
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Checks that consecutive packets do not jump further than a vehicle moves
+/// ([`MAX_SPEED_MPS`] over the time between them, plus [`FIX_JUMP_SLACK_M`]); the distance is
+/// measured on a sphere of the WGS84 equatorial radius, enough for a bound.
+///
+/// # Errors
+///
+/// [`ReadError::Line`] naming the later packet's file.
+pub fn check_packet_jumps(
+    paths: &[std::path::PathBuf],
+    times_s: &[f64],
+    packets: &[OxtsPacket],
+) -> Result<(), ReadError> {
+    const EARTH_RADIUS_M: f64 = 6_378_137.0;
+    for k in 1..packets.len().min(times_s.len()).min(paths.len()) {
+        let (a, b) = (&packets[k - 1], &packets[k]);
+        let (lat_a, lat_b) = (a.lat_deg.to_radians(), b.lat_deg.to_radians());
+        let dlon = (b.lon_deg - a.lon_deg).to_radians();
+        // Haversine.
+        let h = ((lat_b - lat_a) / 2.0).sin().powi(2)
+            + lat_a.cos() * lat_b.cos() * (dlon / 2.0).sin().powi(2);
+        let distance_m = 2.0 * EARTH_RADIUS_M * h.sqrt().min(1.0).asin();
+        let dt_s = (times_s[k] - times_s[k - 1]).abs();
+        let allowed_m = MAX_SPEED_MPS * dt_s + FIX_JUMP_SLACK_M;
+        if distance_m > allowed_m {
+            return Err(line_error(
+                &paths[k],
+                1,
+                format!(
+                    "the position jumps {distance_m:.0} m from the previous packet in {dt_s} s (at most \
+                     {allowed_m:.0} m at {MAX_SPEED_MPS} m/s)"
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Checks a geodetic position's range, saying which value is out and what the range is.
@@ -269,6 +343,7 @@ mod tests {
     use super::*;
     use nalgebra::{Point3, Vector3};
     use std::f64::consts::FRAC_PI_2;
+    use std::path::PathBuf;
 
     /// The first packet of KITTI raw 2011_09_26_drive_0013, frame 80.
     const PACKET: &str = "49.013935274642 8.4374643465654 114.69784545898 -0.004931 0.004834 \
@@ -333,6 +408,64 @@ mod tests {
         assert!(err.contains("no OXTS packet"), "{err}");
         std::fs::write(&path, format!("{PACKET}\n")).unwrap();
         assert_eq!(read_oxts_packet(&path).unwrap().alt_m, 114.69784545898);
+    }
+
+    #[test]
+    fn absurd_altitudes_and_angles_are_refused_with_file_and_line() {
+        // Issue 31: 1e308 was accepted for the angles and the altitude.
+        let fields: Vec<&str> = PACKET.split_whitespace().collect();
+        for (k, value, expected) in [
+            (2, "1e308", "altitude 1e308 m outside [-1000, 10000] m"),
+            (2, "-1500", "altitude -1500 m outside"),
+            (3, "1e308", "roll 1e308 rad outside [-2π, 2π]"),
+            (4, "-7", "pitch -7 rad outside"),
+            (5, "1e308", "yaw 1e308 rad outside"),
+        ] {
+            let mut changed = fields.clone();
+            changed[k] = value;
+            let err = parse_oxts_line(Path::new("o.txt"), 4, &changed.join(" "))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.starts_with("o.txt:4: ") && err.contains(expected),
+                "{err}"
+            );
+        }
+        let mut yaw = fields.clone();
+        yaw[5] = "-3.1";
+        assert!(parse_oxts_line(Path::new("o.txt"), 1, &yaw.join(" ")).is_ok());
+    }
+
+    #[test]
+    fn a_jump_faster_than_a_vehicle_between_packets_is_refused() {
+        let a = parse_oxts_line(Path::new("a.txt"), 1, PACKET).unwrap();
+        let paths = [PathBuf::from("0.txt"), PathBuf::from("1.txt")];
+        // 0.0001° of latitude is 11.1 m: within 100 m/s × 0.1 s + 10 m = 20 m.
+        let near = OxtsPacket {
+            lat_deg: a.lat_deg + 1e-4,
+            ..a
+        };
+        check_packet_jumps(&paths, &[0.0, 0.1], &[a, near]).unwrap();
+        // 0.0002° is 22.3 m: over 20 m.
+        let far = OxtsPacket {
+            lat_deg: a.lat_deg + 2e-4,
+            ..a
+        };
+        let err = check_packet_jumps(&paths, &[0.0, 0.1], &[a, far])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("1.txt:1: the position jumps 22 m") && err.contains("at most 20 m"),
+            "{err}"
+        );
+        // Issue 31's 98° latitude jump (from 49° N to 49° S across the equator and beyond).
+        let flipped = OxtsPacket {
+            lat_deg: a.lat_deg - 98.0,
+            ..a
+        };
+        assert!(check_packet_jumps(&paths, &[0.0, 0.1], &[a, flipped]).is_err());
+        // A longer gap allows a longer way.
+        check_packet_jumps(&paths, &[0.0, 1.0], &[a, far]).unwrap();
     }
 
     #[test]

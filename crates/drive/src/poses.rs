@@ -18,7 +18,7 @@
 use crate::calib::{isometry_from_3x4, rows_3x4};
 use crate::error::ReadError;
 use crate::oxts::{ProjectionError, check_lat_lon, world_from_geodetic};
-use crate::text::{data_lines, file_error, line_error, numbers_on_line, read_text};
+use crate::text::{data_lines, file_error, line_error, numbers_on_line, read_text, show};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -262,6 +262,82 @@ fn track_from(
     })
 }
 
+/// Largest coordinate of a position in a pose file, metres (10,000 km): beyond the Earth's
+/// radius from any local origin, and above any Earth-centred coordinate.
+pub const MAX_POSITION_M: f64 = 1e7;
+
+/// Fastest the sensor is taken to move between two poses of a file, m/s (360 km/h).
+pub const MAX_POSE_SPEED_MPS: f64 = 100.0;
+
+/// What a pose may jump between two lines beyond [`MAX_POSE_SPEED_MPS`], metres (a
+/// re-localisation, a loop closure's correction).
+pub const POSE_JUMP_SLACK_M: f64 = 10.0;
+
+/// Largest roll or pitch in a pose file or a mounting, radians: a full turn either way.
+pub const MAX_TILT_RAD: f64 = 2.0 * std::f64::consts::PI;
+
+/// Largest yaw in a pose file, radians: 100 turns either way, for a heading written unwrapped.
+pub const MAX_YAW_RAD: f64 = 200.0 * std::f64::consts::PI;
+
+/// Largest offset of a sensor from the vehicle's origin in a mounting, metres.
+pub const MAX_MOUNTING_OFFSET_M: f64 = 50.0;
+
+/// Checks a pose's position against [`MAX_POSITION_M`] and its jump from the previous pose
+/// (`previous`: its time and position) against [`MAX_POSE_SPEED_MPS`] and
+/// [`POSE_JUMP_SLACK_M`]; then makes it the previous pose.
+fn check_position(
+    path: &Path,
+    line: usize,
+    time: f64,
+    position: Vector3<f64>,
+    previous: &mut Option<(f64, Vector3<f64>)>,
+) -> Result<(), ReadError> {
+    if let Some(far) = position.iter().find(|v| v.abs() > MAX_POSITION_M) {
+        return Err(line_error(
+            path,
+            line,
+            format!(
+                "position coordinate {} m is beyond ±{MAX_POSITION_M:e} m",
+                show(*far)
+            ),
+        ));
+    }
+    if let Some((t0, p0)) = *previous {
+        let jump_m = (position - p0).norm();
+        let dt_s = (time - t0).abs();
+        let allowed_m = MAX_POSE_SPEED_MPS * dt_s + POSE_JUMP_SLACK_M;
+        if jump_m > allowed_m {
+            return Err(line_error(
+                path,
+                line,
+                format!(
+                    "the position jumps {jump_m:.1} m from the previous pose in {dt_s} s (at \
+                     most {allowed_m:.1} m at {MAX_POSE_SPEED_MPS} m/s)"
+                ),
+            ));
+        }
+    }
+    *previous = Some((time, position));
+    Ok(())
+}
+
+/// Checks roll and pitch against [`MAX_TILT_RAD`] and yaw against [`MAX_YAW_RAD`].
+fn check_angles(roll: f64, pitch: f64, yaw: f64) -> Result<(), String> {
+    for (name, angle, max) in [
+        ("roll", roll, MAX_TILT_RAD),
+        ("pitch", pitch, MAX_TILT_RAD),
+        ("yaw", yaw, MAX_YAW_RAD),
+    ] {
+        if angle.abs() > max {
+            return Err(format!(
+                "{name} {} rad is beyond ±{max:.2} rad",
+                show(angle)
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Checks that `time` on `line` increases on the previous data line's time.
 fn check_increasing(
     path: &Path,
@@ -300,7 +376,7 @@ const QUATERNION_NORM_TOLERANCE: f64 = 1e-2;
 pub fn read_tum(path: &Path) -> Result<PoseTrack, ReadError> {
     let text = read_text(path)?;
     let (mut times, mut poses) = (Vec::new(), Vec::new());
-    let mut previous = None;
+    let (mut previous, mut last) = (None, None);
     for (line, data) in data_lines(&text) {
         let [t, x, y, z, qx, qy, qz, qw] =
             numbers_on_line::<8>(path, line, data, "TUM: t x y z qx qy qz qw")?;
@@ -316,6 +392,7 @@ pub fn read_tum(path: &Path) -> Result<PoseTrack, ReadError> {
             ));
         }
         check_increasing(path, line, t, &mut previous)?;
+        check_position(path, line, t, Vector3::new(x, y, z), &mut last)?;
         times.push(t);
         poses.push(Isometry3::from_parts(
             Translation3::new(x, y, z),
@@ -359,6 +436,13 @@ pub fn read_kitti_times(path: &Path) -> Result<Vec<f64>, ReadError> {
     let mut previous = None;
     for (line, data) in data_lines(&text) {
         let [t] = numbers_on_line::<1>(path, line, data, "one time in seconds")?;
+        if t < 0.0 {
+            return Err(line_error(
+                path,
+                line,
+                format!("time {t} s is negative; scan times count from the drive's start"),
+            ));
+        }
         check_increasing(path, line, t, &mut previous)?;
         times.push(t);
     }
@@ -388,6 +472,13 @@ pub fn read_scan_times(path: &Path) -> Result<Vec<f64>, ReadError> {
     let times = crate::timestamp::read_timestamps(path)?;
     if times.is_empty() {
         return Err(file_error(path, "no times"));
+    }
+    if let Some(first) = times.iter().position(|&t| t < 0.0) {
+        return Err(line_error(
+            path,
+            first + 1,
+            "a time before 1970 (the Unix epoch); scan times are never negative",
+        ));
     }
     if let Some(i) = times.windows(2).position(|w| w[1] <= w[0]) {
         return Err(ReadError::NotIncreasing {
@@ -429,7 +520,23 @@ pub fn read_kitti_odometry_cam0(path: &Path) -> Result<Vec<Isometry3<f64>>, Read
             data,
             "KITTI odometry: a 3x4 row-major world_from_cam0 matrix",
         )?;
-        poses.push(isometry_from_3x4(&v).map_err(|m| line_error(path, line, m))?);
+        let pose = isometry_from_3x4(&v).map_err(|m| line_error(path, line, m))?;
+        if let Some(far) = pose
+            .translation
+            .vector
+            .iter()
+            .find(|v| v.abs() > MAX_POSITION_M)
+        {
+            return Err(line_error(
+                path,
+                line,
+                format!(
+                    "position coordinate {} m is beyond ±{MAX_POSITION_M:e} m",
+                    show(*far)
+                ),
+            ));
+        }
+        poses.push(pose);
     }
     Ok(poses)
 }
@@ -583,7 +690,7 @@ pub fn read_evigrid(path: &Path) -> Result<EvigridPoses, ReadError> {
     let text = read_text(path)?;
     let mut wgs84 = false;
     let mut seen_data = false;
-    let mut previous = None;
+    let (mut previous, mut last) = (None, None);
     let (mut times, mut local, mut geodetic) = (Vec::new(), Vec::new(), Vec::new());
     for (i, raw) in text.lines().enumerate() {
         let line = i + 1;
@@ -622,6 +729,7 @@ pub fn read_evigrid(path: &Path) -> Result<EvigridPoses, ReadError> {
         };
         let [t, a, b, z, roll, pitch, yaw] = numbers_on_line::<7>(path, line, data, what)?;
         check_increasing(path, line, t, &mut previous)?;
+        check_angles(roll, pitch, yaw).map_err(|m| line_error(path, line, m))?;
         if wgs84 {
             check_lat_lon(a, b).map_err(|m| {
                 line_error(
@@ -630,6 +738,18 @@ pub fn read_evigrid(path: &Path) -> Result<EvigridPoses, ReadError> {
                     format!("{m} (columns after `# frame: wgs84`: t lat lon alt roll pitch yaw)"),
                 )
             })?;
+            if !(crate::oxts::MIN_ALTITUDE_M..=crate::oxts::MAX_ALTITUDE_M).contains(&z) {
+                return Err(line_error(
+                    path,
+                    line,
+                    format!(
+                        "altitude {} m outside [{}, {}] m",
+                        show(z),
+                        crate::oxts::MIN_ALTITUDE_M,
+                        crate::oxts::MAX_ALTITUDE_M
+                    ),
+                ));
+            }
             geodetic.push(GeodeticPose {
                 line,
                 time_s: t,
@@ -641,6 +761,7 @@ pub fn read_evigrid(path: &Path) -> Result<EvigridPoses, ReadError> {
                 yaw,
             });
         } else {
+            check_position(path, line, t, Vector3::new(a, b, z), &mut last)?;
             times.push(t);
             local.push(Isometry3::from_parts(
                 Translation3::new(a, b, z),
@@ -841,6 +962,15 @@ impl FromStr for Mounting {
         if count != 6 {
             return Err(fail(format!("{count} values, expected 6")));
         }
+        let offset_m = Vector3::new(v[0], v[1], v[2]).norm();
+        if offset_m > MAX_MOUNTING_OFFSET_M {
+            return Err(fail(format!(
+                "the sensor is {} m from the vehicle's origin, beyond \
+                 {MAX_MOUNTING_OFFSET_M} m",
+                show(offset_m)
+            )));
+        }
+        check_angles(v[3], v[4], v[5]).map_err(fail)?;
         Ok(Mounting {
             vehicle_from_sensor: Isometry3::from_parts(
                 Translation3::from(Vector3::new(v[0], v[1], v[2])),

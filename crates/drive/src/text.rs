@@ -107,6 +107,16 @@ pub(crate) fn line_error(path: &Path, line: usize, message: impl Into<String>) -
     }
 }
 
+/// A number for a message: as written for ordinary magnitudes, in exponent form for huge or tiny
+/// ones (`1e308`, not 309 digits).
+pub(crate) fn show(value: f64) -> String {
+    if value == 0.0 || !value.is_finite() || (1e-4..1e9).contains(&value.abs()) {
+        format!("{value}")
+    } else {
+        format!("{value:e}")
+    }
+}
+
 /// A [`ReadError::File`].
 pub(crate) fn file_error(path: &Path, message: impl Into<String>) -> ReadError {
     ReadError::File {

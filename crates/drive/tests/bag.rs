@@ -495,3 +495,35 @@ fn clouds_that_change_frame_are_refused_at_open() {
     assert!(matches!(err, BagError::Message { index: 1, .. }), "{err:?}");
     assert!(err.to_string().contains("`velodyme` differs"), "{err}");
 }
+
+#[test]
+fn odometry_whose_stamps_run_backwards_is_refused() {
+    // Issue 31: a recording whose odometry clock went back was sorted into a drive, exit 0.
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = std::fs::read(fixture()).unwrap();
+    let odom: Vec<Vec<u8>> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(Result::unwrap)
+        .filter(|m| m.channel.topic == "/odom")
+        .map(|m| m.data.to_vec())
+        .collect();
+    let path = rewrite(dir.path(), None, |topic, k, _| match (topic, k) {
+        ("/odom", 5) => Some(odom[6].clone()),
+        ("/odom", 6) => Some(odom[5].clone()),
+        _ => None,
+    });
+    let err = BagDrive::open(
+        &path,
+        &BagOptions {
+            cloud_topic: None,
+            pose_source: PoseSource::Odometry { topic: None },
+        },
+    )
+    .err()
+    .map(|e| e.to_string())
+    .unwrap_or_default();
+    assert!(
+        err.contains("/odom: header stamps run backwards: message 7"),
+        "{err}"
+    );
+}

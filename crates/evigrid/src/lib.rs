@@ -75,8 +75,8 @@ pub use pipeline::{
 // Parameters (SPEC §7), one type per `[section]`.
 pub use params::{
     AccumulatorParams, ClassRates, DecisionParams, DiscountMode, FusionParams, GridParams,
-    GroundModel, LocalisationParams, MEMORY_BUDGET_BYTES, MapParams, MotionParams, Params,
-    ParamsError, PoseRefinement, ResidualPolicy, SensorParams, SetRate, UnobservedCells,
+    GroundModel, LocalisationParams, MEMORY_BUDGET_BYTES, MIN_CELL_SIZE_M, MapParams, MotionParams,
+    Params, ParamsError, PoseRefinement, ResidualPolicy, SensorParams, SetRate, UnobservedCells,
     WINDOW_BYTES_PER_CELL, WindowParams, check_window_size,
 };
 // The labels, the decision and the pignistic probability (SPEC §6).

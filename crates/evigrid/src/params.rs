@@ -75,6 +75,23 @@ pub enum ParamsError {
         /// Its value.
         high: f64,
     },
+    /// A parameter that is not a number (`nan` in TOML), wherever it sits, even in a section
+    /// whose value another key overrides.
+    #[error("{name} = nan: every parameter must be a number")]
+    NotANumber {
+        /// TOML path of the parameter, e.g. `sensor.ground.min_range_m`.
+        name: String,
+    },
+    /// A length below its physical lower bound.
+    #[error("{name} = {value:e} is below {min}, the smallest value that makes sense")]
+    BelowMinimum {
+        /// TOML path of the parameter, e.g. `grid.cell_size_m`.
+        name: &'static str,
+        /// The rejected value.
+        value: f64,
+        /// The lower bound.
+        min: f64,
+    },
     /// A window without cells.
     #[error("window.width_cells = {width}, window.height_cells = {height}: the window is empty")]
     EmptyWindow {
@@ -158,7 +175,17 @@ impl Params {
     /// [`ParamsError::EmptyWindow`]; [`ParamsError::Misordered`] for a count above its largest
     /// value or an empty obstacle height band.
     pub fn validate(&self) -> Result<(), ParamsError> {
+        if let Some(name) = first_nan(self) {
+            return Err(ParamsError::NotANumber { name });
+        }
         positive("grid.cell_size_m", self.grid.cell_size_m)?;
+        if self.grid.cell_size_m < MIN_CELL_SIZE_M {
+            return Err(ParamsError::BelowMinimum {
+                name: "grid.cell_size_m",
+                value: self.grid.cell_size_m,
+                min: MIN_CELL_SIZE_M,
+            });
+        }
         if self.window.width_cells == 0 || self.window.height_cells == 0 {
             return Err(ParamsError::EmptyWindow {
                 width: self.window.width_cells,
@@ -268,6 +295,34 @@ pub fn check_window_size(width: usize, height: usize) -> Result<(), ParamsError>
             })
         }
     }
+}
+
+/// The smallest cell, metres: 1 cm, below a lidar's own range noise (a few centimetres), so a
+/// smaller cell only splits one return's evidence between cells it cannot tell apart.
+pub const MIN_CELL_SIZE_M: f64 = 0.01;
+
+/// The TOML path of the first parameter that is NaN, if any, found in the serialised form so
+/// that no key is forgotten (nor one that a later key overrides, as `[sensor.ground]`'s ranges).
+fn first_nan(params: &Params) -> Option<String> {
+    fn walk(value: &toml::Value, path: &str) -> Option<String> {
+        match value {
+            toml::Value::Float(x) if x.is_nan() => Some(path.to_string()),
+            toml::Value::Table(table) => table.iter().find_map(|(key, value)| {
+                let path = if path.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{path}.{key}")
+                };
+                walk(value, &path)
+            }),
+            toml::Value::Array(items) => items
+                .iter()
+                .enumerate()
+                .find_map(|(k, item)| walk(item, &format!("{path}[{k}]"))),
+            _ => None,
+        }
+    }
+    walk(&toml::Value::try_from(params).ok()?, "")
 }
 
 fn unit(name: &'static str, value: f64) -> Result<(), ParamsError> {
@@ -863,6 +918,42 @@ impl MotionParams {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_nan_anywhere_is_refused_and_named() -> Result<(), Box<dyn std::error::Error>> {
+        // `[sensor.ground]`'s ranges are overridden by `[sensor]`'s: issue 31 found them
+        // accepting NaN, and the summary then holding `null`.
+        for key in [
+            "min_range_m",
+            "max_range_m",
+            "min_obstacle_height_m",
+            "max_obstacle_height_m",
+        ] {
+            let text = format!("[sensor.ground]\n{key} = nan\n");
+            let params: Params = toml::from_str(&text)?;
+            let error = params.validate().err().map(|e| e.to_string());
+            assert_eq!(
+                error.as_deref(),
+                Some(
+                    format!("sensor.ground.{key} = nan: every parameter must be a number").as_str()
+                )
+            );
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn a_cell_below_a_centimetre_is_refused() -> Result<(), Box<dyn std::error::Error>> {
+        let params: Params = toml::from_str("[grid]\ncell_size_m = 1e-300\n")?;
+        let error = params.validate().err().map(|e| e.to_string());
+        assert_eq!(
+            error.as_deref(),
+            Some("grid.cell_size_m = 1e-300 is below 0.01, the smallest value that makes sense")
+        );
+        let params: Params = toml::from_str("[grid]\ncell_size_m = 0.01\n")?;
+        params.validate()?;
+        Ok(())
+    }
 
     #[test]
     fn motion_defaults_are_valid_and_ranges_are_checked() {

@@ -19,7 +19,7 @@ use fuzz::{Budget, Scratch, TARGETS, run, target, targets};
 #[command(name = "evigrid-fuzz", version, about)]
 struct Args {
     /// Targets to run (default: all). One of: pcd, kitti-bin, map, poses, kitti-raw-text,
-    /// params, scenario.
+    /// odometry, bag, params, scenario.
     #[arg(long = "target")]
     targets: Vec<String>,
     /// Wall-time budget per target, seconds.

@@ -102,6 +102,23 @@ pub const TARGETS: &[Target] = &[
         max_len: 1 << 12,
     },
     Target {
+        name: "odometry",
+        about: "lidar odometry on a mutated scan (PCD or KITTI .bin) registered three times, its \
+                poses written as TUM and KITTI odometry and read back",
+        run: run_odometry,
+        seeds: seeds_odometry,
+        shared_seeds: &[],
+        max_len: 1 << 14,
+    },
+    Target {
+        name: "bag",
+        about: "ROS 2 MCAP recordings: opened (topics, tf, odometry, fixes), three scans decoded",
+        run: run_bag,
+        seeds: seeds_bag,
+        shared_seeds: &[],
+        max_len: 1 << 18,
+    },
+    Target {
         name: "params",
         about: "parameter files (TOML in SPEC §7's layout), validated, a pipeline built from them",
         run: run_params,
@@ -296,6 +313,100 @@ fn seeds_poses() -> Vec<Vec<u8>> {
             .to_vec(),
         b"0.0\n0.103\n0.207\n".to_vec(),
     ]
+}
+
+// ---------------------------------------------------------------------------------------------
+// Odometry and its outputs
+
+fn run_odometry(bytes: &[u8], scratch: &Scratch) -> bool {
+    let scan = drive::scan::parse_pcd(bytes, Path::new("fuzz.pcd"))
+        .or_else(|_| drive::scan::parse_kitti_bin(bytes, Path::new("fuzz.bin")));
+    let Ok(scan) = scan else {
+        return false;
+    };
+    let Ok(mut odometry) = odometry::Odometry::new(odometry::OdometryParams::default()) else {
+        return false;
+    };
+    // The same scan three times, the third shifted as if the sensor moved.
+    let shifted: Vec<[f32; 3]> = scan
+        .points_in_sensor
+        .iter()
+        .map(|p| [p[0] - 0.5, p[1], p[2]])
+        .collect();
+    let mut times = Vec::new();
+    for (k, points) in [&scan.points_in_sensor, &scan.points_in_sensor, &shifted]
+        .into_iter()
+        .enumerate()
+    {
+        let time = 0.1 * k as f64;
+        if odometry.register(points, time).is_ok() {
+            times.push(time);
+        }
+    }
+    let Ok(track) = poses::PoseTrack::new(times, odometry.poses().to_vec()) else {
+        return false;
+    };
+    // What `evigrid odometry` writes must read back (or be refused with a reason, never panic).
+    let mut tum = Vec::new();
+    let mut kitti = Vec::new();
+    let written = poses::write_tum(&mut tum, &track).is_ok()
+        && poses::write_kitti_odometry(&mut kitti, &track, &nalgebra::Isometry3::identity())
+            .is_ok();
+    if let Some(path) = scratch.file("odometry.tum", &tum) {
+        let _ = poses::read_tum(&path);
+    }
+    if let Some(path) = scratch.file("odometry.kitti", &kitti) {
+        let _ = poses::read_kitti_odometry(&path, track.times(), &nalgebra::Isometry3::identity());
+    }
+    written
+}
+
+fn seeds_odometry() -> Vec<Vec<u8>> {
+    // A corner of two walls and a floor, 0.5 m apart: enough points to start the map.
+    let mut text = String::new();
+    let mut n = 0;
+    for i in 0..12 {
+        for j in 0..6 {
+            let (a, b) = (f64::from(i) * 0.5, f64::from(j) * 0.5);
+            for [x, y, z] in [
+                [8.0, a - 3.0, b - 1.5],
+                [a + 2.0, 6.0, b - 1.5],
+                [a + 2.0, b - 1.0, -1.7],
+            ] {
+                text.push_str(&format!("{x} {y} {z}\n"));
+                n += 1;
+            }
+        }
+    }
+    let pcd = format!(
+        "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n\
+         WIDTH {n}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA ascii\n{text}"
+    );
+    vec![pcd.into_bytes()]
+}
+
+// ---------------------------------------------------------------------------------------------
+// ROS 2 recordings
+
+fn run_bag(bytes: &[u8], scratch: &Scratch) -> bool {
+    let Some(path) = scratch.file("fuzz.mcap", bytes) else {
+        return false;
+    };
+    let Ok(bag) = drive::BagDrive::open(&path, &drive::BagOptions::default()) else {
+        return false;
+    };
+    let projection = |lat: f64, lon: f64| (lon * 1000.0, lat * 1000.0);
+    let _ = bag.poses().track(&projection);
+    if let Ok(scans) = bag.scans() {
+        for scan in scans.take(3) {
+            let _ = scan;
+        }
+    }
+    true
+}
+
+fn seeds_bag() -> Vec<Vec<u8>> {
+    vec![include_bytes!("../../drive/tests/fixtures/kitti-0013.mcap").to_vec()]
 }
 
 // ---------------------------------------------------------------------------------------------

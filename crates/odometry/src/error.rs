@@ -28,6 +28,25 @@ pub enum OdometryError {
         /// The time given.
         time_s: f64,
     },
+    /// The scan that would start the map has too few usable points (finite, within the range
+    /// limits) to register anything against: with no map yet, its pose would only be the
+    /// identity, not a measurement.
+    #[error(
+        "{usable} usable points (finite, within {min_range_m}-{max_range_m} m) of {input}; the \
+         first scan needs at least {min}"
+    )]
+    TooFewPoints {
+        /// Finite points within the range limits.
+        usable: usize,
+        /// Points given.
+        input: usize,
+        /// The least accepted, [`crate::MIN_USABLE_POINTS`].
+        min: usize,
+        /// The odometry's `min_range_m`.
+        min_range_m: f64,
+        /// The odometry's `max_range_m`.
+        max_range_m: f64,
+    },
     /// Per-point times were given, but not one per point.
     #[error("{times} point times for {points} points")]
     PointTimesLength {

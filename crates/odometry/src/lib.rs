@@ -41,7 +41,7 @@ mod voxel;
 
 pub use error::OdometryError;
 pub use params::OdometryParams;
-pub use pipeline::{FrameOutcome, FrameReport, Odometry};
+pub use pipeline::{FrameOutcome, FrameReport, MIN_USABLE_POINTS, Odometry};
 pub use refine::{
     KeptReason, PLANAR_SPREAD_M, PoseRefiner, RefineOutcome, RefineParams, Refinement,
 };

@@ -111,11 +111,14 @@ impl Odometry {
     /// `world_from_sensor`. With `azimuth_times` set, the sweep's motion is corrected from
     /// times estimated from each point's azimuth.
     ///
-    /// A scan with too few usable points gets the constant-velocity prediction (see
-    /// [`FrameReport::outcome`]) rather than an error, so poses stay one per scan.
+    /// Once the map has begun, a scan with too few usable points gets the constant-velocity
+    /// prediction (see [`FrameReport::outcome`]) rather than an error, so poses stay one per
+    /// scan.
     ///
     /// # Errors
-    /// The time is not finite or not after the previous scan's; the state is then unchanged.
+    /// The time is not finite or not after the previous scan's; or no map has begun and the
+    /// scan has fewer than [`MIN_USABLE_POINTS`] usable points ([`OdometryError::TooFewPoints`]:
+    /// its pose would be the identity, not a measurement). The state is then unchanged.
     pub fn register(
         &mut self,
         points: &[[f32; 3]],
@@ -201,6 +204,15 @@ impl Odometry {
             }
         }
 
+        if kept.len() < MIN_USABLE_POINTS && self.map.is_empty() {
+            return Err(OdometryError::TooFewPoints {
+                usable: kept.len(),
+                input: points.len(),
+                min: MIN_USABLE_POINTS,
+                min_range_m: params.min_range_m,
+                max_range_m: params.max_range_m,
+            });
+        }
         let frame_indices = downsample(&kept, 0.5 * params.voxel_size_m);
         let mut frame: Vec<Vector3<f64>> = frame_indices.iter().map(|&i| kept[i]).collect();
         report.frame_points = frame.len();
@@ -287,6 +299,10 @@ impl Odometry {
     }
 }
 
+/// Fewest usable points (finite, within range) of the scan that starts the map: as many as ICP
+/// needs correspondences, so that the next scan can be registered against it.
+pub const MIN_USABLE_POINTS: usize = crate::icp::MIN_CORRESPONDENCES;
+
 impl Odometry {
     /// Replaces the map, built from the first scans as measured, by the same scans deskewed with
     /// the first velocity: otherwise their distortion would stay in the map until driven past.
@@ -349,9 +365,30 @@ mod tests {
     }
 
     #[test]
+    fn a_first_scan_of_too_few_points_is_refused_and_nine_are_too_few() {
+        let mut odometry = Odometry::new(OdometryParams::default()).expect("defaults are valid");
+        let nine: Vec<[f32; 3]> = (0..9).map(|k| [10.0, k as f32, 0.0]).collect();
+        let refused = odometry.register(&nine, 0.0);
+        assert!(
+            matches!(
+                refused,
+                Err(OdometryError::TooFewPoints {
+                    usable: 9,
+                    input: 9,
+                    min: 10,
+                    ..
+                })
+            ),
+            "{refused:?}"
+        );
+        assert!(odometry.poses().is_empty());
+    }
+
+    #[test]
     fn bad_times_are_refused_without_changing_state() {
         let mut odometry = Odometry::new(OdometryParams::default()).expect("defaults are valid");
-        let scan = [[10.0_f32, 0.0, 0.0]];
+        // As many points as the first scan needs (`MIN_USABLE_POINTS`).
+        let scan: Vec<[f32; 3]> = (0..10).map(|k| [10.0, k as f32, 0.0]).collect();
         assert!(matches!(
             odometry.register(&scan, f64::NAN),
             Err(OdometryError::NonFiniteTime { .. })
@@ -364,7 +401,7 @@ mod tests {
         assert!(matches!(
             odometry.register_with_point_times(&scan, &[], 2.0),
             Err(OdometryError::PointTimesLength {
-                points: 1,
+                points: 10,
                 times: 0
             })
         ));

@@ -47,12 +47,25 @@ pub struct AtomicFile {
     committed: bool,
 }
 
+/// Whether this process still creates temporaries; held while one is created.
+static CREATING: std::sync::Mutex<bool> = std::sync::Mutex::new(true);
+
+/// Stops this process from creating temporary files, for good. On return no temporary is being
+/// created, so a process about to end on a signal can remove the ones it finds knowing that no
+/// thread adds another; [`AtomicFile::create`] (and so every writer here) fails from then on.
+pub fn stop_temporaries() {
+    let mut creating = CREATING
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    *creating = false;
+}
+
 impl AtomicFile {
     /// Creates the temporary for `path` and returns it open for writing.
     ///
     /// # Errors
     ///
-    /// [`OutputError::Io`] naming `path`, as [`write_atomic`].
+    /// [`OutputError::Io`] naming `path`, as [`write_atomic`]; also after [`stop_temporaries`].
     pub fn create(path: &Path) -> Result<(Self, fs::File), OutputError> {
         let io = |source| OutputError::Io {
             path: path.to_path_buf(),
@@ -64,7 +77,18 @@ impl AtomicFile {
                 "not a file name",
             ))
         })?;
-        let file = fs::File::create(&temporary).map_err(io)?;
+        let file = {
+            let creating = CREATING
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            if !*creating {
+                return Err(io(std::io::Error::new(
+                    std::io::ErrorKind::Interrupted,
+                    "the process is ending on a signal",
+                )));
+            }
+            fs::File::create(&temporary).map_err(io)?
+        };
         Ok((
             Self {
                 temporary,

@@ -60,8 +60,9 @@ pub mod sink;
 mod testing;
 pub mod text;
 mod views;
+mod whole_lines;
 
-pub use atomic::{AtomicFile, write_atomic, write_png, write_png_fast};
+pub use atomic::{AtomicFile, stop_temporaries, write_atomic, write_png, write_png_fast};
 pub use error::{MAX_FIGURE_PIXELS, OutputError};
 pub use export::{
     CLASS_CODES, ClassesExport, FoxgloveTime, GridExports, GridField, GridInfo, MassesDescription,
@@ -75,3 +76,4 @@ pub use figure::{
 pub use frame::{STRIP_LABELS, STRIP_PX, frame_picture, strip_entries, strip_name};
 pub use indexed::{write_decision_png, write_indexed_png};
 pub use views::{COLOURS, ClassColours, decision_image, pignistic_image, trace_image};
+pub use whole_lines::{WholeLines, stop_records};

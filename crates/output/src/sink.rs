@@ -17,7 +17,8 @@ use evigrid::{GisGrid, Isometry3, Label, MovingTrace, PerceptionGrid, SensorGrid
 use crate::mcap::{GnssFix, McapFrame, McapGrid, McapRecorder};
 use crate::run_figures::{Views, final_figures};
 use crate::{
-    COLOURS, GridExports, OutputError, frame_picture, write_grid_exports, write_indexed_png,
+    COLOURS, GridExports, OutputError, WholeLines, frame_picture, write_grid_exports,
+    write_indexed_png,
     write_png,
 };
 
@@ -199,7 +200,8 @@ impl FrameSink for DecisionFrames {
 /// interrupted run keeps them, and memory does not grow with the drive).
 pub struct FramesLog {
     path: PathBuf,
-    file: std::io::BufWriter<std::fs::File>,
+    /// Whole records only: a process that ends at once on a signal never leaves a torn line.
+    file: WholeLines<std::fs::File>,
 }
 
 impl FramesLog {
@@ -215,7 +217,7 @@ impl FramesLog {
         })?;
         Ok(Self {
             path: path.to_path_buf(),
-            file: std::io::BufWriter::new(file),
+            file: WholeLines::new(file),
         })
     }
 

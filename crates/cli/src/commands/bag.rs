@@ -127,30 +127,33 @@ fn info(args: &InfoArgs) -> Result<()> {
         drive: drive_summary(&args.file),
     };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&info)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&info)?);
         return Ok(());
     }
-    println!("file: {}", args.file.display());
+    crate::outln!("file: {}", args.file.display());
     match (info.start_s, info.end_s) {
-        (Some(a), Some(b)) => println!(
+        (Some(a), Some(b)) => crate::outln!(
             "messages: {} over {:.3} s (log time {a:.3} .. {b:.3} s)",
             info.messages,
             b - a
         ),
-        _ => println!("messages: 0"),
+        _ => crate::outln!("messages: 0"),
     }
     let width = topics.iter().map(|t| t.topic.len()).max().unwrap_or(0);
     let schema_width = topics.iter().map(|t| t.schema.len()).max().unwrap_or(0);
     for t in &info.topics {
-        println!(
+        crate::outln!(
             "  {:<width$}  {:<schema_width$}  {:>7}  {}",
-            t.topic, t.schema, t.count, t.encoding
+            t.topic,
+            t.schema,
+            t.count,
+            t.encoding
         );
     }
     let d = &info.drive;
     match (&d.error, &d.cloud_topic) {
-        (Some(e), _) => println!("drive (default choices): cannot read: {e}"),
-        (None, Some(topic)) => println!(
+        (Some(e), _) => crate::outln!("drive (default choices): cannot read: {e}"),
+        (None, Some(topic)) => crate::outln!(
             "drive (default choices): {} scans on {topic} (frame {}), poses: {} ({} samples)",
             d.scans,
             d.cloud_frame.as_deref().unwrap_or(""),

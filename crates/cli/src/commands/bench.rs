@@ -49,6 +49,8 @@ const ODOMETRY_SCANS: usize = 20;
 
 /// Runs `evigrid bench`.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
+    // Writes no file: a signal ends it at once, with the exit status of the signal.
+    crate::interrupt::Interrupt::install_ending();
     if args.sizes.is_empty() || args.sizes.contains(&0) {
         return Err(BadInput::new(
             "--sizes: every size must be a positive number of cells",
@@ -129,12 +131,12 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         other => anyhow::Error::new(other),
     })?;
     if args.json {
-        println!(
+        crate::outln!(
             "{}",
             serde_json::to_string_pretty(&report).context("serialising the report")?
         );
     } else {
-        print!("{}", table(&report));
+        crate::out!("{}", table(&report));
     }
     Ok(())
 }

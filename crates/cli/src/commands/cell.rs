@@ -135,7 +135,7 @@ pub fn run(args: CellArgs) -> anyhow::Result<()> {
     } else {
         table(&records)
     };
-    print!("{out}");
+    crate::out!("{out}");
     Ok(())
 }
 

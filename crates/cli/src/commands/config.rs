@@ -40,6 +40,6 @@ pub fn run(args: ConfigArgs) -> Result<()> {
     } else {
         params.to_toml_string()?
     };
-    print!("{text}");
+    crate::out!("{text}");
     Ok(())
 }

@@ -101,6 +101,10 @@ Map data © OpenStreetMap contributors, ODbL.";
 
 /// Runs `evigrid demo`.
 pub fn run(args: DemoArgs) -> Result<()> {
+    // Installed first, so that no signal finds the default action. There is no point to stop
+    // at inside the evaluation: a signal ends the command at once, its temporary files removed
+    // and the output folder marked interrupted.
+    crate::interrupt::Interrupt::install_ending();
     let started = Instant::now();
     if args.frames == Some(0) {
         return Err(BadInput::new("--frames 0: at least one frame is needed"));
@@ -198,15 +202,15 @@ pub fn run(args: DemoArgs) -> Result<()> {
     out_dir.finish()?;
 
     if args.json {
-        println!("{json}");
+        crate::outln!("{json}");
     } else {
-        print!("{}", super::eval::table(&report));
-        println!(
+        crate::out!("{}", super::eval::table(&report));
+        crate::outln!(
             "{frames} frames ({:.1} s of driving) in {seconds:.1} s; outputs in {}",
             frames as f64 * report.frame_period_s,
             args.out.display()
         );
-        println!("{OSM_ATTRIBUTION}");
+        crate::outln!("{OSM_ATTRIBUTION}");
     }
     Ok(())
 }

@@ -81,6 +81,10 @@ pub(crate) const MAX_SEEDS: u64 = 1000;
 
 /// Runs `evigrid eval`.
 pub fn run(args: EvalArgs) -> Result<()> {
+    // Installed first, so that no signal finds the default action. There is no point to stop
+    // at inside the evaluation: a signal ends the command at once, its temporary files removed
+    // and the output folder marked interrupted.
+    crate::interrupt::Interrupt::install_ending();
     let started = Instant::now();
     // Every input is checked before any work, and nothing is written before the evaluation has
     // succeeded: a bad input leaves no output behind.
@@ -93,9 +97,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
             args.seeds
         )));
     }
-    let variants = match &args.variants {
+    let (variants, warnings) = match &args.variants {
         Some(names) => parse_variants(names)?,
-        None => Variant::ALL.to_vec(),
+        None => (Variant::ALL.to_vec(), Vec::new()),
     };
     let params = read_params(args.config.as_deref())?;
     let scenario_text = crate::input::read_text(&args.scenario)?;
@@ -129,6 +133,10 @@ pub fn run(args: EvalArgs) -> Result<()> {
     )
     .map_err(|e| evaluation_error(e, &args))?;
     bar.finish_and_clear();
+    // Only now that every input has proved good: a bad input gets its one line and no other.
+    for warning in warnings {
+        crate::errln!("{warning}");
+    }
 
     let json = write_outputs(
         &args.out,
@@ -140,10 +148,10 @@ pub fn run(args: EvalArgs) -> Result<()> {
     out_dir.finish()?;
 
     if args.json {
-        println!("{json}");
+        crate::outln!("{json}");
     } else {
-        print!("{}", table(&report));
-        println!(
+        crate::out!("{}", table(&report));
+        crate::outln!(
             "{} seed(s) × {} frames in {:.1} s; outputs in {}",
             report.seeds.len(),
             report.frames_per_seed,
@@ -184,9 +192,9 @@ pub(crate) fn write_outputs(
     Ok(json)
 }
 
-/// Variant names → variants, in the order given; an unknown or repeated name is bad input. A
-/// deprecated name is accepted with a warning on standard error, once the whole list is good.
-fn parse_variants(names: &[String]) -> Result<Vec<Variant>> {
+/// Variant names → variants, in the order given, and a warning for each deprecated name (to be
+/// printed once every input has been checked); an unknown or repeated name is bad input.
+fn parse_variants(names: &[String]) -> Result<(Vec<Variant>, Vec<String>)> {
     let mut variants = Vec::with_capacity(names.len());
     let mut deprecated = Vec::new();
     for name in names {
@@ -206,13 +214,16 @@ fn parse_variants(names: &[String]) -> Result<Vec<Variant>> {
     if variants.is_empty() {
         return Err(BadInput::new("--variants: no variant given"));
     }
-    for (name, v) in deprecated {
-        eprintln!(
-            "warning: --variants: `{name}` is deprecated, use `{}`",
-            v.name()
-        );
-    }
-    Ok(variants)
+    let warnings = deprecated
+        .into_iter()
+        .map(|(name, v)| {
+            format!(
+                "warning: --variants: `{name}` is deprecated, use `{}`",
+                v.name()
+            )
+        })
+        .collect();
+    Ok((variants, warnings))
 }
 
 /// Errors of the evaluation itself, blamed on the input they come from.

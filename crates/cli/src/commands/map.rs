@@ -56,6 +56,9 @@ pub struct RenderArgs {
     /// The PNG to write (written atomically: a temporary file, then renamed).
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing file at --out (never an input).
+    #[arg(long)]
+    force: bool,
     /// Print the summary (image size, cells per context, scale bar) as JSON on standard output.
     #[arg(long)]
     json: bool,
@@ -72,6 +75,9 @@ pub struct CropArgs {
     /// The GeoJSON file to write (written atomically).
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing file at --out (never an input).
+    #[arg(long)]
+    force: bool,
     /// Print the counts of what was kept as JSON on standard output.
     #[arg(long)]
     json: bool,
@@ -120,7 +126,7 @@ fn info(args: &InfoArgs) -> Result<()> {
             #[serde(flatten)]
             stats: &'a geodata::MapStats,
         }
-        println!(
+        crate::outln!(
             "{}",
             serde_json::to_string_pretty(&Info {
                 file: &args.file,
@@ -131,16 +137,19 @@ fn info(args: &InfoArgs) -> Result<()> {
     }
     let (g, m) = (&stats.extent_wgs84, &stats.extent_m);
     let s = &stats.source;
-    println!(
+    crate::outln!(
         "file: {} ({})",
         args.file.display(),
         format_name(stats.format)
     );
-    println!(
+    crate::outln!(
         "extent: lat {:.7} .. {:.7}, lon {:.7} .. {:.7}",
-        g.min_lat, g.max_lat, g.min_lon, g.max_lon
+        g.min_lat,
+        g.max_lat,
+        g.min_lon,
+        g.max_lon
     );
-    println!(
+    crate::outln!(
         "extent: {:.1} m east-west x {:.1} m north-south (x {:.1} .. {:.1} m, y {:.1} .. {:.1} m from origin {:.7}, {:.7})",
         m.width_m,
         m.height_m,
@@ -151,7 +160,7 @@ fn info(args: &InfoArgs) -> Result<()> {
         stats.origin.0,
         stats.origin.1
     );
-    println!(
+    crate::outln!(
         "buildings: {} (from {} of {} building ways and {} of {} building relations)",
         stats.buildings,
         s.building_ways_used,
@@ -159,21 +168,24 @@ fn info(args: &InfoArgs) -> Result<()> {
         s.building_relations_used,
         s.building_relations
     );
-    println!(
+    crate::outln!(
         "road pieces: {} (from {} centrelines of {} vehicle-road ways; {} highway ways in all)",
-        stats.road_pieces, stats.road_centrelines, s.vehicle_road_ways, s.highway_ways
+        stats.road_pieces,
+        stats.road_centrelines,
+        s.vehicle_road_ways,
+        s.highway_ways
     );
-    println!("road areas: {}", stats.road_areas);
-    println!("parking areas: {}", stats.parking_areas);
+    crate::outln!("road areas: {}", stats.road_areas);
+    crate::outln!("parking areas: {}", stats.parking_areas);
     if stats.skipped.is_empty() {
-        println!("skipped: none");
+        crate::outln!("skipped: none");
     } else {
         let skipped: Vec<String> = stats
             .skipped
             .iter()
             .map(|(reason, count)| format!("{} {count}", reason.name()))
             .collect();
-        println!("skipped: {}", skipped.join(", "));
+        crate::outln!("skipped: {}", skipped.join(", "));
     }
     Ok(())
 }
@@ -207,7 +219,7 @@ fn render(args: &RenderArgs) -> Result<()> {
             args.cell
         )));
     }
-    crate::out_dir::check_out_file(&args.out, &[&args.file])?;
+    crate::out_dir::check_out_file(&args.out, &[&args.file], args.force)?;
     let loaded = load(&args.file, None)?;
     let extent = loaded.map.extent;
     let window = geodata::CellWindow::covering(&extent, args.cell);
@@ -246,7 +258,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let mut png = std::io::Cursor::new(Vec::new());
     image.write_to(&mut png, image::ImageFormat::Png)?;
     write_out(&args.out, png.get_ref())?;
-    eprintln!(
+    crate::errln!(
         "wrote {} ({width} x {height} px, {} m per pixel); scale bar bottom left: {} m in alternating {} m blocks; colours: building red-brown, road grey, other beige, unknown black",
         args.out.display(),
         args.cell,
@@ -266,7 +278,7 @@ fn render(args: &RenderArgs) -> Result<()> {
             scale_bar_m: bar.length_m,
             scale_bar_block_m: bar.block_m,
         };
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&summary)?);
     }
     Ok(())
 }
@@ -373,7 +385,7 @@ fn crop(args: &CropArgs) -> Result<()> {
             args.bbox
         )));
     }
-    crate::out_dir::check_out_file(&args.out, &[&args.file])?;
+    crate::out_dir::check_out_file(&args.out, &[&args.file], args.force)?;
     let loaded = load(&args.file, None)?;
     let bbox = geodata::GeoBox {
         min_lat: lat1.min(lat2),
@@ -391,7 +403,7 @@ fn crop(args: &CropArgs) -> Result<()> {
         road_areas: cropped.road_areas.len(),
         parking_areas: cropped.parking.len(),
     };
-    eprintln!(
+    crate::errln!(
         "wrote {}: {} buildings, {} road centrelines, {} road areas, {} parking areas",
         args.out.display(),
         summary.buildings,
@@ -400,7 +412,7 @@ fn crop(args: &CropArgs) -> Result<()> {
         summary.parking_areas
     );
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&summary)?);
     }
     Ok(())
 }

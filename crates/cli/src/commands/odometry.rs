@@ -8,6 +8,7 @@
 //! poses read back through `evigrid run --poses` (TUM or KITTI odometry).
 
 use std::fs;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -36,9 +37,13 @@ pub enum OdometryFormat {
 pub struct OdometryArgs {
     /// Folder of scans (PCD or KITTI `.bin`, in file-name order) or a KITTI raw drive folder.
     scans: PathBuf,
-    /// Pose file to write.
+    /// Pose file to write. An existing file (and, with `--format kitti`, an existing times
+    /// file) is replaced only with `--force`; an input never is.
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing file at --out and its times file (never an input).
+    #[arg(long)]
+    force: bool,
     /// Pose file format. `kitti` also writes the times, one per line, to `<out without
     /// extension>.times.txt`.
     #[arg(long, value_enum, default_value = "tum")]
@@ -88,12 +93,14 @@ struct OdometrySummary {
     against_oxts: Option<AgainstOxts>,
 }
 
-/// How the odometry's registrations went, counted as the pass goes, with its bar.
+/// How the odometry's registrations went, counted as the pass goes, with its bar; and the
+/// poses so far, kept for a pass that a signal ends.
 struct Counts {
     bar: indicatif::ProgressBar,
     registered: usize,
     not_converged: usize,
     predicted: usize,
+    so_far: Vec<Isometry3<f64>>,
 }
 
 impl session::Progress for Counts {
@@ -104,6 +111,10 @@ impl session::Progress for Counts {
             Some(FrameOutcome::Predicted) => self.predicted += 1,
             _ => {}
         }
+        // Called once per registered scan (the pass is strict): the last pose is this scan's.
+        if let Some(pose) = odometry.poses().last() {
+            self.so_far.push(*pose);
+        }
         self.bar.inc(1);
     }
 }
@@ -113,8 +124,21 @@ pub fn run(args: OdometryArgs) -> Result<()> {
     if args.max_frames == Some(0) {
         return Err(BadInput::new("--max-frames must be at least 1"));
     }
-    crate::out_dir::check_out_file(&args.out, &[&args.scans])?;
+    let inputs: Vec<&Path> = [Some(&args.scans), args.times.as_ref(), args.calib.as_ref()]
+        .into_iter()
+        .flatten()
+        .map(PathBuf::as_path)
+        .collect();
+    crate::out_dir::check_out_file(&args.out, &inputs, args.force)?;
+    let times_path =
+        (args.format == OdometryFormat::Kitti).then(|| args.out.with_extension("times.txt"));
+    if let Some(path) = &times_path {
+        crate::out_dir::check_side_file(path, &inputs, args.force)?;
+    }
     let interrupt = crate::interrupt::Interrupt::install();
+    if let Some(folder) = args.out.parent() {
+        crate::interrupt::remove_temporaries_on_exit(folder);
+    }
     let mut scans = Drive::open(&DriveSpec::ScanFolder {
         dir: args.scans.clone(),
         times: args.times.clone(),
@@ -134,6 +158,7 @@ pub fn run(args: OdometryArgs) -> Result<()> {
         registered: 0,
         not_converged: 0,
         predicted: 0,
+        so_far: Vec::new(),
     };
     let started = Instant::now();
     // Strict: the pose file has one line per scan, so a scan cannot be left out.
@@ -143,12 +168,21 @@ pub fn run(args: OdometryArgs) -> Result<()> {
         interrupt.flag(),
         &mut Vec::new(),
         &mut counts,
-    )
-    .map_err(|e| match e {
-        session::SessionError::Interrupted => crate::interrupt::Interrupted.into(),
-        e => BadInput::new(e.to_string()),
-    })?;
+    );
     counts.bar.finish_and_clear();
+    let poses = match poses {
+        Err(session::SessionError::Interrupted) => {
+            let scan_times = scans.times_or_period();
+            return write_interrupted(
+                &args,
+                &counts.so_far,
+                &scan_times,
+                &cam0_from_velo,
+                times_path.as_deref(),
+            );
+        }
+        poses => poses.map_err(|e| BadInput::new(e.to_string()))?,
+    };
     let Counts {
         registered,
         not_converged,
@@ -159,16 +193,8 @@ pub fn run(args: OdometryArgs) -> Result<()> {
     let track = PoseTrack::new(poses.times.clone(), poses.world_from_sensor.clone())
         .map_err(|e| BadInput::new(format!("{}: scan times: {e}", args.scans.display())))?;
 
-    let mut times_file = None;
-    write_file(&args.out, |out| match args.format {
-        OdometryFormat::Tum => write_tum(out, &track),
-        OdometryFormat::Kitti => write_kitti_odometry(out, &track, &cam0_from_velo),
-    })?;
-    if args.format == OdometryFormat::Kitti {
-        let path = args.out.with_extension("times.txt");
-        write_file(&path, |out| write_kitti_times(out, track.times()))?;
-        times_file = Some(path.display().to_string());
-    }
+    write_poses(&args, &track, &cam0_from_velo, times_path.as_deref(), None)?;
+    let times_file = times_path.as_ref().map(|p| p.display().to_string());
 
     let against_oxts = against_oxts(&scans, &poses.world_from_sensor)?;
 
@@ -196,9 +222,9 @@ pub fn run(args: OdometryArgs) -> Result<()> {
         against_oxts,
     };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
-        println!(
+        crate::outln!(
             "{} scans registered in {:.1} s ({:.0} ms per scan, scans read included): {} \
              converged, {} not converged, {} predicted; path {:.1} m; poses in {}{}",
             summary.frames,
@@ -215,7 +241,7 @@ pub fn run(args: OdometryArgs) -> Result<()> {
                 .map_or_else(String::new, |t| format!(", times in {t}"))
         );
         if let Some(e) = &summary.against_oxts {
-            println!(
+            crate::outln!(
                 "against the drive's OXTS poses, {} segments of 10, 20 and 30 m: translation \
                  {:.2} %, rotation {:.4} °/m, heading {:.4} °/m",
                 e.segments,
@@ -228,20 +254,72 @@ pub fn run(args: OdometryArgs) -> Result<()> {
     Ok(())
 }
 
-/// Writes a file through `write`, creating its folder; an error names the file.
+/// Writes the pose file (and the KITTI times file), each whole or not at all; `incomplete`,
+/// if given, is a comment on the first line of a TUM file saying why it ends early.
+///
+/// # Errors
+/// A write error naming the file (exit 1: the folder was checked writable before the work).
+fn write_poses(
+    args: &OdometryArgs,
+    track: &PoseTrack,
+    cam0_from_velo: &Isometry3<f64>,
+    times_path: Option<&Path>,
+    incomplete: Option<&str>,
+) -> Result<()> {
+    write_file(&args.out, |out| match args.format {
+        OdometryFormat::Tum => {
+            if let Some(why) = incomplete {
+                writeln!(out, "# incomplete: {why}")?;
+            }
+            write_tum(out, track)
+        }
+        OdometryFormat::Kitti => write_kitti_odometry(out, track, cam0_from_velo),
+    })?;
+    if let Some(path) = times_path {
+        write_file(path, |out| write_kitti_times(out, track.times()))?;
+    }
+    Ok(())
+}
+
+/// Writes the poses registered before a signal stopped the pass (`so_far`, one per scan from
+/// the first, at `scan_times`), marked incomplete; returns the error to end the command with
+/// (interrupted, saying what was written).
+fn write_interrupted(
+    args: &OdometryArgs,
+    so_far: &[Isometry3<f64>],
+    scan_times: &[f64],
+    cam0_from_velo: &Isometry3<f64>,
+    times_path: Option<&Path>,
+) -> Result<()> {
+    let interrupted = anyhow::Error::new(crate::interrupt::Interrupted);
+    let of = scan_times.len();
+    let registered = so_far.len().min(of);
+    if registered == 0 {
+        return Err(interrupted.context("no scan registered, no pose file written"));
+    }
+    let why = format!("{interrupted} after {registered} of {of} scans");
+    let track = PoseTrack::new(
+        scan_times[..registered].to_vec(),
+        so_far[..registered].to_vec(),
+    )
+    .map_err(|e| BadInput::new(format!("{}: scan times: {e}", args.scans.display())))?;
+    write_poses(args, &track, cam0_from_velo, times_path, Some(&why))?;
+    Err(interrupted.context(format!(
+        "poses of {registered} of {of} scans written to {} (incomplete)",
+        args.out.display()
+    )))
+}
+
+/// Writes a file whole through `write` (a temporary beside it, renamed); an error names the file.
 fn write_file(
     path: &Path,
-    write: impl FnOnce(&mut std::io::BufWriter<fs::File>) -> std::io::Result<()>,
+    write: impl FnOnce(&mut std::io::BufWriter<&mut fs::File>) -> std::io::Result<()>,
 ) -> Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
-    let file =
-        fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    let mut out = std::io::BufWriter::new(file);
-    write(&mut out)
-        .and_then(|()| std::io::Write::flush(&mut out))
-        .with_context(|| format!("cannot write {}", path.display()))
+    // The error names the file.
+    Ok(output::write_atomic(path, |file| {
+        let mut out = std::io::BufWriter::new(file);
+        write(&mut out).and_then(|()| out.flush())
+    })?)
 }
 
 /// The odometry's relative errors against a KITTI raw drive's OXTS poses (in the frame of the

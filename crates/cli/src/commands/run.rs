@@ -105,7 +105,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     summary_written?;
     out_dir.finish()?;
     if let Some(first) = summary.skipped_scans.first() {
-        eprintln!(
+        crate::errln!(
             "evigrid: {} scan(s) skipped, the first: {} (all in skipped_scans of {})",
             summary.skipped_scans.len(),
             first.error,
@@ -113,7 +113,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         );
     }
     if args.json {
-        println!("{text}");
+        crate::outln!("{text}");
     } else {
         report::print_summary(&summary);
     }

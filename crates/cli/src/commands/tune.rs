@@ -116,6 +116,10 @@ struct Drives {
 
 /// Runs `evigrid tune`.
 pub fn run(args: TuneArgs) -> Result<()> {
+    // Installed first, so that no signal finds the default action. There is no point to stop
+    // at inside the evaluation: a signal ends the command at once, its temporary files removed
+    // and the output folder marked interrupted.
+    crate::interrupt::Interrupt::install_ending();
     let started = Instant::now();
     // Every input is checked before any work; nothing is written before the search succeeds.
     if args.seeds == 0 {
@@ -214,18 +218,18 @@ pub fn run(args: TuneArgs) -> Result<()> {
     let json = write_outputs(&args.out, &output, seconds)?;
     out_dir.finish()?;
     if args.json {
-        println!("{json}");
+        crate::outln!("{json}");
     } else {
-        println!(
+        crate::outln!(
             "# Best parameters (also in {})",
             args.out.join("tuned.toml").display()
         );
-        print!("{}", output.search.best.to_toml_string()?);
-        println!();
-        print!("{}", candidates_table(&output.search));
-        println!();
-        print!("{}", comparison_table(&output.comparison));
-        println!(
+        crate::out!("{}", output.search.best.to_toml_string()?);
+        crate::outln!();
+        crate::out!("{}", candidates_table(&output.search));
+        crate::outln!();
+        crate::out!("{}", comparison_table(&output.comparison));
+        crate::outln!(
             "{} candidates in {seconds:.1} s; outputs in {}",
             output.search.candidates.len(),
             args.out.display()

@@ -195,10 +195,18 @@ struct Gathered {
 }
 
 fn reader(path: &Path) -> Result<mcap::io::MessageReader<BufReader<File>>, BagError> {
-    let file = File::open(path).map_err(|source| BagError::Io {
+    let io = |source| BagError::Io {
         path: path.to_path_buf(),
         source,
-    })?;
+    };
+    // Checked before opening: opening a FIFO with no writer blocks forever (issue 31).
+    if !std::fs::metadata(path).map_err(io)?.is_file() {
+        return Err(io(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file",
+        )));
+    }
+    let file = File::open(path).map_err(io)?;
     let options = LinearReaderOptions::default().with_record_length_limit(MAX_RECORD_BYTES);
     Ok(mcap::io::MessageReader::new_with_options(
         BufReader::new(file),
@@ -615,6 +623,16 @@ fn odometry_track(g: &Gathered, topic: &str, cloud_frame: &str) -> Result<PoseTr
             other.child
         ));
     }
+    // In the order they were logged: a stamp earlier than the one before it is a clock that
+    // went back (a replayed or spliced recording), not something to sort away (issue 31).
+    if let Some(k) = samples.windows(2).position(|w| w[1].stamp_s < w[0].stamp_s) {
+        return Err(format!(
+            "{topic}: header stamps run backwards: message {} at {} s after {} s",
+            k + 2,
+            samples[k + 1].stamp_s,
+            samples[k].stamp_s
+        ));
+    }
     let child_from_sensor = static_to_sensor(g, child, cloud_frame)?;
     let mut sorted: Vec<(f64, Isometry3<f64>)> = samples
         .iter()
@@ -742,6 +760,23 @@ impl Iterator for BagScans {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_fifo_is_refused_without_opening_it() {
+        // Issue 31: `mkfifo f.mcap; evigrid bag info f.mcap` hung in the open.
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("f.mcap");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        if !made.is_ok_and(|s| s.success()) {
+            eprintln!("skipped: mkfifo is not available");
+            return;
+        }
+        let err = reader(&fifo)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert_eq!(err, format!("{}: not a regular file", fifo.display()));
+    }
 
     #[test]
     fn pose_sources_parse() {

@@ -209,7 +209,8 @@ fn kitti_odometry_gives_velodyne_poses_in_a_z_up_world() {
 }
 
 fn wiggly_track() -> PoseTrack {
-    let times = vec![0.0, 0.1036594, 0.2071, 1.0 / 3.0];
+    // The last pose is far (shortest round-trip of large numbers), and late enough to be reached.
+    let times = vec![0.0, 0.1036594, 0.2071, 1e5 + 1.0 / 3.0];
     let poses = vec![
         Isometry3::from_parts(
             Translation3::new(1.0, -2.0, 0.3),
@@ -506,4 +507,60 @@ fn scan_times_in_either_kitti_form() {
     assert!(err.contains("bad.txt:2"), "{err}");
     let empty = write(&dir, "empty.txt", "\n");
     assert!(read_scan_times(&empty).is_err());
+}
+
+#[test]
+fn absurd_positions_jumps_and_angles_are_refused_with_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let read_err = |name: &str, text: &str| -> String {
+        let path = write(&dir, name, text);
+        match PoseFormat::detect(&path) {
+            Ok(PoseFormat::Tum) => read_tum(&path).err().map(|e| e.to_string()),
+            _ => read_evigrid(&path).err().map(|e| e.to_string()),
+        }
+        .unwrap_or_default()
+    };
+    // Issue 31: a TUM z of 1e308 was accepted.
+    let err = read_err("z.tum", "0 0 0 0 0 0 0 1\n0.1 0 0 1e308 0 0 0 1\n");
+    assert!(
+        err.ends_with("z.tum:2: position coordinate 1e308 m is beyond ±1e7 m"),
+        "{err}"
+    );
+    // 100 m/s × 0.1 s + 10 m = 20 m allowed; 25 m is not.
+    let err = read_err("jump.tum", "0 0 0 0 0 0 0 1\n0.1 25 0 0 0 0 0 1\n");
+    assert!(
+        err.contains("jump.tum:2: the position jumps 25.0 m"),
+        "{err}"
+    );
+    assert!(read_err("walk.tum", "0 0 0 0 0 0 0 1\n0.1 19 0 0 0 0 0 1\n").is_empty());
+    let err = read_err("roll.txt", "0 0 0 0 1e308 0 0\n");
+    assert!(err.contains("roll.txt:1: roll 1e308 rad"), "{err}");
+    let err = read_err("alt.txt", "# frame: wgs84\n0 49 8 1e308 0 0 0\n");
+    assert!(err.contains("alt.txt:2: altitude 1e308 m outside"), "{err}");
+}
+
+#[test]
+fn negative_scan_times_are_refused_with_the_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write(&dir, "times.txt", "-0.2\n-0.1\n0.0\n");
+    let err = read_scan_times(&path).unwrap_err().to_string();
+    assert!(
+        err.contains("times.txt:1: time -0.2 s is negative"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_mounting_far_from_the_vehicle_or_turned_absurdly_is_refused() {
+    let err = "0,0,1e6,0,0,0".parse::<Mounting>().unwrap_err().to_string();
+    assert!(
+        err.contains("1000000 m from the vehicle's origin, beyond 50 m"),
+        "{err}"
+    );
+    let err = "0,0,1.7,0,1e308,0"
+        .parse::<Mounting>()
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("pitch 1e308 rad"), "{err}");
+    assert!("0.8,0,1.7,0,0,3.1".parse::<Mounting>().is_ok());
 }

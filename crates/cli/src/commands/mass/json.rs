@@ -7,7 +7,6 @@
 use std::io::Read;
 use std::path::Path;
 
-use anyhow::Context;
 use belief::{BeliefError, Frame, Mass, Set, SetFunction};
 use serde::Deserialize;
 
@@ -267,12 +266,8 @@ fn rounded(value: f64) -> String {
 
 /// Writes a result to standard output, with one final newline.
 pub fn print(text: &str) -> anyhow::Result<()> {
-    use std::io::Write;
-    let mut stdout = std::io::stdout().lock();
-    stdout
-        .write_all(text.trim_end().as_bytes())
-        .and_then(|()| stdout.write_all(b"\n"))
-        .context("cannot write to standard output")
+    crate::outln!("{}", text.trim_end());
+    Ok(())
 }
 
 #[cfg(test)]

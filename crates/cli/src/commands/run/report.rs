@@ -52,7 +52,7 @@ impl Progress for Bars {
             );
             if !self.json {
                 let line = frame_line(index, record);
-                bar.suspend(|| println!("{line}"));
+                bar.suspend(|| crate::outln!("{line}"));
             }
         }
         bar.inc(1);
@@ -86,7 +86,7 @@ fn percent(share: Option<f64>) -> String {
 /// The summary for people: totals, the ego-path check, the pose refinement, the spreads.
 pub fn print_summary(summary: &Summary) {
     let [unknown, f, i, u, s, m] = summary.final_classes;
-    println!(
+    crate::outln!(
         "{} frames, {:.1} ms per frame; final cells: {f} free, {i} mapped infrastructure, \
          {u} unmapped infrastructure, {s} stopped, {m} moving, {unknown} unknown; prior: {}; \
          poses: {} (matched by {}); outputs in {}",
@@ -98,7 +98,7 @@ pub fn print_summary(summary: &Summary) {
         summary.out
     );
     let e = &summary.ego_path;
-    println!(
+    crate::outln!(
         "ego path ({} m ahead, {} m either side): {} of {} observed cell-frames decided \
          occupied or moving ({}; {} occupied, {} moving ({}){})",
         e.length_m,
@@ -119,7 +119,7 @@ pub fn print_summary(summary: &Summary) {
             .unwrap_or_default()
     );
     if let Some(line) = refinement_line(summary) {
-        println!("{line}");
+        crate::outln!("{line}");
     }
     for (spread, what) in [
         (&summary.obstacle_share, "of a scan's points are obstacles"),
@@ -129,7 +129,7 @@ pub fn print_summary(summary: &Summary) {
         ),
     ] {
         if let Some(spread) = spread {
-            println!(
+            crate::outln!(
                 "median {:.1} % {what}; worst frame {} at {:.1} %, {} the median",
                 100.0 * spread.median,
                 spread.worst_frame,
