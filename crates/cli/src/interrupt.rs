@@ -31,8 +31,9 @@ static RECEIVED: AtomicI32 = AtomicI32::new(0);
 /// Raised with [`RECEIVED`]: the stop flag the libraries poll between frames.
 static STOP: AtomicBool = AtomicBool::new(false);
 
-/// Output folders whose temporary files are removed when the process ends on a signal.
-static FOLDERS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+/// Output folders whose temporary files are removed when the process ends on a signal, each
+/// with the marker (if any) that then says the run was interrupted.
+static FOLDERS: Mutex<Vec<(PathBuf, Option<PathBuf>)>> = Mutex::new(Vec::new());
 
 /// The exit status after `signal`, as shells report it: 128 + its number.
 pub fn exit_status(signal: i32) -> u8 {
@@ -118,9 +119,11 @@ fn end_now(signal: i32) -> ! {
     output::stop_temporaries();
     let folders = FOLDERS.lock().map(|f| f.clone()).unwrap_or_default();
     let suffix = format!(".tmp-{}", std::process::id());
-    for folder in &folders {
+    for (folder, marker) in &folders {
         remove_temporaries(folder, &suffix, 0);
-        mark_interrupted(folder, signal);
+        if let Some(marker) = marker {
+            mark_interrupted(marker, signal);
+        }
     }
     let _ = std::io::stderr().lock().write_all(
         format!(
@@ -133,10 +136,10 @@ fn end_now(signal: i32) -> ! {
 }
 
 /// Registers an output folder: when the process ends on a signal, the temporary files this
-/// process left in it are removed and its marker says the run was interrupted.
-pub fn remove_temporaries_on_exit(folder: &Path) {
+/// process left in it are removed and its `marker`, if given, says the run was interrupted.
+pub fn remove_temporaries_on_exit(folder: &Path, marker: Option<&Path>) {
     if let Ok(mut folders) = FOLDERS.lock() {
-        folders.push(folder.to_path_buf());
+        folders.push((folder.to_path_buf(), marker.map(Path::to_path_buf)));
     }
 }
 
@@ -158,11 +161,10 @@ fn remove_temporaries(dir: &Path, suffix: &str, depth: usize) {
     }
 }
 
-/// Adds `interrupted: SIGNAL` to an output folder's marker, if it has one.
-fn mark_interrupted(folder: &Path, signal: i32) {
-    let marker = folder.join(crate::out_dir::MARKER);
+/// Adds `interrupted: SIGNAL` to an output folder's marker, if it is there.
+fn mark_interrupted(marker: &Path, signal: i32) {
     if marker.is_file()
-        && let Ok(mut file) = std::fs::OpenOptions::new().append(true).open(&marker)
+        && let Ok(mut file) = std::fs::OpenOptions::new().append(true).open(marker)
     {
         let _ = writeln!(file, "interrupted: {}", name(signal));
     }

@@ -137,7 +137,7 @@ pub fn run(args: OdometryArgs) -> Result<()> {
     }
     let interrupt = crate::interrupt::Interrupt::install();
     if let Some(folder) = args.out.parent() {
-        crate::interrupt::remove_temporaries_on_exit(folder);
+        crate::interrupt::remove_temporaries_on_exit(folder, None);
     }
     let mut scans = Drive::open(&DriveSpec::ScanFolder {
         dir: args.scans.clone(),
