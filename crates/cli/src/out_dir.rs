@@ -21,7 +21,11 @@ fn bad(error: OutDirError) -> anyhow::Error {
 
 /// An output folder checked and ready for writing; [`OutDir::finish`] records what was written.
 #[derive(Debug)]
-pub struct OutDir(out_dir::OutDir);
+pub struct OutDir {
+    inner: out_dir::OutDir,
+    /// Set by [`OutDir::finish`]; dropped without it, the folder is marked incomplete.
+    finished: std::sync::atomic::AtomicBool,
+}
 
 impl OutDir {
     /// Checks, without creating or changing anything, that [`OutDir::prepare`] will succeed.
@@ -42,7 +46,10 @@ impl OutDir {
         // A process that ends at once on a signal removes its temporaries here and marks the
         // folder interrupted.
         crate::interrupt::remove_temporaries_on_exit(path, Some(&path.join(out_dir::MARKER)));
-        Ok(Self(prepared))
+        Ok(Self {
+            inner: prepared,
+            finished: std::sync::atomic::AtomicBool::new(false),
+        })
     }
 
     /// Records in the marker the files written since [`OutDir::prepare`].
@@ -50,7 +57,26 @@ impl OutDir {
     /// # Errors
     /// If the marker cannot be written (naming it).
     pub fn finish(&self) -> Result<()> {
-        self.0.finish().map_err(|e| BadInput::new(e.to_string()))
+        self.inner
+            .finish()
+            .map_err(|e| BadInput::new(e.to_string()))?;
+        self.finished
+            .store(true, std::sync::atomic::Ordering::Relaxed);
+        Ok(())
+    }
+}
+
+impl Drop for OutDir {
+    /// A command that ends on an error (a full disk, a bad input found late) leaves its folder
+    /// marked: `incomplete: true` in the marker, which the next run into it clears.
+    fn drop(&mut self) {
+        if self.finished.load(std::sync::atomic::Ordering::Relaxed) {
+            return;
+        }
+        let marker = self.inner.path().join(out_dir::MARKER);
+        if let Ok(mut file) = fs::OpenOptions::new().append(true).open(&marker) {
+            let _ = std::io::Write::write_all(&mut file, b"incomplete: true\n");
+        }
     }
 }
 
