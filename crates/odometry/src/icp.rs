@@ -9,7 +9,7 @@ use nalgebra::{Isometry3, Matrix3, Matrix6, Point3, Vector3, Vector6};
 use rayon::prelude::*;
 
 use crate::lie;
-use crate::voxel::VoxelMap;
+use crate::voxel::{Neighbourhood, VoxelMap};
 
 /// Points per parallel work item; also the unit of the deterministic reduction.
 const CHUNK: usize = 512;
@@ -127,12 +127,17 @@ fn geman_mcclure_weight(residual_sq: f64, scale_sq: f64) -> f64 {
     ratio * ratio
 }
 
-fn accumulate(points: &[Vector3<f64>], map: &VoxelMap, settings: &IcpSettings) -> NormalSums {
+fn accumulate(
+    points: &[Vector3<f64>],
+    around: &mut [Neighbourhood],
+    map: &VoxelMap,
+    settings: &IcpSettings,
+) -> NormalSums {
     let max_sq = settings.max_correspondence_m * settings.max_correspondence_m;
     let scale_sq = settings.kernel_scale_m * settings.kernel_scale_m;
     let mut sums = NormalSums::zero();
-    for point in points {
-        if let Some((nearest, distance_sq)) = map.nearest(point, max_sq) {
+    for (point, around) in points.iter().zip(around) {
+        if let Some((nearest, distance_sq)) = map.nearest_around(point, max_sq, around) {
             let residual = point - nearest;
             sums.add_pair(
                 point,
@@ -156,6 +161,8 @@ pub(crate) fn register(
         .iter()
         .map(|p| (initial * Point3::from(*p)).coords)
         .collect();
+    // Each point's 27 voxels, looked up again only when it changes voxel.
+    let mut around = vec![Neighbourhood::default(); moved.len()];
     let mut outcome = IcpOutcome {
         world_from_sensor: estimate,
         iterations: 0,
@@ -166,7 +173,8 @@ pub(crate) fn register(
     for iteration in 1..=settings.max_iterations {
         let partial: Vec<NormalSums> = moved
             .par_chunks(CHUNK)
-            .map(|chunk| accumulate(chunk, map, settings))
+            .zip(around.par_chunks_mut(CHUNK))
+            .map(|(chunk, around)| accumulate(chunk, around, map, settings))
             .collect();
         let mut sums = NormalSums::zero();
         for part in &partial {

@@ -132,6 +132,11 @@ const NEIGHBOURS: [[i32; 3]; 27] = {
 /// The local map: world-frame points hashed by voxel, at most `max_points` per voxel and no two
 /// closer than `voxel_size / sqrt(max_points)`, so a voxel's points spread over it instead of
 /// piling up where the first scans happened to sample it.
+///
+/// The points are held twice: per voxel (`voxels`, which `add` grows) and, for the search, in one
+/// contiguous store (`flat`, each voxel's points in their order, found by `ranges`), rebuilt after
+/// every change. A registration makes millions of lookups between two changes, and a lookup then
+/// reads the points right after a small index entry instead of following a `Vec`'s pointer.
 #[derive(Debug, Clone)]
 pub(crate) struct VoxelMap {
     voxel_size: f64,
@@ -139,6 +144,9 @@ pub(crate) struct VoxelMap {
     max_points: usize,
     min_spacing_sq: f64,
     voxels: HashMap<VoxelKey, Vec<Vector3<f64>>, BuildVoxelHasher>,
+    /// Voxel → (first index in `flat`, number of points).
+    ranges: HashMap<VoxelKey, (u32, u32), BuildVoxelHasher>,
+    flat: Vec<Vector3<f64>>,
 }
 
 impl VoxelMap {
@@ -149,6 +157,22 @@ impl VoxelMap {
             max_points,
             min_spacing_sq: voxel_size * voxel_size / max_points as f64,
             voxels: HashMap::default(),
+            ranges: HashMap::default(),
+            flat: Vec::new(),
+        }
+    }
+
+    /// Rebuilds the search store from `voxels`.
+    fn reindex(&mut self) {
+        self.flat.clear();
+        self.ranges.clear();
+        self.ranges.reserve(self.voxels.len());
+        for (key, points) in &self.voxels {
+            // A voxel holds at most `max_points` points, and the store is local: u32 suffices
+            // for any map that fits in memory.
+            let start = self.flat.len() as u32;
+            self.flat.extend_from_slice(points);
+            self.ranges.insert(*key, (start, points.len() as u32));
         }
     }
 
@@ -189,6 +213,7 @@ impl VoxelMap {
                 voxel.push(world);
             }
         }
+        self.reindex();
     }
 
     /// Forgets the voxels whose first point is farther than `radius` from `centre`: the map then
@@ -200,17 +225,42 @@ impl VoxelMap {
                 .first()
                 .is_some_and(|p| (p - centre).norm_squared() <= radius_sq)
         });
+        self.reindex();
     }
 
     /// The nearest map point to `query` within the 27 voxels around it, if closer than
     /// `sqrt(max_distance_sq)`; with its squared distance.
+    #[cfg(test)]
     pub(crate) fn nearest(
         &self,
         query: &Vector3<f64>,
         max_distance_sq: f64,
     ) -> Option<(Vector3<f64>, f64)> {
+        self.nearest_around(query, max_distance_sq, &mut Neighbourhood::default())
+    }
+
+    /// [`VoxelMap::nearest`] for a query that `around` followed before: the 27 voxels are
+    /// looked up again only when the query has left the voxel `around` was resolved for. The
+    /// same points in the same order as a fresh search, so the same answer, bit for bit.
+    pub(crate) fn nearest_around(
+        &self,
+        query: &Vector3<f64>,
+        max_distance_sq: f64,
+        around: &mut Neighbourhood,
+    ) -> Option<(Vector3<f64>, f64)> {
         let scaled = query * self.inverse_size;
         let centre = voxel_of(query, self.inverse_size);
+        if around.centre != Some(centre) {
+            for (range, offset) in around.ranges.iter_mut().zip(&NEIGHBOURS) {
+                let key = [
+                    centre[0].saturating_add(offset[0]),
+                    centre[1].saturating_add(offset[1]),
+                    centre[2].saturating_add(offset[2]),
+                ];
+                *range = self.ranges.get(&key).copied().unwrap_or((0, 0));
+            }
+            around.centre = Some(centre);
+        }
         // Position inside the voxel, in metres from its lower corner, per axis.
         let inside = [
             (scaled.x - f64::from(centre[0])) * self.voxel_size,
@@ -219,7 +269,10 @@ impl VoxelMap {
         ];
         let mut best: Option<Vector3<f64>> = None;
         let mut best_sq = max_distance_sq;
-        for offset in &NEIGHBOURS {
+        for (&(start, count), offset) in around.ranges.iter().zip(&NEIGHBOURS) {
+            if count == 0 {
+                continue;
+            }
             // Distance from the query to the neighbour voxel's box: a lower bound on any of its
             // points' distances.
             let mut bound_sq = 0.0;
@@ -234,15 +287,8 @@ impl VoxelMap {
             if bound_sq >= best_sq {
                 continue;
             }
-            let key = [
-                centre[0].saturating_add(offset[0]),
-                centre[1].saturating_add(offset[1]),
-                centre[2].saturating_add(offset[2]),
-            ];
-            let Some(points) = self.voxels.get(&key) else {
-                continue;
-            };
-            for point in points {
+            let (start, count) = (start as usize, count as usize);
+            for point in &self.flat[start..start + count] {
                 let distance_sq = (point - query).norm_squared();
                 if distance_sq < best_sq {
                     best_sq = distance_sq;
@@ -252,6 +298,16 @@ impl VoxelMap {
         }
         best.map(|p| (p, best_sq))
     }
+}
+
+/// The search store's ranges of the 27 voxels around one voxel (`NEIGHBOURS` order, empty where
+/// the map has no voxel), kept per query point across a registration's iterations: a point moves
+/// by millimetres from one iteration to the next and mostly stays in its voxel. Valid for one
+/// state of the map.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Neighbourhood {
+    centre: Option<VoxelKey>,
+    ranges: [(u32, u32); 27],
 }
 
 #[cfg(test)]
@@ -339,6 +395,37 @@ mod tests {
                 assert_eq!(found, None);
             }
         }
+    }
+
+    #[test]
+    fn a_kept_neighbourhood_finds_what_a_fresh_search_finds() {
+        let mut map = VoxelMap::new(1.0, 20);
+        let cloud: Vec<Vector3<f64>> = (0..400)
+            .map(|i| {
+                let i = f64::from(i);
+                Vector3::new((i * 0.37) % 5.0, (i * 0.61) % 4.0, (i * 0.13) % 2.0)
+            })
+            .collect();
+        map.add(&cloud, &Isometry3::identity());
+        // One query walking through several voxels in steps of 7 cm, as a registration's point
+        // moves: the kept neighbourhood must follow it from voxel to voxel.
+        let mut around = Neighbourhood::default();
+        let mut resolved = 0;
+        for step in 0..60 {
+            let t = f64::from(step) * 0.07;
+            let query = Vector3::new(0.2 + t, 0.3 + 0.5 * t, 0.9);
+            if around.centre != Some(voxel_of(&query, 1.0)) {
+                resolved += 1;
+            }
+            let kept = map.nearest_around(&query, 2.0, &mut around);
+            let fresh = map.nearest(&query, 2.0);
+            assert_eq!(kept, fresh, "step {step}");
+            assert!(fresh.is_some());
+            assert_eq!(around.centre, Some(voxel_of(&query, 1.0)));
+        }
+        // The first look-up, then one per voxel boundary crossed (x from 0.2 to 4.33 crosses 4,
+        // y from 0.3 to 2.37 crosses 2): 7 look-ups of the 27 voxels, not 60.
+        assert_eq!(resolved, 7);
     }
 
     #[test]
