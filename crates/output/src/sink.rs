@@ -18,8 +18,7 @@ use crate::mcap::{GnssFix, McapFrame, McapGrid, McapRecorder};
 use crate::run_figures::{Views, final_figures};
 use crate::{
     COLOURS, GridExports, OutputError, WholeLines, frame_picture, write_grid_exports,
-    write_indexed_png,
-    write_png,
+    write_indexed_png, write_png,
 };
 
 /// One processed frame, as the grids stand after it (borrowed: nothing is copied).
