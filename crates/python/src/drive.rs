@@ -26,8 +26,19 @@ pub struct Placed {
     /// The ego's path, metres (east, north): every pose known, one per scan.
     pub path: Arc<Vec<[f64; 2]>>,
     /// Scans left out: by the odometry pass, or unreadable when iterated.
-    skipped: Mutex<Vec<session::SkippedScan>>,
+    pub skipped: Mutex<Vec<session::SkippedScan>>,
+    /// How many of `skipped` the odometry pass left out (before the first frame).
+    pub skipped_before_frames: usize,
+    /// How a session's summary names the drive.
+    pub labels: session::DriveLabels,
     strict: bool,
+}
+
+impl Placed {
+    /// Where the poses came from.
+    pub fn pose_origin(&self) -> &drive::PoseOrigin {
+        &self.poses.origin
+    }
 }
 
 /// A drive: iterate it for its frames, in order; `len()` is their number.
@@ -100,13 +111,20 @@ pub fn open_drive(
     if let Some(error) = placement.stopped {
         return Err(session_error(py, error));
     }
+    let labels = session::DriveLabels::new(
+        &placement.drive,
+        &placement.poses.origin,
+        placement.odometry_seconds,
+    );
     Ok(Drive {
         placed: Arc::new(Placed {
             spec,
             drive: placement.drive,
             poses: placement.poses,
             path: Arc::new(placement.path),
+            skipped_before_frames: placement.skipped.len(),
             skipped: Mutex::new(placement.skipped),
+            labels,
             strict,
         }),
     })
@@ -239,7 +257,7 @@ impl Frames {
                 Some(Item::Frame(frame)) => {
                     return Ok(Some(Frame {
                         inner: *frame,
-                        path: Some(Arc::clone(&self.placed.path)),
+                        drive: Some(Arc::clone(&self.placed)),
                         points: PyOnceLock::new(),
                     }));
                 }
@@ -262,9 +280,9 @@ impl Frames {
 #[pyclass(frozen, module = "evigrid")]
 pub struct Frame {
     pub(crate) inner: drive::Frame,
-    /// The ego's path of the drive the frame came from (the session's ego-path check looks
-    /// along it).
-    pub(crate) path: Option<Arc<Vec<[f64; 2]>>>,
+    /// The drive the frame came from: its ego path (the session's ego-path check looks along
+    /// it), its labels and its skipped scans, for the session's summary.
+    pub(crate) drive: Option<Arc<Placed>>,
     points: PyOnceLock<Py<PyAny>>,
 }
 
@@ -273,7 +291,7 @@ impl Frame {
     pub fn new(inner: drive::Frame) -> Self {
         Self {
             inner,
-            path: None,
+            drive: None,
             points: PyOnceLock::new(),
         }
     }

@@ -16,7 +16,7 @@ use pyo3::sync::PyOnceLock;
 use pyo3::types::PyModule;
 
 use crate::arrays::readonly;
-use crate::drive::{Frame, lock};
+use crate::drive::{Frame, Placed, lock};
 use crate::error::{input_error, session_error, summary_dict, to_python};
 use crate::options;
 
@@ -27,8 +27,48 @@ struct State {
     steps: u64,
     /// Index the next frame made from arrays gets.
     next_index: usize,
-    /// The path of the drive whose frames are being stepped, once set.
-    path: Option<Arc<Vec<[f64; 2]>>>,
+    /// The drive whose frames are being stepped, once one is.
+    drive: Option<Arc<Placed>>,
+    /// How many of that drive's skipped scans the session has been told of.
+    drive_skipped_told: usize,
+}
+
+/// Keeps the session's summary in step with the drive whose frame comes next, as `evigrid run`
+/// makes it: on the drive's first frame, its labels, path, pose refinement (none for the lidar
+/// odometry's poses) and the scans its odometry pass left out; then each scan found unreadable
+/// while iterating, once.
+fn follow_drive(
+    state: &mut State,
+    drive: Arc<Placed>,
+) -> PyResult<Result<(), session::SessionError>> {
+    let same = state.drive.as_ref().is_some_and(|d| Arc::ptr_eq(d, &drive));
+    if !same {
+        if let Err(error) = state
+            .session
+            .begin_drive(drive.labels.clone(), drive.pose_origin())
+        {
+            return Ok(Err(error));
+        }
+        state.session.set_path(drive.path.to_vec());
+        let skipped = lock(&drive.skipped)?;
+        for scan in &skipped[..drive.skipped_before_frames] {
+            state.session.skipped_before(scan.clone());
+        }
+        state.drive_skipped_told = drive.skipped_before_frames;
+        drop(skipped);
+        state.drive = Some(drive);
+    }
+    let Some(drive) = state.drive.clone() else {
+        return Ok(Ok(()));
+    };
+    let skipped = lock(&drive.skipped)?;
+    let new: Vec<_> = skipped[state.drive_skipped_told.min(skipped.len())..].to_vec();
+    state.drive_skipped_told = skipped.len();
+    drop(skipped);
+    for scan in new {
+        state.session.skip(scan);
+    }
+    Ok(Ok(()))
 }
 
 /// The pipeline of `evigrid run`, one frame at a time.
@@ -64,7 +104,8 @@ impl Session {
                 session,
                 steps: 0,
                 next_index: 0,
-                path: None,
+                drive: None,
+                drive_skipped_told: 0,
             }),
         })
     }
@@ -88,7 +129,7 @@ impl Session {
         let py = slf.py();
         let this = slf.get();
         let given;
-        let (inner, path) = if let Ok(frame) = frame.cast::<Frame>() {
+        let (inner, drive) = if let Ok(frame) = frame.cast::<Frame>() {
             if pose.is_some() || time.is_some() || name.is_some() {
                 return Err(input_error(
                     "step(frame): a frame carries its pose, time and name; give them only with \
@@ -96,7 +137,7 @@ impl Session {
                 ));
             }
             let frame = frame.get();
-            (&frame.inner, frame.path.clone())
+            (&frame.inner, frame.drive.clone())
         } else {
             let (Some(pose), Some(time)) = (pose, time) else {
                 return Err(input_error(
@@ -109,11 +150,10 @@ impl Session {
         };
         let stepped = py.detach(|| -> PyResult<Result<_, session::SessionError>> {
             let mut state = lock(&this.state)?;
-            if let Some(path) = path
-                && !state.path.as_ref().is_some_and(|p| Arc::ptr_eq(p, &path))
+            if let Some(drive) = drive
+                && let Err(error) = follow_drive(&mut state, drive)?
             {
-                state.session.set_path(path.to_vec());
-                state.path = Some(path);
+                return Ok(Err(error));
             }
             state.next_index = inner.index + 1;
             let result = state.session.step(inner).map(|result| {

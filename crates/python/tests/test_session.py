@@ -65,10 +65,33 @@ def test_the_final_decision_equals_the_commands_cell_for_cell(kitti, cli_run):
     with open(cli_run / "summary.json", encoding="utf-8") as file:
         cli_summary = json.load(file)
     summary = session.summary()
-    for key in ("frames", "points", "final_classes", "moving_trace_cells", "dropped_outside_window"):
+    for key in ("frames", "points", "final_classes", "moving_trace_cells", "dropped_outside_window",
+                "scans", "poses", "pose_matching", "skipped_scans"):
         assert summary[key] == cli_summary[key], key
     for key in ("cell_frames", "occupied", "moving", "moving_along_path"):
         assert summary["ego_path"][key] == cli_summary["ego_path"][key], f"ego_path.{key}"
+
+
+def test_scans_placed_by_the_odometry_are_stepped_as_the_command_runs_them(shared, cli, tmp_path):
+    # Scans without poses: the lidar odometry places them, and the command then turns the pose
+    # refinement off (a second registration of the same scans). A session stepping the drive's
+    # frames does the same, and its summary names the drive as the command's does.
+    scans = shared / "data" / "lidar" / "kitti-city-22"
+    out = tmp_path / "out"
+    cli.json("run", "--scans", str(scans), "--max-frames", "6", "--out", str(out), "--no-mcap", "--json")
+    with open(out / "summary.json", encoding="utf-8") as file:
+        want = json.load(file)
+    session = evigrid.Session()
+    for frame in evigrid.open_drive(scans, max_frames=6):
+        result = session.step(frame)
+    summary = session.summary()
+    assert want["params"]["localisation"]["refinement"] == "none"
+    assert summary["params"]["localisation"] == want["params"]["localisation"]
+    for key in ("scans", "poses", "pose_matching", "frames", "points", "final_classes", "skipped_scans"):
+        assert summary[key] == want[key], key
+    assert summary["pose_matching"] == "odometry"
+    differ = int(np.count_nonzero(result.classes != classes_json(out)))
+    assert differ == 0, f"{differ} cells differ from the command's classes.json"
 
 
 def test_a_steps_grids_have_the_documented_shapes_and_masses_sum_to_one(kitti):

@@ -58,7 +58,7 @@ pub use progress::Progress;
 /// A whole drive: placing it, running it, both.
 pub use run::{Placement, RunOutcome, place, run_drive, run_placed};
 /// The session, step by step.
-pub use session::{Map, Session, SessionConfig, StepResult, method_name};
+pub use session::{DriveLabels, Map, Session, SessionConfig, StepResult, method_name};
 /// What a session reports.
 pub use summary::{
     EgoPathTotals, FRAMES_FILE, FrameRecord, RefinementTotals, SkippedScan, Summary,

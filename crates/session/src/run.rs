@@ -5,11 +5,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use drive::{Drive, PoseOrigin, Poses};
-use evigrid::PoseRefinement;
 use output::sink::FrameSink;
 
 use crate::progress::Progress;
-use crate::session::{Session, SessionConfig};
+use crate::session::{DriveLabels, Session, SessionConfig};
 use crate::summary::{SkippedScan, Summary};
 use crate::{SessionError, odometry_pass};
 
@@ -186,28 +185,17 @@ pub fn run_placed(
         first_fix,
         started,
     } = placement;
-    if poses.origin == PoseOrigin::Odometry {
-        // Poses from the lidar odometry are already registrations of these scans: refining
-        // them against a second map of the same scans would spend a registration to change
-        // nothing.
-        if config.params.localisation.refinement != PoseRefinement::None {
-            config.params.localisation.refinement = PoseRefinement::None;
-            tracing::info!(
-                "poses from the lidar odometry: [localisation] refinement is not applied"
-            );
-        }
-    }
+    config.adapt_to_poses(&poses.origin);
     if config.map.is_none() && config.origin.is_none() {
         config.origin = first_fix;
     }
     let strict = config.strict;
     let mut session = Session::new(config)?;
-    session.labels = crate::session::DriveLabels {
-        scans: drive.given_path().display().to_string(),
-        poses: poses.origin.to_string(),
-        pose_matching: poses.origin.matching().name(),
-        odometry_seconds,
-    };
+    // The configuration is already adapted to the poses: this only names the drive.
+    session.begin_drive(
+        DriveLabels::new(&drive, &poses.origin, odometry_seconds),
+        &poses.origin,
+    )?;
     session.set_path(path);
     session.started_at(started);
     for scan in skipped {

@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use drive::Frame;
+use drive::{Frame, PoseOrigin};
 use evigrid::ego_path::{
     CellVelocity, EGO_PATH_LENGTH_M, EGO_PATH_RADIUS_M, EgoPathCheck, cells_near_path, path_ahead,
 };
@@ -67,6 +67,26 @@ pub struct SessionConfig {
     pub max_frames: Option<usize>,
     /// The output folder, as the summary names it (empty: none).
     pub out: String,
+}
+
+impl SessionConfig {
+    /// Fits the configuration to where the drive's poses came from. Poses from the lidar
+    /// odometry are already registrations of these scans: refining them against a second map
+    /// of the same scans would spend a registration to change nothing, so refinement is off.
+    pub fn adapt_to_poses(&mut self, origin: &PoseOrigin) {
+        self.params.localisation.refinement =
+            refinement_for(origin, self.params.localisation.refinement);
+    }
+}
+
+/// The pose refinement a drive's poses get: none for the lidar odometry's, else `configured`.
+fn refinement_for(origin: &PoseOrigin, configured: PoseRefinement) -> PoseRefinement {
+    if *origin == PoseOrigin::Odometry && configured != PoseRefinement::None {
+        tracing::info!("poses from the lidar odometry: [localisation] refinement is not applied");
+        PoseRefinement::None
+    } else {
+        configured
+    }
 }
 
 impl Default for SessionConfig {
@@ -169,18 +189,34 @@ pub struct Session {
     /// Time of the last frame reached.
     last_time_s: f64,
     started: Instant,
-    /// Set by [`crate::run_drive`]: the drive, its poses' origin, the odometry's time.
-    pub(crate) labels: DriveLabels,
+    /// How the summary names the drive ([`Session::begin_drive`]).
+    labels: DriveLabels,
     stopped: Option<String>,
 }
 
-/// How the summary names the drive.
-#[derive(Debug, Default)]
-pub(crate) struct DriveLabels {
-    pub(crate) scans: String,
-    pub(crate) poses: String,
-    pub(crate) pose_matching: &'static str,
-    pub(crate) odometry_seconds: f64,
+/// How the summary names the drive whose frames a session steps.
+#[derive(Clone, Debug, Default)]
+pub struct DriveLabels {
+    /// The drive as given (`scans` in the summary).
+    pub scans: String,
+    /// Where the poses came from (`poses`).
+    pub poses: String,
+    /// How scans met poses (`pose_matching`): `time`, `line order` or `odometry`.
+    pub pose_matching: &'static str,
+    /// Seconds of the odometry pass that placed the scans, 0 when the drive had poses.
+    pub odometry_seconds: f64,
+}
+
+impl DriveLabels {
+    /// The labels of a placed drive.
+    pub fn new(drive: &drive::Drive, origin: &PoseOrigin, odometry_seconds: f64) -> Self {
+        Self {
+            scans: drive.given_path().display().to_string(),
+            poses: origin.to_string(),
+            pose_matching: origin.matching().name(),
+            odometry_seconds,
+        }
+    }
 }
 
 impl Session {
@@ -257,8 +293,36 @@ impl Session {
         })
     }
 
+    /// Names the drive whose frames come next, as the summary shows it, and fits the pose
+    /// refinement to where its poses came from ([`SessionConfig::adapt_to_poses`]) while no
+    /// frame has been processed yet: [`crate::run_placed`] does this for a whole drive, and a
+    /// caller that steps a placed drive's frames itself does the same.
+    ///
+    /// # Errors
+    ///
+    /// [`SessionError::Input`] if the pipeline cannot be rebuilt (not for parameters that
+    /// built it once).
+    pub fn begin_drive(
+        &mut self,
+        labels: DriveLabels,
+        origin: &PoseOrigin,
+    ) -> Result<(), SessionError> {
+        self.labels = labels;
+        let refinement = refinement_for(origin, self.params.localisation.refinement);
+        if self.reached == 0 && refinement != self.params.localisation.refinement {
+            self.params.localisation.refinement = refinement;
+            let raster = self
+                .map
+                .as_ref()
+                .map(|map| geodata::ContextRaster::new(&map.loaded.map));
+            self.pipeline = Pipeline::with_method(self.params.clone(), raster, self.method)
+                .map_err(|e| SessionError::Input(format!("parameters: {e}")))?;
+        }
+        Ok(())
+    }
+
     /// Records a scan left out before the frames (by the odometry pass).
-    pub(crate) fn skipped_before(&mut self, scan: SkippedScan) {
+    pub fn skipped_before(&mut self, scan: SkippedScan) {
         self.skipped.push(scan);
     }
 

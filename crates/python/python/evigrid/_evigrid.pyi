@@ -102,7 +102,11 @@ class StepResult:
     def time(self) -> float: ...
 
 class Session:
-    """The pipeline of ``evigrid run``, one frame at a time."""
+    """The pipeline of ``evigrid run``, one frame at a time.
+
+    Stepping the frames of an ``open_drive`` drive names that drive in the summary and, for
+    scans placed by the lidar odometry, turns the pose refinement off, as ``evigrid run`` does.
+    """
 
     def __init__(
         self,
