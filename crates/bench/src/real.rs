@@ -11,7 +11,9 @@
 //! - `odometry`: the lidar odometry registering the next of a sequence of consecutive scans (a
 //!   real drive: each round one more scan, so the local map and the motion are real).
 
-use evigrid::{GisGrid, Isometry3, MapPrior, Params, Pipeline, SensorGrid, SensorModel, Window};
+use evigrid::{
+    GisGrid, IsometryMatrix3, MapPrior, Params, Pipeline, PoseExt, SensorGrid, SensorModel, Window,
+};
 use geodata::ContextRaster;
 use std::path::PathBuf;
 
@@ -104,7 +106,7 @@ impl RealCases {
         let mut gis = GisGrid::new(size, size);
         let mut prior = MapPrior::new(Some(raster.clone()));
         prior.fill_window(&window, &mut gis);
-        let pose = Isometry3::from_xyz_rpy(0.0, 0.0, KITTI_SENSOR_HEIGHT_M, 0.0, 0.0, 0.0);
+        let pose = IsometryMatrix3::from_xyz_rpy(0.0, 0.0, KITTI_SENSOR_HEIGHT_M, 0.0, 0.0, 0.0);
         let mut sensor_model = SensorModel::new(params.sensor.clone());
         let mut step_sensor = SensorGrid::new(size, size);
         sensor_model.build(&scan.points_in_sensor, &pose, &window, &mut step_sensor);
@@ -169,7 +171,7 @@ impl RealCases {
         one_thread: &rayon::ThreadPool,
         threads: usize,
     ) -> Result<Vec<(String, f64)>, RealError> {
-        let pose = Isometry3::from_xyz_rpy(0.0, 0.0, KITTI_SENSOR_HEIGHT_M, 0.0, 0.0, 0.0);
+        let pose = IsometryMatrix3::from_xyz_rpy(0.0, 0.0, KITTI_SENSOR_HEIGHT_M, 0.0, 0.0, 0.0);
         let (model, window, grid) = (&mut self.sensor_model, &self.window, &mut self.sensor_grid);
         let points = &self.points;
         let sensor =
@@ -241,7 +243,8 @@ impl RealCases {
         let frame = self.frames[which];
         self.frames[which] += 1;
         let along = f64::from(frame % 40) * STEP_PER_FRAME_M;
-        let pose = Isometry3::from_xyz_rpy(along, along, KITTI_SENSOR_HEIGHT_M, 0.0, 0.0, 0.785);
+        let pose =
+            IsometryMatrix3::from_xyz_rpy(along, along, KITTI_SENSOR_HEIGHT_M, 0.0, 0.0, 0.785);
         let time_s = f64::from(frame) * 0.1;
         let pipeline = &mut self.pipelines[which];
         let points = &self.points;

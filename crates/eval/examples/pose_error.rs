@@ -53,9 +53,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 ms += stats.pose_refinement.ms;
                 let used = front_end.world_from_sensor();
                 let truth = scan.world_from_sensor_true;
-                let dx = used.translation[0] - truth.position_m.x;
-                let dy = used.translation[1] - truth.position_m.y;
-                let heading = used.rotation[1][0].atan2(used.rotation[0][0]);
+                let dx = used.translation.x - truth.position_m.x;
+                let dy = used.translation.y - truth.position_m.y;
+                let heading = used.rotation[(1, 0)].atan2(used.rotation[(0, 0)]);
                 let turn = (heading - truth.heading_rad + std::f64::consts::PI)
                     .rem_euclid(std::f64::consts::TAU)
                     - std::f64::consts::PI;

@@ -11,7 +11,7 @@
 //! use eval::{GridMethod, Label};
 //! use eval::baselines::{LogOdds, LogOddsParams};
 //! use evigrid::{FrontEnd, Fusion, Prior};
-//! use evigrid::{GroundModel, Isometry3};
+//! use evigrid::{GroundModel, IsometryMatrix3};
 //!
 //! let mut params = evigrid::Params::default();
 //! (params.window.width_cells, params.window.height_cells) = (40, 40);
@@ -23,7 +23,7 @@
 //! ];
 //! let wall: Vec<[f32; 3]> = (-10..=10).map(|k| [6.0, k as f32 * 0.2, 0.0]).collect();
 //! let mut labels = vec![Label::Unknown; 40 * 40];
-//! front_end.process(&wall, &Isometry3::IDENTITY, 0.0)?; // one sensor model run for both
+//! front_end.process(&wall, &IsometryMatrix3::identity(), 0.0)?; // one sensor model run for both
 //! let ahead = front_end.window().storage_index_of_point(3.0, 0.1).expect("in the window");
 //! for method in &mut methods {
 //!     method.process(&front_end)?;

@@ -33,6 +33,7 @@ use crate::metrics::{ConfusionMatrix, Latency, Remanence};
 use crate::report::{EvalReport, SeedScores, VariantReport};
 pub use crate::variant::Variant;
 use evigrid::Params;
+use evigrid::PoseExt;
 use evigrid::{FrontEnd, FrontEndStats, Fusion, Method as FusionMethod, Prior, Window};
 use geodata::{ContextRaster, LocalMap};
 use serde::{Deserialize, Serialize};
@@ -106,7 +107,7 @@ pub struct FusionFrame<'a> {
     /// The frame's scan, sensor frame.
     pub points_in_sensor: &'a [[f32; 3]],
     /// The (estimated) sensor pose the scan went in with.
-    pub world_from_sensor: &'a evigrid::Isometry3,
+    pub world_from_sensor: &'a evigrid::IsometryMatrix3,
     /// The scan's time, seconds.
     pub time_s: f64,
 }
@@ -425,7 +426,7 @@ fn run_drive(
                     fusion,
                     truth: &centre.labels,
                     outline: &centre.band,
-                    ego_position: [pose.translation[0], pose.translation[1]],
+                    ego_position: [pose.translation.x, pose.translation.y],
                     points_in_sensor: &points,
                     world_from_sensor: &pose,
                     time_s: scan.time_s,
@@ -533,7 +534,7 @@ fn update_latency(
     latency: &mut Latency,
     drive: &Drive,
     frame: &Frame,
-    world_from_sensor: &evigrid::Isometry3,
+    world_from_sensor: &evigrid::IsometryMatrix3,
     window: &Window,
     predicted: &[Label],
 ) {
@@ -542,7 +543,7 @@ fn update_latency(
     let mut per_actor: std::collections::BTreeMap<u32, bool> = std::collections::BTreeMap::new();
     for (p, hit) in scan.points_in_sensor.iter().zip(&scan.hits) {
         if let HitTarget::Actor(id) = *hit {
-            let [x, y, _] = world_from_sensor.transform_point([p.x, p.y, 0.0]);
+            let [x, y, _] = world_from_sensor.transform_xyz([p.x, p.y, 0.0]);
             let decided = window
                 .storage_index_of_point(x, y)
                 .and_then(|i| predicted.get(i))

@@ -11,8 +11,9 @@
 //! Run: `EVIGRID_SHARED=/work/shared cargo bench -p evigrid --bench motion`.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use evigrid::Isometry3;
+use evigrid::IsometryMatrix3;
 use evigrid::Params;
+use evigrid::PoseExt;
 use evigrid::{FrontEnd, Fusion, Method, Prior};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -53,7 +54,8 @@ fn bench_motion(c: &mut Criterion) {
                 let mut spent = Duration::ZERO;
                 for _ in 0..iterations {
                     let x_m = f64::from(frame);
-                    let pose = Isometry3::from_xyz_rpy(x_m, 0.0, SENSOR_HEIGHT_M, 0.0, 0.0, 0.0);
+                    let pose =
+                        IsometryMatrix3::from_xyz_rpy(x_m, 0.0, SENSOR_HEIGHT_M, 0.0, 0.0, 0.0);
                     let time_s = 0.1 * f64::from(frame);
                     frame += 1;
                     if front_end

@@ -12,7 +12,7 @@
 
 use std::path::PathBuf;
 
-use evigrid::{Isometry3, Label, Params, Pipeline};
+use evigrid::{IsometryMatrix3, Label, Params, Pipeline, PoseExt};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -35,7 +35,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let mut pipeline = Pipeline::new(Params::default(), Some(raster))?;
     // A roof lidar 1.73 m above the road.
-    let world_from_sensor = Isometry3::from_xyz_rpy(x_m, y_m, 1.73, 0.0, 0.0, yaw);
+    let world_from_sensor = IsometryMatrix3::from_xyz_rpy(x_m, y_m, 1.73, 0.0, 0.0, yaw);
     for frame in 0..3 {
         let stats = pipeline.process(
             &scan.points_in_sensor,

@@ -13,7 +13,9 @@
 use std::path::Path;
 use std::time::Instant;
 
-use evigrid::{GroundModel, Isometry3, Params, SensorGrid, SensorModel, SensorStats, Window};
+use evigrid::{
+    GroundModel, IsometryMatrix3, Params, PoseExt, SensorGrid, SensorModel, SensorStats, Window,
+};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dirs: Vec<String> = std::env::args().skip(1).collect();
@@ -28,7 +30,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         params.grid.cell_size_m,
     )?;
     window.recentre(0.0, 0.0)?;
-    let world_from_sensor = Isometry3::from_xyz_rpy(0.0, 0.0, 1.73, 0.0, 0.0, 0.0);
+    let world_from_sensor = IsometryMatrix3::from_xyz_rpy(0.0, 0.0, 1.73, 0.0, 0.0, 0.0);
     for dir in dirs {
         let mut model = SensorModel::new(params.sensor.clone());
         let mut grid = SensorGrid::new(window.width(), window.height());

@@ -23,8 +23,9 @@
 //!   [`decide_grid`] and [`betp`] (SPEC §6);
 //! - the stages, for callers that drive them one by one: the grids ([`PerceptionGrid`],
 //!   [`SensorGrid`], [`GisGrid`], the focal sets in [`class`]) on a world-fixed [`Window`], the
-//!   [`SensorModel`] with poses as [`Isometry3`], the [`MapPrior`] and its SPEC §4 table
-//!   ([`prior_focal_set`], [`prior_beta`]), the fusion [`step()`], the [`MovingTrace`];
+//!   [`SensorModel`] with poses as [`IsometryMatrix3`] (nalgebra's, with [`PoseExt`]), the
+//!   [`MapPrior`] and its SPEC §4 table ([`prior_focal_set`], [`prior_beta`]), the fusion
+//!   [`step()`], the [`MovingTrace`];
 //! - [`reference`](mod@reference), the f64 yardstick.
 //!
 //! The method reads no file and writes none: scans and poses come from the `evigrid-drive`
@@ -87,7 +88,9 @@ pub use grids::{GisGrid, N_SETS, OMEGA, PerceptionGrid, SensorGrid, class};
 pub use window::{Entered, GlobalCell, Window, WindowError};
 // The stages, for callers that drive them one by one.
 pub use map_prior::{MAP_CONTEXTS, MapPrior, prior_beta, prior_focal_set};
-pub use pose::Isometry3;
+/// nalgebra, whose isometry the poses are: its version, for callers that build or read them.
+pub use nalgebra;
+pub use pose::{IsometryMatrix3, PoseExt};
 pub use sensor_model::{GroundPlane, SensorModel, SensorStats};
 pub use step::{StepStats, rate_for_step, set_rate_per_second, step, step_and_decide};
 pub use trace::MovingTrace;

@@ -16,7 +16,7 @@
 //!
 //! ```
 //! use evigrid::Pipeline;
-//! use evigrid::{GroundModel, Isometry3};
+//! use evigrid::{GroundModel, IsometryMatrix3};
 //! use evigrid::{Label, Params};
 //!
 //! let mut params = Params::default();
@@ -27,7 +27,7 @@
 //! // A wall 6 m east of a scanner at the origin, seen twice.
 //! let wall: Vec<[f32; 3]> = (-10..=10).map(|k| [6.0, k as f32 * 0.2, 0.0]).collect();
 //! for time_s in [0.0, 0.1] {
-//!     pipeline.process(&wall, &Isometry3::IDENTITY, time_s)?;
+//!     pipeline.process(&wall, &IsometryMatrix3::identity(), time_s)?;
 //! }
 //! let window = pipeline.window();
 //! let ahead = window.storage_index_of_point(3.0, 0.1).expect("in the window");
@@ -39,7 +39,7 @@
 //!
 //! ```
 //! use evigrid::{FrontEnd, Fusion, Prior};
-//! use evigrid::{GroundModel, Isometry3};
+//! use evigrid::{GroundModel, IsometryMatrix3};
 //! use evigrid::{Label, Params};
 //!
 //! let mut params = Params::default();
@@ -51,7 +51,7 @@
 //! let mut without_map = Fusion::new(params, Prior::Vacuous)?;
 //! let wall: Vec<[f32; 3]> = (-10..=10).map(|k| [6.0, k as f32 * 0.2, 0.0]).collect();
 //! for time_s in [0.0, 0.1] {
-//!     front_end.process(&wall, &Isometry3::IDENTITY, time_s)?; // one sensor model run
+//!     front_end.process(&wall, &IsometryMatrix3::identity(), time_s)?; // one sensor model run
 //!     with_map.update(&front_end)?;
 //!     without_map.update(&front_end)?;
 //! }
@@ -73,7 +73,7 @@ use crate::label::Label;
 use crate::map_prior::MapPrior;
 use crate::motion::{MotionStage, MotionStats};
 use crate::params::{Params, ParamsError, PoseRefinement};
-use crate::pose::Isometry3;
+use crate::pose::{IsometryMatrix3, PoseExt};
 use crate::sensor_model::{SensorModel, SensorStats};
 use crate::step::{StepStats, step_and_decide};
 use crate::trace::MovingTrace;
@@ -101,7 +101,7 @@ pub enum PipelineError {
     #[error("sensor pose is not finite: {world_from_sensor:?}")]
     Pose {
         /// The refused pose.
-        world_from_sensor: Isometry3,
+        world_from_sensor: IsometryMatrix3,
     },
     /// A back end was fed a front end whose window has another size than its grids.
     #[error(
@@ -231,7 +231,7 @@ pub struct FrontEnd {
     /// The pose refinement (`[localisation] refinement = "scan_to_map"`).
     refiner: Option<odometry::PoseRefiner>,
     /// The pose the last SensorGrid was built with.
-    world_from_sensor: Isometry3,
+    world_from_sensor: IsometryMatrix3,
 }
 
 impl FrontEnd {
@@ -271,7 +271,7 @@ impl FrontEnd {
             dt_s: 0.0,
             last_time_s: None,
             refiner,
-            world_from_sensor: Isometry3::IDENTITY,
+            world_from_sensor: IsometryMatrix3::identity(),
         })
     }
 
@@ -288,7 +288,7 @@ impl FrontEnd {
     pub fn process(
         &mut self,
         points_in_sensor: &[[f32; 3]],
-        world_from_sensor: &Isometry3,
+        world_from_sensor: &IsometryMatrix3,
         time_s: f64,
     ) -> Result<FrontEndStats, PipelineError> {
         let previous_s = self.last_time_s.unwrap_or(time_s);
@@ -307,13 +307,16 @@ impl FrontEnd {
         let refinement = self
             .refiner
             .as_ref()
-            .map(|refiner| refiner.refine(points_in_sensor, &to_nalgebra(world_from_sensor)));
+            .map(|refiner| refiner.refine(points_in_sensor, &with_quaternion(world_from_sensor)));
         let (world_from_sensor, pose_refinement) = match &refinement {
             None => (*world_from_sensor, RefinementStats::default()),
             Some(refinement) => refined_pose(world_from_sensor, refinement, ms(start)),
         };
         let world_from_sensor = &world_from_sensor;
-        let [x_m, y_m, _] = world_from_sensor.translation;
+        let (x_m, y_m) = (
+            world_from_sensor.translation.x,
+            world_from_sensor.translation.y,
+        );
 
         // Follow the vehicle: whole-cell shift of the window (SPEC §2).
         let start = Instant::now();
@@ -368,7 +371,7 @@ impl FrontEnd {
 
     /// The pose the last SensorGrid was built with: the one given, or its refinement
     /// (`[localisation]`). The identity before the first frame.
-    pub fn world_from_sensor(&self) -> &Isometry3 {
+    pub fn world_from_sensor(&self) -> &IsometryMatrix3 {
         &self.world_from_sensor
     }
 
@@ -413,26 +416,19 @@ impl FrontEnd {
     }
 }
 
-/// evigrid's pose as nalgebra's, for the odometry crate.
-fn to_nalgebra(pose: &Isometry3) -> nalgebra::Isometry3<f64> {
-    let r = &pose.rotation;
-    let matrix = nalgebra::Matrix3::new(
-        r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
-    );
-    let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(
-        &nalgebra::Rotation3::from_matrix_unchecked(matrix),
-    );
-    let [x, y, z] = pose.translation;
-    nalgebra::Isometry3::from_parts(nalgebra::Translation3::new(x, y, z), rotation)
+/// The pose with a quaternion rotation, as the odometry crate takes it.
+fn with_quaternion(pose: &IsometryMatrix3) -> nalgebra::Isometry3<f64> {
+    let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation);
+    nalgebra::Isometry3::from_parts(pose.translation, rotation)
 }
 
 /// The pose to build the SensorGrid with after a refinement of `given`, and its stats. A kept
 /// prior is `given` itself, bit for bit, not its round trip through nalgebra.
 fn refined_pose(
-    given: &Isometry3,
+    given: &IsometryMatrix3,
     refinement: &odometry::Refinement,
     ms: f64,
-) -> (Isometry3, RefinementStats) {
+) -> (IsometryMatrix3, RefinementStats) {
     use odometry::{KeptReason, RefineOutcome};
     let outcome = match refinement.outcome {
         RefineOutcome::First => RefinementOutcome::First,
@@ -454,21 +450,12 @@ fn refined_pose(
         return (*given, stats);
     }
     let pose = refinement.world_from_sensor;
-    let rotation = pose.rotation.to_rotation_matrix();
-    let m = rotation.matrix();
-    let used = Isometry3 {
-        rotation: [
-            [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-            [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-            [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
-        ],
-        translation: [pose.translation.x, pose.translation.y, pose.translation.z],
-    };
-    let heading = |r: &[[f64; 3]; 3]| r[1][0].atan2(r[0][0]);
+    let used = IsometryMatrix3::from_parts(pose.translation, pose.rotation.to_rotation_matrix());
+    let heading = |r: &nalgebra::Rotation3<f64>| r[(1, 0)].atan2(r[(0, 0)]);
     let mut turn = heading(&used.rotation) - heading(&given.rotation);
     turn = (turn + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-    stats.correction_m = (used.translation[0] - given.translation[0])
-        .hypot(used.translation[1] - given.translation[1]);
+    stats.correction_m =
+        (used.translation.x - given.translation.x).hypot(used.translation.y - given.translation.y);
     stats.correction_deg = turn.to_degrees();
     (used, stats)
 }
@@ -767,7 +754,7 @@ impl Pipeline {
     pub fn process(
         &mut self,
         points_in_sensor: &[[f32; 3]],
-        world_from_sensor: &Isometry3,
+        world_from_sensor: &IsometryMatrix3,
         time_s: f64,
     ) -> Result<FrameStats, PipelineError> {
         // Window, map prior and sensor grid (SPEC §2-§4).
@@ -923,14 +910,14 @@ mod tests {
         for k in 0..24_u32 {
             let x = f64::from(k) * 0.8;
             let (ex, ey, eh) = errors[k as usize % errors.len()];
-            let prior = Isometry3::from_xyz_rpy(x + ex, ey, 0.0, 0.0, 0.0, eh.to_radians());
+            let prior = IsometryMatrix3::from_xyz_rpy(x + ex, ey, 0.0, 0.0, 0.0, eh.to_radians());
             let scan = street_scan((x, 0.0, 0.0));
             let stats = refined.process(&scan, &prior, f64::from(k) * 0.1)?;
             given.process(&scan, &prior, f64::from(k) * 0.1)?;
             assert_eq!(given.world_from_sensor(), &prior);
             let pose = *refined.world_from_sensor();
-            let heading = pose.rotation[1][0].atan2(pose.rotation[0][0]);
-            let error = [pose.translation[0] - x, pose.translation[1], heading];
+            let heading = pose.rotation[(1, 0)].atan2(pose.rotation[(0, 0)]);
+            let error = [pose.translation.x - x, pose.translation.y, heading];
             if k == 0 {
                 assert_eq!(stats.pose_refinement.outcome, RefinementOutcome::First);
                 assert_eq!(stats.pose_refinement.iterations, 0);
@@ -943,7 +930,7 @@ mod tests {
                 // What the registration's time grows with, reported and bounded.
                 let iterations = stats.pose_refinement.iterations;
                 assert!((1..=100).contains(&iterations), "{k}: {iterations}");
-                assert!(pose.translation[2].abs() < 1e-9 && pose.rotation[2][2] > 1.0 - 1e-12);
+                assert!(pose.translation.z.abs() < 1e-9 && pose.rotation[(2, 2)] > 1.0 - 1e-12);
             }
             if let Some((given_error, used_error)) = last {
                 let (gx, gy, gh) = given_error;
@@ -981,7 +968,7 @@ mod tests {
         let mut off = params();
         off.localisation.refinement = PoseRefinement::None;
         let mut front_end = FrontEnd::new(&off, None)?;
-        let pose = Isometry3::from_xyz_rpy(1.0, 2.0, 0.0, 0.0, 0.0, 0.3);
+        let pose = IsometryMatrix3::from_xyz_rpy(1.0, 2.0, 0.0, 0.0, 0.0, 0.3);
         let stats = front_end.process(&street_scan((0.0, 0.0, 0.0)), &pose, 0.0)?;
         assert_eq!(front_end.world_from_sensor(), &pose);
         assert_eq!(stats.pose_refinement, RefinementStats::default());
@@ -1017,22 +1004,24 @@ mod tests {
     #[test]
     fn refuses_time_going_back_and_bad_poses() {
         let mut pipeline = Pipeline::new(params(), None).unwrap();
-        pipeline.process(&[], &Isometry3::IDENTITY, 1.0).unwrap();
+        pipeline
+            .process(&[], &IsometryMatrix3::identity(), 1.0)
+            .unwrap();
         assert!(matches!(
-            pipeline.process(&[], &Isometry3::IDENTITY, 0.5),
+            pipeline.process(&[], &IsometryMatrix3::identity(), 0.5),
             Err(PipelineError::Time { .. })
         ));
         assert!(
             pipeline
-                .process(&[], &Isometry3::IDENTITY, f64::NAN)
+                .process(&[], &IsometryMatrix3::identity(), f64::NAN)
                 .is_err()
         );
-        let nan = Isometry3::from_xyz_rpy(f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let nan = IsometryMatrix3::from_xyz_rpy(f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0);
         assert!(matches!(
             pipeline.process(&[], &nan, 2.0),
             Err(PipelineError::Pose { .. })
         ));
-        let far = Isometry3::from_xyz_rpy(1e300, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let far = IsometryMatrix3::from_xyz_rpy(1e300, 0.0, 0.0, 0.0, 0.0, 0.0);
         assert!(matches!(
             pipeline.process(&[], &far, 2.0),
             Err(PipelineError::Window(_))
@@ -1048,10 +1037,12 @@ mod tests {
     #[test]
     fn first_frame_resets_everything_and_later_frames_only_what_entered() {
         let mut pipeline = Pipeline::new(params(), None).unwrap();
-        let first = pipeline.process(&[], &Isometry3::IDENTITY, 0.0).unwrap();
+        let first = pipeline
+            .process(&[], &IsometryMatrix3::identity(), 0.0)
+            .unwrap();
         assert_eq!(first.entered_cells, 400);
         assert_eq!(first.dt_s, 0.0);
-        let pose = Isometry3::from_xyz_rpy(1.2, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let pose = IsometryMatrix3::from_xyz_rpy(1.2, 0.0, 0.0, 0.0, 0.0, 0.0);
         let second = pipeline.process(&[], &pose, 0.5).unwrap();
         // 1.2 m east at 0.5 m cells: two columns of 20 cells entered.
         assert_eq!(second.entered_cells, 40);
@@ -1070,7 +1061,7 @@ mod tests {
 
     /// A short drive east along the road past the building, with a wall north of it and an
     /// object that appears on the road.
-    fn drive() -> Vec<(Vec<[f32; 3]>, Isometry3, f64)> {
+    fn drive() -> Vec<(Vec<[f32; 3]>, IsometryMatrix3, f64)> {
         (0..8)
             .map(|k| {
                 let x_m = 0.4 * k as f64;
@@ -1080,7 +1071,7 @@ mod tests {
                 if k >= 4 {
                     points.push([3.0, 0.5, 0.0]);
                 }
-                let pose = Isometry3::from_xyz_rpy(x_m, -1.0, 0.0, 0.0, 0.0, 0.0);
+                let pose = IsometryMatrix3::from_xyz_rpy(x_m, -1.0, 0.0, 0.0, 0.0, 0.0);
                 (points, pose, 0.1 * k as f64)
             })
             .collect()
@@ -1145,9 +1136,11 @@ mod tests {
     fn new_cells_are_the_whole_window_first_then_what_entered() {
         let mut front_end = FrontEnd::new(&params(), None).unwrap();
         assert_eq!(front_end.new_cells(), &NewCells::All);
-        front_end.process(&[], &Isometry3::IDENTITY, 0.0).unwrap();
+        front_end
+            .process(&[], &IsometryMatrix3::identity(), 0.0)
+            .unwrap();
         assert_eq!(front_end.new_cell_spans().collect::<Vec<_>>(), vec![0..400]);
-        let pose = Isometry3::from_xyz_rpy(0.6, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let pose = IsometryMatrix3::from_xyz_rpy(0.6, 0.0, 0.0, 0.0, 0.0, 0.0);
         front_end.process(&[], &pose, 0.1).unwrap();
         // One column of 20 cells entered, one storage cell per row.
         let spans: Vec<_> = front_end.new_cell_spans().collect();
@@ -1160,7 +1153,9 @@ mod tests {
     #[test]
     fn a_back_end_refuses_a_front_end_of_another_size() {
         let mut front_end = FrontEnd::new(&params(), None).unwrap();
-        front_end.process(&[], &Isometry3::IDENTITY, 0.0).unwrap();
+        front_end
+            .process(&[], &IsometryMatrix3::identity(), 0.0)
+            .unwrap();
         let mut other = params();
         other.window.width_cells = 30;
         let mut fusion = Fusion::new(other, Prior::Map).unwrap();

@@ -8,7 +8,7 @@
 #![allow(clippy::unwrap_used)]
 
 use evigrid::{FrontEnd, Fusion, Method, Prior};
-use evigrid::{GroundModel, Isometry3};
+use evigrid::{GroundModel, IsometryMatrix3};
 use evigrid::{Label, Params};
 
 const DT_S: f64 = 0.1;
@@ -76,7 +76,7 @@ fn a_car_driving_away_is_decided_moving_within_three_frames() {
         let mut boxes = FENCE.to_vec();
         boxes.push([rear_m, -0.9, rear_m + 4.5, 0.9]);
         front_end
-            .process(&scan(&boxes), &Isometry3::IDENTITY, DT_S * k as f64)
+            .process(&scan(&boxes), &IsometryMatrix3::identity(), DT_S * k as f64)
             .unwrap();
         evigrid.update(&front_end).unwrap();
         paper.update(&front_end).unwrap();
@@ -150,7 +150,7 @@ fn car_driving_away_objects(
             let mut boxes = FENCE.to_vec();
             boxes.push([3.0 + x, -0.9 + y, 7.5 + x, 0.9 + y]);
             front_end
-                .process(&scan(&boxes), &Isometry3::IDENTITY, DT_S * k as f64)
+                .process(&scan(&boxes), &IsometryMatrix3::identity(), DT_S * k as f64)
                 .unwrap();
             evigrid.update(&front_end).unwrap();
             let objects = evigrid.motion().map(|m| m.moving_objects().to_vec());
@@ -216,7 +216,7 @@ fn an_object_appearing_in_space_seen_free_gets_moving_evidence_at_once() {
             boxes.push(walker);
         }
         front_end
-            .process(&scan(&boxes), &Isometry3::IDENTITY, DT_S * k as f64)
+            .process(&scan(&boxes), &IsometryMatrix3::identity(), DT_S * k as f64)
             .unwrap();
         let stats = evigrid.update(&front_end).unwrap();
         let moving_cells = stats.motion.map(|m| m.moving_cells);
@@ -260,7 +260,11 @@ fn a_car_crossing_open_space_is_seen_to_leave_its_cells() {
             let mut boxes = WALLS.to_vec();
             boxes.push([20.2, centre_m - 2.25, 22.0, centre_m + 2.25]);
             front_end
-                .process(&street_scan(&boxes), &Isometry3::IDENTITY, DT_S * k as f64)
+                .process(
+                    &street_scan(&boxes),
+                    &IsometryMatrix3::identity(),
+                    DT_S * k as f64,
+                )
                 .unwrap();
             evigrid.update(&front_end).unwrap();
             let window = front_end.window();

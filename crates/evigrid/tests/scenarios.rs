@@ -13,8 +13,8 @@
 #![allow(clippy::unwrap_used)]
 
 use evigrid::{
-    FrameStats, GroundModel, Isometry3, Label, N_SETS, OMEGA, Params, Pipeline, PoseRefinement,
-    UnobservedCells, class,
+    FrameStats, GroundModel, IsometryMatrix3, Label, N_SETS, OMEGA, Params, Pipeline, PoseExt,
+    PoseRefinement, UnobservedCells, class,
 };
 use geo::{Rect, coord, polygon};
 use geodata::{ContextRaster, LocalMap};
@@ -118,7 +118,7 @@ impl Drive {
     fn frame_points(&mut self, points: &[[f32; 3]]) -> FrameStats {
         let stats = self
             .pipeline
-            .process(points, &Isometry3::IDENTITY, self.time_s)
+            .process(points, &IsometryMatrix3::identity(), self.time_s)
             .unwrap();
         self.time_s += DT_S;
         stats
@@ -417,7 +417,7 @@ fn scrolling_the_window_keeps_world_fixed_content_exact() {
     }
     // One more frame without points: one pipeline stays, the other is 7 cells east, 3 south.
     still.frame_points(&[]);
-    let shifted = Isometry3::from_xyz_rpy(3.6, -1.4, 0.0, 0.0, 0.0, 0.0);
+    let shifted = IsometryMatrix3::from_xyz_rpy(3.6, -1.4, 0.0, 0.0, 0.0, 0.0);
     let stats = moved.pipeline.process(&[], &shifted, moved.time_s).unwrap();
     assert_eq!(stats.entered_cells, 60 * 60 - 53 * 57);
     let (a, b) = (still.pipeline.window(), moved.pipeline.window());

@@ -87,7 +87,7 @@
 //!
 //! # Wiring into the sensor model
 //!
-//! Rotate the scan into the levelled frame (`world_from_sensor.rotate`, no translation) as
+//! Rotate the scan into the levelled frame (`world_from_sensor.rotate_xyz`, no translation) as
 //! `[f32; 3]`, call [`GroundSegmenter::segment`] once per scan (the segmenter keeps its
 //! buffers), then per point: [`PointLabel::Ground`] feeds the sector's farthest ground range,
 //! [`PointLabel::Obstacle`] its nearest obstacle range and occupied cell, every other label is

@@ -193,7 +193,7 @@ mod tests {
                 window: &window,
                 decisions: &decided,
                 perception: &pg,
-                world_from_sensor: &evigrid::Isometry3::IDENTITY,
+                world_from_sensor: &evigrid::IsometryMatrix3::identity(),
                 points_in_sensor: &[],
                 intensity: &[],
                 sensor_height_m: 0.0,

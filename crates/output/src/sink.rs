@@ -12,7 +12,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use evigrid::motion::MotionStage;
-use evigrid::{GisGrid, Isometry3, Label, MovingTrace, PerceptionGrid, SensorGrid, Window};
+use evigrid::{GisGrid, IsometryMatrix3, Label, MovingTrace, PerceptionGrid, SensorGrid, Window};
 
 use crate::mcap::{GnssFix, McapFrame, McapGrid, McapRecorder};
 use crate::run_figures::{Views, final_figures};
@@ -41,7 +41,7 @@ pub struct FrameView<'a> {
     /// The motion stage (the `evigrid` method), with cell velocities and moving objects.
     pub motion: Option<&'a MotionStage>,
     /// The pose the grids were built with (after any refinement).
-    pub world_from_sensor: &'a Isometry3,
+    pub world_from_sensor: &'a IsometryMatrix3,
     /// The scan, sensor frame.
     pub points_in_sensor: &'a [[f32; 3]],
     /// The intensity of each point, or empty when the scan has none.
@@ -182,7 +182,10 @@ impl DecisionFrames {
 
 impl FrameSink for DecisionFrames {
     fn on_frame(&mut self, frame: &FrameView<'_>) -> Result<(), OutputError> {
-        let [x, y, _] = frame.world_from_sensor.translation;
+        let (x, y) = (
+            frame.world_from_sensor.translation.x,
+            frame.world_from_sensor.translation.y,
+        );
         let image = frame_picture(frame.window, frame.decisions, [x, y], &COLOURS)?;
         let name = format!("decision-{:06}.png", frame.index);
         // A palette PNG (the picture has a few dozen colours): the same pixels as RGB with a

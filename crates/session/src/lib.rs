@@ -43,7 +43,6 @@
 
 mod error;
 mod odometry_pass;
-mod pose;
 mod progress;
 mod run;
 mod session;

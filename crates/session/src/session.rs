@@ -9,7 +9,9 @@ use evigrid::ego_path::{
     CellVelocity, EGO_PATH_LENGTH_M, EGO_PATH_RADIUS_M, EgoPathCheck, cells_near_path, path_ahead,
 };
 use evigrid::motion::MovingObject;
-use evigrid::{Label, Method, Params, PerceptionGrid, Pipeline, PoseRefinement, Window};
+use evigrid::{
+    IsometryMatrix3, Label, Method, Params, PerceptionGrid, Pipeline, PoseRefinement, Window,
+};
 use output::count_decisions;
 use output::sink::{FinalView, FrameSink, FrameView};
 
@@ -355,23 +357,29 @@ impl Session {
             self.path.resize(frame.index + 1, position);
         }
         let t1 = Instant::now();
-        let pose = crate::pose::to_pipeline(&frame.world_from_sensor);
-        let stats = match self
-            .pipeline
-            .process(&frame.points_in_sensor, &pose, frame.time_s)
-        {
-            Ok(stats) => stats,
-            Err(e) => {
-                let error = format!("{}: pose of scan {}: {e}", self.labels.poses, frame.name);
-                if !self.strict {
-                    self.skipped.push(SkippedScan {
-                        scan: frame.name.clone(),
-                        error: error.clone(),
-                    });
+        // The drive's rotation is a quaternion (poses are interpolated by slerp); the method maps
+        // every point with the matrix.
+        let world_from_sensor = IsometryMatrix3::from_parts(
+            frame.world_from_sensor.translation,
+            frame.world_from_sensor.rotation.to_rotation_matrix(),
+        );
+        let stats =
+            match self
+                .pipeline
+                .process(&frame.points_in_sensor, &world_from_sensor, frame.time_s)
+            {
+                Ok(stats) => stats,
+                Err(e) => {
+                    let error = format!("{}: pose of scan {}: {e}", self.labels.poses, frame.name);
+                    if !self.strict {
+                        self.skipped.push(SkippedScan {
+                            scan: frame.name.clone(),
+                            error: error.clone(),
+                        });
+                    }
+                    return Err(SessionError::Input(error));
                 }
-                return Err(SessionError::Input(error));
-            }
-        };
+            };
         let t2 = Instant::now();
         let ego_path = self.ego_path_check(frame.index);
         let pipeline = &self.pipeline;
@@ -460,7 +468,12 @@ impl Session {
         FrameRecord {
             scan: frame.name.clone(),
             time_s: frame.time_s,
-            position: pipeline.front_end().world_from_sensor().translation,
+            position: pipeline
+                .front_end()
+                .world_from_sensor()
+                .translation
+                .vector
+                .into(),
             given_position: [given.x, given.y, given.z],
             read_ms,
             process_ms,

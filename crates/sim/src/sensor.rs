@@ -10,6 +10,7 @@ use crate::actors::Actor;
 use crate::geometry::{Pose2, Vec2};
 use crate::scenario::SensorConfig;
 use crate::world::World;
+use evigrid::PoseExt;
 use rand::Rng;
 use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
@@ -51,9 +52,9 @@ impl Scan {
 
     /// The estimated `world_from_sensor` as evigrid's 3-D transform (z = 0, level), as the
     /// pipeline takes it.
-    pub fn estimated_isometry(&self) -> evigrid::Isometry3 {
+    pub fn estimated_isometry(&self) -> evigrid::IsometryMatrix3 {
         let p = &self.world_from_sensor_estimated;
-        evigrid::Isometry3::from_xyz_rpy(
+        evigrid::IsometryMatrix3::from_xyz_rpy(
             p.position_m.x,
             p.position_m.y,
             0.0,

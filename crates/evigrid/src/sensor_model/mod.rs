@@ -41,7 +41,7 @@ use ray::walk_ray;
 use stray::StrayFilter;
 
 use crate::params::GroundModel;
-use crate::pose::Isometry3;
+use crate::pose::{IsometryMatrix3, PoseExt};
 pub use ground::GroundPlane;
 
 /// What became of one scan's points and cells.
@@ -154,7 +154,7 @@ impl SensorModel {
     pub fn build(
         &mut self,
         points_in_sensor: &[[f32; 3]],
-        world_from_sensor: &Isometry3,
+        world_from_sensor: &IsometryMatrix3,
         window: &Window,
         out: &mut SensorGrid,
     ) -> SensorStats {
@@ -187,7 +187,8 @@ impl SensorModel {
                 stats.dropped_non_finite += 1;
                 continue;
             }
-            let q = world_from_sensor.rotate([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]);
+            let q =
+                world_from_sensor.rotate_xyz([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]);
             let range_m = horizontal_range(q);
             if note_empty {
                 let s = sector_of(q, sectors_per_radian, sectors);
@@ -238,7 +239,7 @@ impl SensorModel {
         // Points are classified in fixed chunks, in parallel, and the chunks merged in order:
         // ranges by min/max, cells in point order, so the result does not depend on the number
         // of threads.
-        let [sensor_x, sensor_y, _] = world_from_sensor.translation;
+        let [sensor_x, sensor_y, _]: [f64; 3] = world_from_sensor.translation.vector.into();
         let local_labels = (self.params.ground_model == GroundModel::Local).then_some(&self.labels);
         let classify = PointClassifier {
             plane: plane.as_ref(),

@@ -39,15 +39,15 @@ fn fast_atan2_is_within_a_tenth_of_a_microradian() {
 #[test]
 fn rpy_follows_the_ros_convention() {
     // Yaw 90°: the sensor's x axis points north. Pitch 90°: x points down.
-    let yaw = Isometry3::from_xyz_rpy(1.0, 2.0, 3.0, 0.0, 0.0, std::f64::consts::FRAC_PI_2);
-    let p = yaw.transform_point([1.0, 0.0, 0.0]);
+    let yaw = IsometryMatrix3::from_xyz_rpy(1.0, 2.0, 3.0, 0.0, 0.0, std::f64::consts::FRAC_PI_2);
+    let p = yaw.transform_xyz([1.0, 0.0, 0.0]);
     assert!((p[0] - 1.0).abs() < 1e-12 && (p[1] - 3.0).abs() < 1e-12 && (p[2] - 3.0).abs() < 1e-12);
-    let pitch = Isometry3::from_xyz_rpy(0.0, 0.0, 0.0, 0.0, std::f64::consts::FRAC_PI_2, 0.0);
-    let p = pitch.rotate([1.0, 0.0, 0.0]);
+    let pitch = IsometryMatrix3::from_xyz_rpy(0.0, 0.0, 0.0, 0.0, std::f64::consts::FRAC_PI_2, 0.0);
+    let p = pitch.rotate_xyz([1.0, 0.0, 0.0]);
     assert!((p[2] + 1.0).abs() < 1e-12 && p[0].abs() < 1e-12);
     // Roll 90°: y points up.
-    let roll = Isometry3::from_xyz_rpy(0.0, 0.0, 0.0, std::f64::consts::FRAC_PI_2, 0.0, 0.0);
-    let p = roll.rotate([0.0, 1.0, 0.0]);
+    let roll = IsometryMatrix3::from_xyz_rpy(0.0, 0.0, 0.0, std::f64::consts::FRAC_PI_2, 0.0, 0.0);
+    let p = roll.rotate_xyz([0.0, 1.0, 0.0]);
     assert!((p[2] - 1.0).abs() < 1e-12);
 }
 
@@ -58,7 +58,7 @@ fn a_wall_ahead_gives_free_cells_before_it_and_occupied_cells_on_it() {
     let mut model = SensorModel::new(planar_params());
     // A wall at x = 5.5 m from y = −2 to 2, seen from the centre of cell (0, 0).
     let points: Vec<[f32; 3]> = (-20..=20).map(|k| [5.5, k as f32 * 0.1, 0.0]).collect();
-    let pose = Isometry3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
+    let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
     let stats = model.build(&points, &pose, &window, &mut grid);
     assert_eq!(stats.obstacle_points, 41);
     // Wall points: y from −2 + 0.5 to 2 + 0.5 in world, x 6.0 → column 6, rows −2..=2.
@@ -97,7 +97,7 @@ fn bad_points_are_dropped_and_counted() {
         [15.0, 0.0, 0.0], // in range, outside the 21-cell window
         [3.0, 0.0, 0.0],  // kept
     ];
-    let stats = model.build(&points, &Isometry3::IDENTITY, &window, &mut grid);
+    let stats = model.build(&points, &IsometryMatrix3::identity(), &window, &mut grid);
     assert_eq!(stats.points, 5);
     assert_eq!(stats.dropped_non_finite, 2);
     assert_eq!(stats.dropped_out_of_range, 1);
@@ -110,7 +110,7 @@ fn bad_points_are_dropped_and_counted() {
             .all(|v| v.is_finite())
     );
     // A non-finite pose: nothing at all.
-    let pose = Isometry3::from_xyz_rpy(f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let pose = IsometryMatrix3::from_xyz_rpy(f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0);
     let stats = model.build(&points, &pose, &window, &mut grid);
     assert_eq!(stats.dropped_non_finite, 5);
     assert!(grid.m_free().iter().all(|&v| v == 0.0));
@@ -135,7 +135,7 @@ fn ground_returns_make_free_space_up_to_the_farthest_one() {
             points.push([-3.8, -1.0 + dy as f32 * 0.02, -1.0 + dz as f32 * 0.2]);
         }
     }
-    let stats = model.build(&points, &Isometry3::IDENTITY, &window, &mut grid);
+    let stats = model.build(&points, &IsometryMatrix3::identity(), &window, &mut grid);
     let plane = stats.ground_plane.unwrap();
     assert!((plane.offset_m + 1.5).abs() < 1e-6 && (plane.normal[2] - 1.0).abs() < 1e-9);
     assert_eq!(stats.ground_points, 2400);
@@ -159,7 +159,7 @@ fn an_empty_scan_gives_a_vacuous_grid() {
     grid.m_free_mut().fill(0.3);
     let stats = SensorModel::new(SensorParams::default()).build(
         &[],
-        &Isometry3::IDENTITY,
+        &IsometryMatrix3::identity(),
         &window,
         &mut grid,
     );
@@ -189,7 +189,7 @@ fn rays_leave_no_gaps_at_long_range() {
         .collect();
     model.build(
         &points,
-        &Isometry3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0),
+        &IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0),
         &window,
         &mut grid,
     );
@@ -241,7 +241,7 @@ fn a_real_scan_into_a_large_window() {
     let mut model = SensorModel::new(SensorParams::default());
     let stats = model.build(
         &scan.points_in_sensor,
-        &Isometry3::IDENTITY,
+        &IsometryMatrix3::identity(),
         &window,
         &mut grid,
     );
@@ -255,7 +255,7 @@ fn a_real_scan_into_a_large_window() {
         let stats_again = pool.install(|| {
             SensorModel::new(SensorParams::default()).build(
                 &scan.points_in_sensor,
-                &Isometry3::IDENTITY,
+                &IsometryMatrix3::identity(),
                 &window,
                 &mut again,
             )
@@ -331,8 +331,12 @@ fn a_stray_return_neither_occupies_its_cell_nor_stops_the_free_space() {
     let mut points = ground_and_wall_east();
     points.push([4.2, 0.3, 0.5]);
     let mut grid = SensorGrid::new(21, 21);
-    let stats =
-        SensorModel::new(params.clone()).build(&points, &Isometry3::IDENTITY, &window, &mut grid);
+    let stats = SensorModel::new(params.clone()).build(
+        &points,
+        &IsometryMatrix3::identity(),
+        &window,
+        &mut grid,
+    );
     assert_eq!(stats.stray_obstacle_points, 1);
     assert_eq!(stats.obstacle_points, 151 * 5);
     assert_eq!(at(&window, grid.m_occupied(), 4.2, 0.3), 0.0);
@@ -345,7 +349,8 @@ fn a_stray_return_neither_occupies_its_cell_nor_stops_the_free_space() {
         min_neighbourhood_returns: 1,
         ..params
     };
-    let stats = SensorModel::new(spec).build(&points, &Isometry3::IDENTITY, &window, &mut grid);
+    let stats =
+        SensorModel::new(spec).build(&points, &IsometryMatrix3::identity(), &window, &mut grid);
     assert_eq!(stats.stray_obstacle_points, 0);
     assert_eq!(at(&window, grid.m_occupied(), 4.2, 0.3), 0.8);
     assert_eq!(at(&window, grid.m_free(), 6.5, 2.5), 0.0);
@@ -359,14 +364,18 @@ fn a_thin_pole_or_a_planar_scanner_s_single_return_is_kept() {
     let mut points = ground_and_wall_east();
     points.extend((0..4).map(|k| [4.2f32, 0.3, -1.0 + 0.4 * k as f32]));
     let mut grid = SensorGrid::new(21, 21);
-    let stats =
-        SensorModel::new(plane_params()).build(&points, &Isometry3::IDENTITY, &window, &mut grid);
+    let stats = SensorModel::new(plane_params()).build(
+        &points,
+        &IsometryMatrix3::identity(),
+        &window,
+        &mut grid,
+    );
     assert_eq!(stats.stray_obstacle_points, 0);
     assert_eq!(at(&window, grid.m_occupied(), 4.2, 0.3), 0.8);
     // A planar scanner (ground model `none`): one return is an obstacle, as SPEC §3 says.
     let stats = SensorModel::new(planar_params()).build(
         &[[4.2, 0.3, 0.0]],
-        &Isometry3::IDENTITY,
+        &IsometryMatrix3::identity(),
         &window,
         &mut grid,
     );
@@ -384,7 +393,7 @@ fn stray_test_build(
     let mut points = ground_and_wall_east();
     points.extend(returns.iter().map(|&[x, y]| [x, y, -0.5]));
     let mut grid = SensorGrid::new(window.width(), window.height());
-    let stats = model.build(&points, &Isometry3::IDENTITY, window, &mut grid);
+    let stats = model.build(&points, &IsometryMatrix3::identity(), window, &mut grid);
     (stats, grid)
 }
 
@@ -473,7 +482,7 @@ fn kitti_s_phantom_returns_in_mid_road_are_stray() {
     let phantoms = [[9.46, 0.99], [12.92, 1.32], [14.05, 1.53]];
     let mut window = Window::new(200, 200, 0.5).unwrap();
     window.recentre(0.0, 0.0).unwrap();
-    let pose = Isometry3::from_xyz_rpy(0.0, 0.0, 1.73, 0.0, 0.0, 0.0);
+    let pose = IsometryMatrix3::from_xyz_rpy(0.0, 0.0, 1.73, 0.0, 0.0, 0.0);
     let occupied_phantom_cells = |min_neighbourhood_returns| {
         let mut grid = SensorGrid::new(window.width(), window.height());
         let mut model = SensorModel::new(SensorParams {
@@ -514,7 +523,7 @@ fn kitti_raw_scan(frame: usize) -> Option<drive::Scan> {
 fn the_local_ground_model_calls_fewer_ground_cells_occupied_than_the_plane() {
     let mut window = Window::new(200, 200, 0.5).unwrap();
     window.recentre(0.0, 0.0).unwrap();
-    let pose = Isometry3::from_xyz_rpy(0.0, 0.0, 1.73, 0.0, 0.0, 0.0);
+    let pose = IsometryMatrix3::from_xyz_rpy(0.0, 0.0, 1.73, 0.0, 0.0, 0.0);
     // Occupied cells over three frames, and on the lane 4–20 m ahead, per model.
     let (mut occupied, mut lane_occupied) = ([0usize; 2], [0usize; 2]);
     for frame in [0, 20, 39] {
@@ -576,7 +585,7 @@ fn a_planar_ray_that_returns_beyond_the_range_sees_empty_cells_without_mass() {
     };
     // One return 20 m east (beyond the 6 m limit), one 4 m north.
     let points = [[20.0, 0.2, 0.0], [0.2, 4.0, 0.0]];
-    let pose = Isometry3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
+    let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
     let mut model = SensorModel::new(params.clone());
     model.build(&points, &pose, &window, &mut grid);
     // East: the cells the ray left within 6 m, none beyond; no mass on any (SPEC §3). The
@@ -623,7 +632,12 @@ fn a_gap_without_returns_inside_the_field_of_view_is_seen_empty() {
             .collect()
     };
     let mut model = SensorModel::new(params);
-    model.build(&scan(88.0..93.0), &Isometry3::IDENTITY, &window, &mut grid);
+    model.build(
+        &scan(88.0..93.0),
+        &IsometryMatrix3::identity(),
+        &window,
+        &mut grid,
+    );
     let clear = clear_cells(&window, &grid);
     // The gap north, beyond the wall up to 9.5 m (the cells before it are free already); not
     // the lost beam's 1° sector, not the 240° the scanner does not look at.
@@ -633,7 +647,12 @@ fn a_gap_without_returns_inside_the_field_of_view_is_seen_empty() {
         "{clear:?}"
     );
     // Without the gap, nothing is seen empty.
-    model.build(&scan(0.0..0.0), &Isometry3::IDENTITY, &window, &mut grid);
+    model.build(
+        &scan(0.0..0.0),
+        &IsometryMatrix3::identity(),
+        &window,
+        &mut grid,
+    );
     assert!(grid.clear_cells().is_empty());
 }
 

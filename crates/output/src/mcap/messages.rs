@@ -1,7 +1,8 @@
 //! The JSON messages of the recording: `foxglove.*` values built from evigrid's grids, poses
 //! and scans, with the two encodings JSON needs for them (base64 bytes, `{sec, nsec}` times).
 
-use evigrid::{Isometry3, Label, PerceptionGrid, Window, betp_cells};
+use evigrid::nalgebra::UnitQuaternion;
+use evigrid::{IsometryMatrix3, Label, PerceptionGrid, Window, betp_cells};
 use serde_json::{Value, json};
 
 use crate::georef::gis_colour;
@@ -105,47 +106,6 @@ impl WithBytes {
         text.push_str("\"}");
         text
     }
-}
-
-/// The unit quaternion `[x, y, z, w]` of a rotation matrix (Shepperd's method: the largest of
-/// the four squared components is computed first, so no division by a small number).
-pub fn quaternion(r: &[[f64; 3]; 3]) -> [f64; 4] {
-    let trace = r[0][0] + r[1][1] + r[2][2];
-    let q = if trace > 0.0 {
-        let s = 2.0 * (1.0 + trace).sqrt();
-        [
-            (r[2][1] - r[1][2]) / s,
-            (r[0][2] - r[2][0]) / s,
-            (r[1][0] - r[0][1]) / s,
-            0.25 * s,
-        ]
-    } else if r[0][0] > r[1][1] && r[0][0] > r[2][2] {
-        let s = 2.0 * (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt();
-        [
-            0.25 * s,
-            (r[0][1] + r[1][0]) / s,
-            (r[0][2] + r[2][0]) / s,
-            (r[2][1] - r[1][2]) / s,
-        ]
-    } else if r[1][1] > r[2][2] {
-        let s = 2.0 * (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt();
-        [
-            (r[0][1] + r[1][0]) / s,
-            0.25 * s,
-            (r[1][2] + r[2][1]) / s,
-            (r[0][2] - r[2][0]) / s,
-        ]
-    } else {
-        let s = 2.0 * (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt();
-        [
-            (r[0][2] + r[2][0]) / s,
-            (r[1][2] + r[2][1]) / s,
-            0.25 * s,
-            (r[1][0] - r[0][1]) / s,
-        ]
-    };
-    let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
-    q.map(|c| c / norm)
 }
 
 fn identity_pose(x: f64, y: f64, z: f64) -> Value {
@@ -265,9 +225,10 @@ pub(crate) fn point_cloud(
 }
 
 /// The pose of `child` in `parent` as a `foxglove.FrameTransform`.
-pub(crate) fn frame_transform(ns: u64, parent: &str, child: &str, pose: &Isometry3) -> Value {
-    let [x, y, z] = pose.translation;
-    let [qx, qy, qz, qw] = quaternion(&pose.rotation);
+pub(crate) fn frame_transform(ns: u64, parent: &str, child: &str, pose: &IsometryMatrix3) -> Value {
+    let [x, y, z]: [f64; 3] = pose.translation.vector.into();
+    let q = UnitQuaternion::from_rotation_matrix(&pose.rotation);
+    let [qx, qy, qz, qw] = [q.i, q.j, q.k, q.w];
     json!({
         "timestamp": stamp(ns),
         "parent_frame_id": parent,
@@ -381,17 +342,26 @@ mod tests {
     }
 
     #[test]
-    fn quaternion_of_a_yaw_and_of_a_half_turn() {
+    fn a_transform_carries_the_translation_and_the_rotation_as_a_quaternion() {
+        use evigrid::PoseExt;
         let yaw = 0.7_f64;
-        let (c, s) = (yaw.cos(), yaw.sin());
-        let q = quaternion(&[[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]);
+        let pose = IsometryMatrix3::from_xyz_rpy(1.0, 2.0, 3.0, 0.0, 0.0, yaw);
+        let tf = frame_transform(5, "map", "velodyne", &pose);
+        assert_eq!(tf["translation"], json!({"x": 1.0, "y": 2.0, "z": 3.0}));
+        let r = &tf["rotation"];
+        let q = ["x", "y", "z", "w"].map(|k| r[k].as_f64().unwrap());
         let expected = [0.0, 0.0, (yaw / 2.0).sin(), (yaw / 2.0).cos()];
         for (a, b) in q.iter().zip(expected) {
             assert!((a - b).abs() < 1e-12, "{q:?}");
         }
-        // Half turn about x: trace −1, the branch that avoids dividing by w ≈ 0.
-        let q = quaternion(&[[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]);
-        assert!((q[0].abs() - 1.0).abs() < 1e-12, "{q:?}");
+        // Half turn about x: trace −1, where dividing by w ≈ 0 would fail.
+        let pose = IsometryMatrix3::from_xyz_rpy(0.0, 0.0, 0.0, std::f64::consts::PI, 0.0, 0.0);
+        let r = &frame_transform(5, "map", "velodyne", &pose)["rotation"];
+        let q = ["x", "y", "z", "w"].map(|k| r[k].as_f64().unwrap());
+        assert!(
+            (q[0].abs() - 1.0).abs() < 1e-12 && q[3].abs() < 1e-12,
+            "{q:?}"
+        );
     }
 
     #[test]

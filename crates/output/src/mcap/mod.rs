@@ -38,10 +38,10 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
 use ::mcap::records::MessageHeader;
-use evigrid::{Isometry3, Label, PerceptionGrid, Window};
+use evigrid::{IsometryMatrix3, Label, PerceptionGrid, Window};
 use geodata::LocalMap;
 
-pub use messages::{GRID_FIELDS, base64, nanoseconds, occupancy, quaternion};
+pub use messages::{GRID_FIELDS, base64, nanoseconds, occupancy};
 
 use crate::atomic::AtomicFile;
 use crate::error::{OutputError, check_len};
@@ -95,7 +95,7 @@ pub struct McapFrame<'a> {
     /// Masses after the frame.
     pub perception: &'a PerceptionGrid,
     /// The scanner's pose in the map frame.
-    pub world_from_sensor: &'a Isometry3,
+    pub world_from_sensor: &'a IsometryMatrix3,
     /// The scan, sensor frame.
     pub points_in_sensor: &'a [[f32; 3]],
     /// The intensity of each point, or empty when the scan has none (then `/scan` has no
@@ -336,9 +336,9 @@ impl McapRecorder {
         }
         // Heights relative to the first pose's ground (module docs).
         let mut world_from_sensor = *frame.world_from_sensor;
-        let ground_z_m = world_from_sensor.translation[2] - frame.sensor_height_m;
+        let ground_z_m = world_from_sensor.translation.z - frame.sensor_height_m;
         let origin_m = *self.ground_z_origin_m.get_or_insert(ground_z_m);
-        world_from_sensor.translation[2] -= origin_m;
+        world_from_sensor.translation.z -= origin_m;
         self.last_ground_z_m = ground_z_m - origin_m;
         let tf = messages::frame_transform(ns, FRAME_MAP, FRAME_SENSOR, &world_from_sensor);
         self.send(self.channels.tf, TOPIC_TF, ns, &tf.to_string())?;
@@ -414,7 +414,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("run.mcap");
         let mut recorder = McapRecorder::create(&path, Some(&map)).unwrap();
-        let pose = Isometry3::IDENTITY;
+        let pose = IsometryMatrix3::identity();
         for k in 0..3 {
             recorder
                 .write_frame(&McapFrame {
@@ -499,7 +499,7 @@ mod tests {
                 window: &w,
                 decisions: &d,
                 perception: &pg,
-                world_from_sensor: &Isometry3::IDENTITY,
+                world_from_sensor: &IsometryMatrix3::identity(),
                 points_in_sensor: &[],
                 intensity: &[],
                 sensor_height_m: 0.0,
@@ -559,10 +559,7 @@ mod tests {
         let path = dir.path().join("run.mcap");
         let mut recorder = McapRecorder::create(&path, None).unwrap();
         for (k, z) in [115.5, 116.0].into_iter().enumerate() {
-            let pose = Isometry3 {
-                rotation: Isometry3::IDENTITY.rotation,
-                translation: [3.0, 4.0, z],
-            };
+            let pose = IsometryMatrix3::translation(3.0, 4.0, z);
             recorder
                 .write_frame(&McapFrame {
                     time_s: 1.0 + k as f64,
@@ -615,7 +612,7 @@ mod tests {
                 window: &w,
                 decisions: &d,
                 perception: &pg,
-                world_from_sensor: &Isometry3::IDENTITY,
+                world_from_sensor: &IsometryMatrix3::identity(),
                 points_in_sensor: &[],
                 intensity: &[],
                 sensor_height_m: 0.0,
