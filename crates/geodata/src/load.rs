@@ -267,7 +267,7 @@ fn read_features(bytes: &[u8], format: MapFormat) -> Result<MapFeatures, MapErro
 }
 
 /// Projects WGS84 features into local metres around the origin and gathers the statistics.
-fn project(
+pub(crate) fn project(
     features: MapFeatures,
     format: MapFormat,
     options: &LoadOptions,

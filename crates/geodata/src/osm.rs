@@ -10,7 +10,7 @@ use crate::rings::{assemble_rings, clean_ring, group_rings};
 use crate::tags::Roles;
 
 /// A way: its node references and what its tags make it.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub(crate) struct OsmWay {
     pub refs: Vec<i64>,
     pub roles: Roles,
@@ -24,7 +24,7 @@ pub(crate) enum MemberRole {
 }
 
 /// A multipolygon relation whose tags make it a building or a surface.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub(crate) struct OsmMultipolygon {
     pub roles: Roles,
     /// Member ways with their roles (node and relation members are ignored).
@@ -33,7 +33,7 @@ pub(crate) struct OsmMultipolygon {
 
 /// What a reader collects from an OSM file: all node positions, all ways (untagged ones may be
 /// multipolygon members), and the multipolygon relations of interest.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, PartialEq)]
 pub(crate) struct OsmData {
     /// Node id → (x = lon, y = lat), degrees.
     pub nodes: HashMap<i64, Coord<f64>>,
