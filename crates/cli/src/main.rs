@@ -29,24 +29,34 @@ struct Cli {
     quiet: bool,
 }
 
-/// Sends `tracing` events to standard error at the level `-v`/`-q` chose, or as `RUST_LOG` says.
+/// Sends `tracing` events to standard error at the level `-v`/`-q` chose, or as `RUST_LOG` says
+/// (`level` or `target=level`, comma-separated: `tracing_subscriber`'s `Targets`, which needs no
+/// regular-expression engine in the build, unlike its `EnvFilter`; a value that does not parse
+/// is ignored).
 fn init_logging(verbose: u8, quiet: bool) {
+    use tracing_subscriber::filter::{LevelFilter, Targets};
+    use tracing_subscriber::layer::SubscriberExt;
+    use tracing_subscriber::util::SubscriberInitExt;
     let level = match (quiet, verbose) {
-        (true, _) => "error",
-        (false, 0) => "warn",
-        (false, 1) => "info",
-        (false, 2) => "debug",
-        (false, _) => "trace",
+        (true, _) => LevelFilter::ERROR,
+        (false, 0) => LevelFilter::WARN,
+        (false, 1) => LevelFilter::INFO,
+        (false, 2) => LevelFilter::DEBUG,
+        (false, _) => LevelFilter::TRACE,
     };
-    let filter = tracing_subscriber::EnvFilter::try_from_env("RUST_LOG")
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(level));
+    let filter = std::env::var("RUST_LOG")
+        .ok()
+        .and_then(|value| value.parse::<Targets>().ok())
+        .unwrap_or_else(|| Targets::new().with_default(level));
     // `try_init`: a second initialisation (tests) is not an error worth failing for.
     let _ = tracing_subscriber::fmt()
-        .with_env_filter(filter)
+        .with_max_level(LevelFilter::TRACE)
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_target(false)
         .without_time()
+        .finish()
+        .with(filter)
         .try_init();
     progress::set_quiet(quiet);
 }

@@ -20,7 +20,8 @@
 //! message's log time when the stamp is zero. Poses at scan times come from
 //! [`PoseTrack::at`]'s interpolation.
 //!
-//! Limits: CDR only (what rosbag2 writes); chunk compression none, zstd or lz4; records above
+//! Limits: CDR only (what rosbag2 writes); chunk compression none, zstd or lz4 (lz4 decoded in
+//! Rust by `lz4`, not mcap's C binding); records above
 //! [`MAX_RECORD_BYTES`] are refused; the cloud's `x`, `y`, `z` must be FLOAT32 or FLOAT64
 //! (`intensity` may be any numeric type); a topic's clouds must share one `frame_id`. ROS 1 bags
 //! (`.bag`) and rosbag2's SQLite storage (`.db3`) are not read: convert them with `mcap convert`.
@@ -30,6 +31,7 @@
 mod cdr;
 pub mod error;
 mod folder;
+mod lz4;
 mod msgs;
 pub mod navsat;
 mod tf;
@@ -208,10 +210,11 @@ fn reader(path: &Path) -> Result<mcap::io::MessageReader<BufReader<File>>, BagEr
     }
     let file = File::open(path).map_err(io)?;
     let options = LinearReaderOptions::default().with_record_length_limit(MAX_RECORD_BYTES);
-    Ok(mcap::io::MessageReader::new_with_options(
-        BufReader::new(file),
-        options,
-    ))
+    let mut reader = mcap::io::MessageReader::new_with_options(BufReader::new(file), options);
+    reader
+        .add_decompressor(lz4::Lz4Chunks::new())
+        .map_err(|source| mcap_error(path, 0, source))?;
+    Ok(reader)
 }
 
 fn mcap_error(path: &Path, messages: u64, source: mcap::McapError) -> BagError {

@@ -12,7 +12,7 @@ use std::io::Read;
 
 use flate2::read::ZlibDecoder;
 
-use super::wire::{Value, WireError, fields, repeated, zigzag};
+use super::wire::{WireError, fields, repeated, zigzag};
 
 /// The largest `BlobHeader` the format allows.
 const MAX_HEADER_BYTES: usize = 64 * 1024;
