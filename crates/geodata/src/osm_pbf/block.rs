@@ -427,19 +427,21 @@ fn read_dense<'a>(
         delta(&mut lat, lat_delta)?;
         delta(&mut lon, lon_delta)?;
         let mut tags = Vec::new();
-        while has_tags {
-            let key = keys_vals
-                .next()
-                .ok_or("DenseNodes keys_vals ends before its last node")?
-                .map_err(wire("DenseNodes keys_vals"))?;
-            if key == 0 {
-                break;
+        if has_tags {
+            loop {
+                let key = keys_vals
+                    .next()
+                    .ok_or("DenseNodes keys_vals ends before its last node")?
+                    .map_err(wire("DenseNodes keys_vals"))?;
+                if key == 0 {
+                    break;
+                }
+                let val = keys_vals
+                    .next()
+                    .ok_or("DenseNodes keys_vals ends inside a tag")?
+                    .map_err(wire("DenseNodes keys_vals"))?;
+                tags.push((block.string(key)?, block.string(val)?));
             }
-            let val = keys_vals
-                .next()
-                .ok_or("DenseNodes keys_vals ends inside a tag")?
-                .map_err(wire("DenseNodes keys_vals"))?;
-            tags.push((block.string(key)?, block.string(val)?));
         }
         visit(Item::Node {
             id,
