@@ -222,6 +222,9 @@ pub struct FrontEnd {
     window: Window,
     sensor_model: SensorModel,
     sensor: SensorGrid,
+    /// The SensorGrid with returns placed by cell centre (`[motion] return_depth_cells` > 0),
+    /// for [`Method::Evigrid`].
+    placed: Option<SensorGrid>,
     gis: GisGrid,
     map_prior: MapPrior,
     new_cells: NewCells,
@@ -261,9 +264,13 @@ impl FrontEnd {
                     })?,
             ),
         };
+        let mut sensor_model = SensorModel::new(params.sensor.clone());
+        let return_depth_cells = params.motion.return_depth_cells;
+        sensor_model.set_return_depth_m(return_depth_cells * params.grid.cell_size_m);
         Ok(Self {
-            sensor_model: SensorModel::new(params.sensor.clone()),
+            sensor_model,
             sensor: SensorGrid::new(w, h),
+            placed: (return_depth_cells > 0.0).then(|| SensorGrid::new(w, h)),
             gis: GisGrid::new(w, h),
             map_prior: MapPrior::new(map),
             window,
@@ -347,6 +354,10 @@ impl FrontEnd {
             &self.window,
             &mut self.sensor,
         );
+        // The same scan with returns placed by cell centre, for the `evigrid` method.
+        if let Some(placed) = &mut self.placed {
+            self.sensor_model.build_placed(&self.window, placed);
+        }
         let sensor_ms = ms(start);
 
         let mut pose_refinement = pose_refinement;
@@ -393,6 +404,14 @@ impl FrontEnd {
     /// The last frame's SensorGrid, in storage order.
     pub fn sensor_grid(&self) -> &SensorGrid {
         &self.sensor
+    }
+
+    /// The SensorGrid [`Method::Evigrid`] fuses: each return's occupied evidence in the cell of
+    /// the return moved `[motion] return_depth_cells` further along its ray, the rays' free
+    /// space extended by as much (a cell is occupied when its centre lies behind the surface,
+    /// seen from the sensor); [`FrontEnd::sensor_grid`] when that parameter is 0.
+    pub fn placed_sensor_grid(&self) -> &SensorGrid {
+        self.placed.as_ref().unwrap_or(&self.sensor)
     }
 
     /// The GISGrid (vacuous without a map), in storage order.
@@ -602,9 +621,14 @@ impl Fusion {
             (None, Some(motion)) => motion.prior(),
             (None, None) => front_end.gis(),
         };
+        // The paper's method fuses the SPEC §3 grid; `evigrid` the grid placed by cell centre.
+        let sensor_grid = match self.motion {
+            Some(_) => front_end.placed_sensor_grid(),
+            None => front_end.sensor_grid(),
+        };
         let step = step_and_decide(
             &mut self.perception,
-            front_end.sensor_grid(),
+            sensor_grid,
             gis,
             &self.params,
             front_end.dt_s(),
@@ -616,7 +640,7 @@ impl Fusion {
         let motion = self.motion.as_mut().and_then(|motion| {
             Some(motion.update(
                 window,
-                front_end.sensor_grid(),
+                sensor_grid,
                 front_end.time_s()?,
                 front_end.dt_s(),
                 &mut self.perception,
@@ -737,8 +761,13 @@ impl Pipeline {
         map: Option<ContextRaster>,
         method: Method,
     ) -> Result<Self, PipelineError> {
+        // The paper's method needs no grid placed by cell centre.
+        let mut front_end_params = params.clone();
+        if method == Method::Kurdej2013 {
+            front_end_params.motion.return_depth_cells = 0.0;
+        }
         Ok(Self {
-            front_end: FrontEnd::new(&params, map)?,
+            front_end: FrontEnd::new(&front_end_params, map)?,
             fusion: Fusion::with_method(params, Prior::Map, method)?,
         })
     }

@@ -20,6 +20,9 @@ pub(super) struct PointClassifier<'a> {
     pub(super) sectors_per_radian: f64,
     pub(super) window: &'a Window,
     pub(super) sensor_xy: (f64, f64),
+    /// How far along its ray, m, a return is moved before its placed cell is taken
+    /// ([`SensorModel::set_return_depth_m`](super::SensorModel::set_return_depth_m)); 0: its own.
+    pub(super) return_depth_m: f64,
 }
 
 /// What one chunk of points gives.
@@ -34,6 +37,9 @@ pub(super) struct Classified {
     /// returns are kept apart because a cell's count decides whether they count at all.
     pub(super) ground_cells: Vec<(usize, u32, f64)>,
     pub(super) obstacle_cells: Vec<(usize, u32, f64)>,
+    /// Per obstacle return, in the order of `obstacle_cells`: its placed cell, the cell of the
+    /// return moved `return_depth_m` further along its ray (`None` outside the window).
+    pub(super) placed_cells: Vec<Option<usize>>,
 }
 
 impl PointClassifier<'_> {
@@ -52,6 +58,19 @@ impl PointClassifier<'_> {
         }
     }
 
+    /// The cell of the obstacle return `q` (levelled, in cell `idx`, `range_m` from the sensor)
+    /// moved `return_depth_m` further along its horizontal ray: the cell whose centre lies
+    /// behind the surface the return came from.
+    fn placed_cell(&self, q: [f64; 3], range_m: f64, idx: usize) -> Option<usize> {
+        if self.return_depth_m == 0.0 || range_m == 0.0 {
+            return Some(idx);
+        }
+        let scale = 1.0 + self.return_depth_m / range_m;
+        let (sensor_x, sensor_y) = self.sensor_xy;
+        self.window
+            .storage_index_of_point(sensor_x + q[0] * scale, sensor_y + q[1] * scale)
+    }
+
     /// Classifies `points` into `out`, whose buffers are cleared and reused.
     pub(super) fn chunk(
         &self,
@@ -66,6 +85,7 @@ impl PointClassifier<'_> {
         out.ground_range.resize(self.sectors, 0.0);
         out.ground_cells.clear();
         out.obstacle_cells.clear();
+        out.placed_cells.clear();
         let (sensor_x, sensor_y) = self.sensor_xy;
         for (i, &q) in points.iter().enumerate() {
             let is_obstacle = match (labels, self.plane) {
@@ -97,8 +117,9 @@ impl PointClassifier<'_> {
             {
                 Some(idx) => {
                     let s = sector_of(q, self.sectors_per_radian, self.sectors);
-                    out.obstacle_cells
-                        .push((idx, s as u32, horizontal_range(q)));
+                    let range_m = horizontal_range(q);
+                    out.obstacle_cells.push((idx, s as u32, range_m));
+                    out.placed_cells.push(self.placed_cell(q, range_m, idx));
                 }
                 None => out.dropped_outside_window += 1,
             }

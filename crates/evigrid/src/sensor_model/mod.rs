@@ -102,6 +102,20 @@ pub struct SensorModel {
     /// The levelled points in `f32` for the local ground model, and its label per point.
     levelled_f32: Vec<[f32; 3]>,
     labels: Vec<ground::PointLabel>,
+    /// How far along its ray [`SensorModel::build_placed`] moves a return, m (0: not at all).
+    return_depth_m: f64,
+    /// What the last scan left for the rays' walk; `None` before a scan or after one that
+    /// gave a vacuous grid.
+    last: Option<LastScan>,
+}
+
+/// What [`SensorModel::build`] keeps of a scan, besides the sectors, to fill a grid again.
+#[derive(Clone, Copy, Debug)]
+struct LastScan {
+    /// The sensor's position, in cells.
+    origin: (f64, f64),
+    /// Whether sectors that met nothing are noted as seen empty (planar scanners).
+    note_empty: bool,
 }
 
 impl SensorModel {
@@ -123,6 +137,8 @@ impl SensorModel {
             classified: Vec::new(),
             stray: StrayFilter::default(),
             plane_fitter: ground::PlaneFitter::default(),
+            return_depth_m: 0.0,
+            last: None,
         }
     }
 
@@ -159,6 +175,7 @@ impl SensorModel {
         out: &mut SensorGrid,
     ) -> SensorStats {
         out.clear();
+        self.last = None;
         let mut stats = SensorStats {
             points: points_in_sensor.len(),
             ..SensorStats::default()
@@ -250,6 +267,7 @@ impl SensorModel {
             sectors_per_radian,
             window,
             sensor_xy: (sensor_x, sensor_y),
+            return_depth_m: self.return_depth_m,
         };
         let chunk_count = self.levelled.len().div_ceil(CLASSIFY_CHUNK);
         self.classified
@@ -300,25 +318,76 @@ impl SensorModel {
             *range = range.min(range_m);
         }
 
+        if note_empty {
+            mark_gaps(&self.any_return, returns, &mut self.empty_sector);
+        }
+        self.last = Some(LastScan {
+            origin: (
+                sensor_x / window.cell_size_m(),
+                sensor_y / window.cell_size_m(),
+            ),
+            note_empty,
+        });
+        let (free_cells, occupied_cells) = self.fill(window, 0.0, out);
+        stats.free_cells = free_cells;
+        stats.occupied_cells = occupied_cells;
+        stats
+    }
+
+    /// How far along its ray, m, [`SensorModel::build_placed`] moves each return before taking
+    /// its cell; 0 (the default) places every return in its own cell, as SPEC §3 does.
+    pub(crate) fn set_return_depth_m(&mut self, depth_m: f64) {
+        self.return_depth_m = depth_m;
+    }
+
+    /// Fills `out` (cleared first) from the scan of the last [`SensorModel::build`], with each
+    /// obstacle return's occupied evidence in the cell of the return moved `return_depth_m`
+    /// further along its ray, and each ray's free space extended by as much: a cell is
+    /// occupied when its centre lies behind the surface the return came from, seen from the
+    /// sensor, and free when the ray passes its centre in front of it (issue 30: a cell is
+    /// what covers its centre). A vacuous grid before the first scan. Returns the free and
+    /// occupied cell counts.
+    pub(crate) fn build_placed(&self, window: &Window, out: &mut SensorGrid) -> (usize, usize) {
+        out.clear();
+        if out.len() != window.len() {
+            return (0, 0);
+        }
+        self.fill(window, self.return_depth_m, out)
+    }
+
+    /// Writes the free and occupied cells of the last scan into the cleared `out`, the rays'
+    /// free space reaching `depth_m` beyond the nearest obstacle of their sector and each
+    /// return placed in its cell moved as far (`placed_cells`; its own cell when 0).
+    fn fill(&self, window: &Window, depth_m: f64, out: &mut SensorGrid) -> (usize, usize) {
+        let Some(last) = self.last else {
+            return (0, 0);
+        };
         let mu_free = self.params.mu_free as f32;
         let mu_occupied = self.params.mu_occupied as f32;
-        let cell_size_m = window.cell_size_m();
-        let origin = (sensor_x / cell_size_m, sensor_y / cell_size_m);
+        let sectors = self.obstacle_range.len();
         let mut free_cells = 0usize;
         for s in 0..sectors {
             let (limit_m, whole_cells) = if self.obstacle_range[s].is_finite() {
-                (self.obstacle_range[s], true)
+                (self.obstacle_range[s] + depth_m, true)
             } else {
                 (self.ground_range[s], false)
             };
             if limit_m <= 0.0 {
                 continue;
             }
-            walk_sector(window, origin, s, sectors, limit_m, whole_cells, |idx| {
-                // Counted on the first visit: rays of a sector overlap near the sensor.
-                free_cells += usize::from(out.m_free()[idx] != mu_free);
-                out.set_free(idx, mu_free);
-            });
+            walk_sector(
+                window,
+                last.origin,
+                s,
+                sectors,
+                limit_m,
+                whole_cells,
+                |idx| {
+                    // Counted on the first visit: rays of a sector overlap near the sensor.
+                    free_cells += usize::from(out.m_free()[idx] != mu_free);
+                    out.set_free(idx, mu_free);
+                },
+            );
         }
         // A ground return's own cell was seen free, if it lies within its sector's free range
         // (a ray may enter that cell just after the return's range, or miss its corner).
@@ -331,35 +400,38 @@ impl SensorModel {
             }
         }
         let mut occupied_cells = 0;
-        for &(idx, _, _) in self.classified.iter().flat_map(|c| &c.obstacle_cells) {
-            if self.stray.is_stray(idx) {
-                continue;
+        for chunk in &self.classified {
+            for (&(idx, _, _), &placed) in chunk.obstacle_cells.iter().zip(&chunk.placed_cells) {
+                if self.stray.is_stray(idx) {
+                    continue;
+                }
+                let Some(idx) = (if depth_m == 0.0 { Some(idx) } else { placed }) else {
+                    continue;
+                };
+                if out.m_occupied()[idx] != mu_occupied {
+                    occupied_cells += 1;
+                    free_cells -= usize::from(out.m_free()[idx] == mu_free && mu_free != 0.0);
+                }
+                out.set_free(idx, 0.0);
+                out.set_occupied(idx, mu_occupied);
             }
-            if out.m_occupied()[idx] != mu_occupied {
-                occupied_cells += 1;
-                free_cells -= usize::from(out.m_free()[idx] == mu_free && mu_free != 0.0);
-            }
-            out.set_free(idx, 0.0);
-            out.set_occupied(idx, mu_occupied);
         }
         // Sectors whose rays met nothing within the range limit: seen empty up to it, outside
         // the SensorGrid's mass (SPEC §3 leaves them vacuous).
-        if note_empty {
-            mark_gaps(&self.any_return, returns, &mut self.empty_sector);
+        if last.note_empty {
             for s in 0..sectors {
                 if !self.empty_sector[s] || self.obstacle_range[s].is_finite() {
                     continue;
                 }
-                walk_sector(window, origin, s, sectors, max_range_m, true, |idx| {
+                let max_range_m = self.params.max_range_m;
+                walk_sector(window, last.origin, s, sectors, max_range_m, true, |idx| {
                     if out.m_free()[idx] == 0.0 && out.m_occupied()[idx] == 0.0 {
                         out.push_clear(idx);
                     }
                 });
             }
         }
-        stats.free_cells = free_cells;
-        stats.occupied_cells = occupied_cells;
-        stats
+        (free_cells, occupied_cells)
     }
 }
 

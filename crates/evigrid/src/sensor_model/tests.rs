@@ -670,3 +670,63 @@ fn a_gap_must_span_three_ray_spacings() {
     mark_gaps(&any_return, 80, &mut clear);
     assert!(clear.iter().all(|&c| !c));
 }
+
+/// The SPEC §3 grid and the grid placed by cell centre (`build_placed`, half a cell deep) of
+/// one return `range_m` east of the centre of cell (0, 0), 1 m cells.
+fn one_return_both_ways(range_m: f32) -> (Window, SensorGrid, SensorGrid) {
+    let window = small_window();
+    let mut model = SensorModel::new(planar_params());
+    model.set_return_depth_m(0.5);
+    let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
+    let pose = Isometry3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
+    model.build(&[[range_m, 0.0, 0.0]], &pose, &window, &mut spec);
+    let counts = model.build_placed(&window, &mut placed);
+    assert_eq!(counts.1, 1, "one occupied cell");
+    (window, spec, placed)
+}
+
+#[test]
+fn a_return_in_the_near_half_of_its_cell_occupies_it_placed_by_centre() {
+    // x = 0.5 + 4.8 = 5.3: the near half of cell 5 (5 ≤ x < 6). Its centre, x = 5.5, lies
+    // behind the surface, seen from the sensor: the return moved 0.5 m on (5.8) stays in
+    // cell 5, which stays occupied; the ray's free space reaches 4.8 + 0.5 = 5.3 m from the
+    // sensor, so cell 4 (left at 4.5 m) is free and cell 5 (left at 5.5 m) is not.
+    let (window, spec, placed) = one_return_both_ways(4.8);
+    for grid in [&spec, &placed] {
+        assert_eq!(at(&window, grid.m_occupied(), 5.5, 0.5), 0.8);
+        assert_eq!(at(&window, grid.m_free(), 5.5, 0.5), 0.0);
+        assert_eq!(at(&window, grid.m_free(), 4.5, 0.5), 0.7);
+        assert_eq!(at(&window, grid.m_occupied(), 6.5, 0.5), 0.0);
+    }
+}
+
+#[test]
+fn a_return_in_the_far_half_of_its_cell_occupies_the_next_cell_placed_by_centre() {
+    // x = 0.5 + 5.3 = 5.8: the far half of cell 5, whose centre (5.5) lies in front of the
+    // surface. SPEC §3 calls cell 5 occupied; placed by centre, the return moved 0.5 m on
+    // (6.3) lands in cell 6, whose centre lies behind the surface, and the ray's free space
+    // reaches 5.3 + 0.5 = 5.8 m from the sensor: cell 5, left at 5.5 m, is free.
+    let (window, spec, placed) = one_return_both_ways(5.3);
+    assert_eq!(at(&window, spec.m_occupied(), 5.5, 0.5), 0.8);
+    assert_eq!(at(&window, spec.m_occupied(), 6.5, 0.5), 0.0);
+    assert_eq!(at(&window, placed.m_occupied(), 5.5, 0.5), 0.0);
+    assert_eq!(at(&window, placed.m_free(), 5.5, 0.5), 0.7);
+    assert_eq!(at(&window, placed.m_occupied(), 6.5, 0.5), 0.8);
+    assert_eq!(at(&window, placed.m_free(), 6.5, 0.5), 0.0);
+    // Nothing beyond.
+    assert_eq!(at(&window, placed.m_free(), 7.5, 0.5), 0.0);
+}
+
+#[test]
+fn without_depth_the_placed_grid_is_the_spec_grid() {
+    let window = small_window();
+    let mut model = SensorModel::new(planar_params());
+    let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
+    let points: Vec<[f32; 3]> = (-20..=20).map(|k| [5.3, k as f32 * 0.1, 0.0]).collect();
+    let pose = Isometry3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.3);
+    let stats = model.build(&points, &pose, &window, &mut spec);
+    let counts = model.build_placed(&window, &mut placed);
+    assert_eq!(counts, (stats.free_cells, stats.occupied_cells));
+    assert_eq!(spec.m_free(), placed.m_free());
+    assert_eq!(spec.m_occupied(), placed.m_occupied());
+}
