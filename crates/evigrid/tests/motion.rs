@@ -86,7 +86,9 @@ fn a_car_driving_away_is_decided_moving_within_three_frames() {
         evigrid.update(&front_end).unwrap();
         paper.update(&front_end).unwrap();
         let window = front_end.window();
-        let face = window.storage_index_of_point(rear_m + depth_m, 0.1).unwrap();
+        let face = window
+            .storage_index_of_point(rear_m + depth_m, 0.1)
+            .unwrap();
         let paper_face = window.storage_index_of_point(rear_m + 0.05, 0.1).unwrap();
         decided_moving.push(evigrid.decisions()[face] == Label::M);
         paper_moving.push(paper.decisions()[paper_face] == Label::M);
