@@ -678,7 +678,7 @@ fn one_return_both_ways(range_m: f32) -> (Window, SensorGrid, SensorGrid) {
     let mut model = SensorModel::new(planar_params());
     model.set_return_depth_m(0.5);
     let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
-    let pose = Isometry3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
+    let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
     model.build(&[[range_m, 0.0, 0.0]], &pose, &window, &mut spec);
     let counts = model.build_placed(&window, &mut placed);
     assert_eq!(counts.1, 1, "one occupied cell");
@@ -723,7 +723,7 @@ fn without_depth_the_placed_grid_is_the_spec_grid() {
     let mut model = SensorModel::new(planar_params());
     let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
     let points: Vec<[f32; 3]> = (-20..=20).map(|k| [5.3, k as f32 * 0.1, 0.0]).collect();
-    let pose = Isometry3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.3);
+    let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.3);
     let stats = model.build(&points, &pose, &window, &mut spec);
     let counts = model.build_placed(&window, &mut placed);
     assert_eq!(counts, (stats.free_cells, stats.occupied_cells));
