@@ -8,11 +8,15 @@ OUT is an `evigrid run` or `evigrid demo` output folder of N frames whose local 
 transverse Mercator around ORIGIN. Read with the Python `mcap` reader, `jsonschema`, numpy,
 Pillow, PyYAML, tifffile, foxglove-schemas-protobuf and (optionally) pyproj:
 
-- run.mcap: channels, schema names and encodings, message counts, every first message valid
-  against its channel's JSON Schema and parsed into Foxglove's own protobuf type
-  (foxglove-schemas-protobuf: no unknown field, every type right), every channel's schema
-  holding every field of Foxglove's current definition (LocationFix's heading, velocity,
-  colour), times after 2000 on the scans' timeline (with --kitti-drive: equal to the drive's
+- run.mcap: channels, schema names and encodings (/scan protobuf, the others JSON), message
+  counts, every first JSON message valid against its channel's JSON Schema and parsed into
+  Foxglove's own protobuf type (foxglove-schemas-protobuf: no unknown field, every type right),
+  every channel's schema holding every field of Foxglove's current definition (LocationFix's
+  heading, velocity, colour; /scan's descriptor set field for field Foxglove's PointCloud), every
+  /scan message decoded both by foxglove-schemas-protobuf's PointCloud and by the descriptor set
+  the file carries, alike, with no unknown field and in protobuf's own encoding (re-encoded to
+  the same bytes), its points the scan's (with --kitti-drive: the first frame's .bin, every
+  value), times after 2000 on the scans' timeline (with --kitti-drive: equal to the drive's
   velodyne timestamps.txt), the scene right in 3-D (in each frame the grid at most 3 m under
   the sensor of /tf, the first at z = 0, the first scan's ground on it; with --kitti-drive the
   scan's intensity), and the last decision grid decoded equal to occupancy.json and
@@ -45,7 +49,13 @@ try:
     import yaml
     from jsonschema import Draft202012Validator
     from mcap.reader import make_reader
-    from google.protobuf import json_format
+    from google.protobuf import (
+        descriptor_pb2,
+        descriptor_pool,
+        json_format,
+        message_factory,
+        unknown_fields,
+    )
     from PIL import Image
 except ImportError as error:  # pragma: no cover - the skip path
     print(f"check_outputs: missing Python package: {error.name}", file=sys.stderr)
@@ -66,6 +76,8 @@ CHANNELS = {
     "/map": "foxglove.SceneUpdate",
     "/gnss": "foxglove.LocationFix",
 }
+# Channels encoded as protobuf (schema: a FileDescriptorSet); the others are JSON.
+PROTOBUF_CHANNELS = {"/scan"}
 
 failures = []
 
@@ -320,9 +332,15 @@ def check_mcap(out, frames, occ, classes, kitti_drive, with_map):
     with open(out / "run.mcap", "rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()
+        scan_class = None
         for channel in summary.channels.values():
             schema = summary.schemas[channel.schema_id]
             check(CHANNELS.get(channel.topic) == schema.name, f"{channel.topic}: {schema.name}")
+            if channel.topic in PROTOBUF_CHANNELS:
+                check(channel.message_encoding == "protobuf", f"{channel.topic} message encoding")
+                check(schema.encoding == "protobuf", f"{channel.topic} schema encoding")
+                scan_class = descriptor_set_class(schema.name, schema.data)
+                continue
             check(channel.message_encoding == "json", f"{channel.topic} message encoding")
             check(schema.encoding == "jsonschema", f"{channel.topic} schema encoding")
             check(json.loads(schema.data)["title"] == schema.name, f"{schema.name} schema title")
@@ -330,7 +348,10 @@ def check_mcap(out, frames, occ, classes, kitti_drive, with_map):
         first_tf, first_grid, first_scan = None, None, None
         for schema, channel, message in reader.iter_messages(log_time_order=False):
             topic = channel.topic
-            value = json.loads(message.data)
+            if topic in PROTOBUF_CHANNELS:
+                value = decode_point_cloud(message.data, scan_class)
+            else:
+                value = json.loads(message.data)
             counts[topic] = counts.get(topic, 0) + 1
             times.setdefault(topic, []).append(message.log_time)
             check(message.publish_time == message.log_time, f"{topic} publish = log time")
@@ -339,7 +360,7 @@ def check_mcap(out, frames, occ, classes, kitti_drive, with_map):
                 stamp["sec"] * 10**9 + stamp["nsec"] == message.log_time,
                 f"{topic} stamp = log time",
             )
-            if topic not in first:
+            if topic not in first and topic not in PROTOBUF_CHANNELS:
                 first[topic] = True
                 validate(value, json.loads(schema.data), f"{topic} first message vs its schema")
                 check_against_foxglove(schema.name, value)
@@ -388,6 +409,8 @@ def check_mcap(out, frames, occ, classes, kitti_drive, with_map):
             f"log times are the velodyne timestamps.txt (worst {worst} ns)",
         )
     check_scene(first_tf, first_grid, first_scan, tf_z, grid_z, kitti_drive)
+    if kitti_drive:
+        check_scan_is_the_bin(first_scan, kitti_drive)
     # The last grid decoded: field by field from its own description.
     g = last_grid
     fields = {fl["name"]: fl for fl in g["fields"]}
@@ -445,6 +468,88 @@ def check_schema_is_current(schema_name, schema):
     check(not missing, f"{schema_name} schema lacks current fields {missing}")
 
 
+def descriptor_set_class(schema_name, data):
+    """The message class of `schema_name` built from the FileDescriptorSet a protobuf channel
+    carries (as Foxglove and mcap-protobuf-support's decoder build it), after checking that the
+    set describes it field for field as Foxglove's own PointCloud (foxglove-schemas-protobuf)."""
+    files = descriptor_pb2.FileDescriptorSet.FromString(data)
+    pool = descriptor_pool.DescriptorPool()
+    for file in files.file:
+        pool.Add(file)
+    ours = pool.FindMessageTypeByName(schema_name)
+    name = schema_name.split(".")[1]
+    theirs = getattr(importlib.import_module(f"foxglove_schemas_protobuf.{name}_pb2"), name)
+
+    def fields(descriptor, seen):
+        """(message.field, number, type, repeated, nested type) of a message and all it nests."""
+        if descriptor.full_name in seen:
+            return []
+        seen.add(descriptor.full_name)
+        result = []
+        for f in descriptor.fields:
+            nested = f.message_type or f.enum_type
+            result.append(
+                (f"{descriptor.full_name}.{f.name}", f.number, f.type, f.is_repeated,
+                 nested.full_name if nested else None)
+            )
+            if f.message_type is not None:
+                result.extend(fields(f.message_type, seen))
+            if f.enum_type is not None:
+                values = [(v.name, v.number) for v in f.enum_type.values]
+                result.append((f.enum_type.full_name, values))
+        return result
+
+    check(
+        fields(ours, set()) == fields(theirs.DESCRIPTOR, set()),
+        f"{schema_name} descriptor set = Foxglove's {name}, field for field",
+    )
+    return message_factory.GetMessageClass(ours)
+
+
+def decode_point_cloud(data, from_file):
+    """A /scan message decoded by Foxglove's PointCloud and by the class of the file's own
+    descriptor set, checked alike and complete, as Foxglove's JSON layout (`timestamp` as
+    {sec, nsec}, `data` raw bytes)."""
+    from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
+
+    message = PointCloud.FromString(data)
+    if check(from_file is not None, "/scan has its descriptor set"):
+        other = from_file.FromString(data)
+        check(
+            json_format.MessageToDict(other) == json_format.MessageToDict(message),
+            "/scan decoded alike by the file's descriptor set and foxglove-schemas-protobuf",
+        )
+    check(len(unknown_fields.UnknownFieldSet(message)) == 0, "/scan has no unknown field")
+    check(message.SerializeToString() == data, "/scan re-encodes to the same bytes")
+    return {
+        "timestamp": {"sec": message.timestamp.seconds, "nsec": message.timestamp.nanos},
+        "frame_id": message.frame_id,
+        "pose": json_format.MessageToDict(message.pose),
+        "point_stride": message.point_stride,
+        "fields": [{"name": f.name, "offset": f.offset, "type": f.type} for f in message.fields],
+        "data": message.data,
+    }
+
+
+def check_scan_is_the_bin(scan, drive):
+    """The first /scan holds the first Velodyne .bin's points: x, y, z and intensity, every
+    finite record, in order, bit for bit."""
+    sync = next(Path(drive).glob("*_sync"))
+    records = np.fromfile(sync / "velodyne_points" / "data" / "0000000000.bin", dtype="<f4")
+    records = records.reshape(-1, 4)
+    records = records[np.isfinite(records[:, :3]).all(axis=1)]
+    fields = {f["name"]: f["offset"] for f in scan["fields"]}
+    check(scan["point_stride"] == 16 and fields == {"x": 0, "y": 4, "z": 8, "intensity": 12},
+          f"/scan x y z intensity at 0 4 8 12 of 16 ({fields})")
+    points = np.frombuffer(scan["data"], dtype="<f4").reshape(-1, 4)
+    same = points.shape == records.shape and np.array_equal(points, records)
+    check(same, f"first /scan = first .bin ({len(points)} against {len(records)} points)")
+    print(
+        f"first /scan: {len(points)} points, the .bin's; first {points[0].tolist()},"
+        f" last {points[-1].tolist()}"
+    )
+
+
 def quaternion_matrix(q):
     x, y, z, w = q["x"], q["y"], q["z"], q["w"]
     return np.array(
@@ -471,7 +576,7 @@ def check_scene(tf, grid, scan, tf_z, grid_z, kitti_drive):
     check(abs(first_z) < 1e-9, f"first grid at z = 0 ({first_z})")
     fields = {f["name"]: f for f in scan["fields"]}
     stride = scan["point_stride"]
-    raw = np.frombuffer(base64.b64decode(scan["data"]), dtype=np.uint8).reshape(-1, stride)
+    raw = np.frombuffer(scan["data"], dtype=np.uint8).reshape(-1, stride)
     xyz = np.stack(
         [raw[:, fields[c]["offset"] : fields[c]["offset"] + 4].copy().view("<f4")[:, 0]
          for c in "xyz"],

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Regenerates the JSON Schemas of the MCAP recording's channels (crates/output/src/mcap/schemas/)
+# Regenerates the JSON Schemas of the MCAP recording's JSON channels (crates/output/src/mcap/schemas/)
 # from Foxglove's official package, @foxglove/schemas on npm, at the version pinned below.
-# Run it to move to a newer version; `git diff` then shows what Foxglove changed.
+# Run it to move to a newer version, then scripts/foxglove_descriptors.sh (the protobuf `/scan`'s
+# descriptor set, same version); `git diff` then shows what Foxglove changed.
 set -euo pipefail
 version="2.1.0"
 repo="$(cd "$(dirname "$0")/.." && pwd)"
@@ -11,7 +12,7 @@ trap 'rm -rf "$work"' EXIT
 cd "$work"
 npm install --silent --no-audit --no-fund "@foxglove/schemas@$version" >/dev/null
 mkdir -p "$out"
-for name in Grid FrameTransform PointCloud SceneUpdate LocationFix; do
+for name in Grid FrameTransform SceneUpdate LocationFix; do
   node -e '
     const schemas = require("@foxglove/schemas/jsonschema");
     const name = process.argv[1];

@@ -1,18 +1,21 @@
 //! The run as an MCAP recording that Foxglove opens as it is: one `run.mcap` per run, written
 //! frame by frame (memory stays flat over the drive) through [`AtomicFile`].
 //!
-//! Every channel is JSON with a `jsonschema` schema named after the `foxglove.*` message it
-//! holds, Foxglove's own ([`schemas`]): no protobuf descriptor set to carry, any MCAP reader decodes it, and
-//! Foxglove's panels recognise the schema names. Topics (frames: `map` the map's local frame,
-//! x east, y north; `sensor` the scanner):
+//! Each channel's schema is named after the `foxglove.*` message it holds, Foxglove's own
+//! ([`schemas`]), so Foxglove's panels recognise it. The scan is protobuf (schema encoding
+//! `protobuf`, the schema a descriptor set of Foxglove's `.proto` files): its points go in as
+//! bytes, where JSON would carry them as base64 text a third larger that zstd compresses slowly
+//! and badly (issue 29, `docs/benchmarks.md`). The other channels are JSON with a `jsonschema`
+//! schema, which any MCAP reader decodes without a descriptor. Topics (frames: `map` the map's
+//! local frame, x east, y north; `sensor` the scanner):
 //!
-//! | topic | schema | when |
-//! |---|---|---|
-//! | `/evigrid/decision` | `foxglove.Grid` in `map`, fields [`GRID_FIELDS`] | the first frame, then every [`GRID_INTERVAL_S`] of drive at most, and the last frame |
-//! | `/tf` | `foxglove.FrameTransform` `map` → `sensor` | every frame |
-//! | `/scan` | `foxglove.PointCloud` in `sensor` | every frame |
-//! | `/map` | `foxglove.SceneUpdate`, buildings and roads as line loops in `map` | once, first frame |
-//! | `/gnss` | `foxglove.LocationFix` | every frame with a fix (KITTI OXTS) |
+//! | topic | schema | encoding | when |
+//! |---|---|---|---|
+//! | `/evigrid/decision` | `foxglove.Grid` in `map`, fields [`GRID_FIELDS`] | JSON | the first frame, then every [`GRID_INTERVAL_S`] of drive at most, and the last frame |
+//! | `/tf` | `foxglove.FrameTransform` `map` → `sensor` | JSON | every frame |
+//! | `/scan` | `foxglove.PointCloud` in `sensor` | protobuf | every frame |
+//! | `/map` | `foxglove.SceneUpdate`, buildings and roads as line loops in `map` | JSON | once, first frame |
+//! | `/gnss` | `foxglove.LocationFix` | JSON | every frame with a fix (KITTI OXTS) |
 //!
 //! Log and publish times are the scan's time (a fix: its own time), so Foxglove's timeline is the
 //! drive's.
@@ -30,6 +33,7 @@
 //! float the scan far above a grid at z = 0. The map's outlines lie at z = 0.
 
 mod messages;
+mod protobuf;
 pub mod schemas;
 
 use std::collections::BTreeMap;
@@ -63,9 +67,9 @@ pub const FRAME_SENSOR: &str = "sensor";
 /// The GNSS receiver's frame (no transform is published for it: a fix is a WGS84 position).
 pub const FRAME_GNSS: &str = "gnss";
 
-/// The zstd level of the recording's chunks. Level 1 takes about half the CPU of zstd's default
-/// 3 for a file some 20 % larger (53 against 45 MB on the 40 frames of KITTI 0013, whose scans'
-/// base64 barely compresses at any level); compression runs on the writing thread, no pool.
+/// The zstd level of the recording's chunks. Level 1 took about half the CPU of zstd's default
+/// 3 for a file some 20 % larger (53 against 45 MB on the 40 frames of KITTI 0013, when the
+/// scans were base64 JSON); compression runs on the writing thread, no pool.
 /// Named here, not left to the `mcap` crate's features: built alone this crate would write
 /// uncompressed chunks, in the CLI (whose drive reader enables zstd) zstd at level 3.
 pub const ZSTD_LEVEL: u32 = 1;
@@ -156,6 +160,8 @@ pub struct McapRecorder {
     last_grid_ns: Option<u64>,
     /// Time of the last frame written, nanoseconds.
     last_frame_ns: Option<u64>,
+    /// The scan message's buffer, kept from frame to frame (megabytes on a Velodyne).
+    scan_buffer: Vec<u8>,
     /// The map-frame z of the ground under the first pose: subtracted from every height.
     ground_z_origin_m: Option<f64>,
     /// The last frame's ground z relative to the origin: where [`McapRecorder::finish`]'s grid lies.
@@ -217,26 +223,48 @@ impl McapRecorder {
             .library(concat!("evigrid-output ", env!("CARGO_PKG_VERSION")))
             .create(BufWriter::new(file))
             .map_err(mcap_error)?;
-        let mut channel = |topic: &str, name: &str, schema: &str| {
-            let schema_id = writer.add_schema(name, schemas::SCHEMA_ENCODING, schema.as_bytes())?;
-            writer.add_channel(
-                schema_id,
-                topic,
-                schemas::MESSAGE_ENCODING,
-                &BTreeMap::new(),
-            )
+        let json = (schemas::SCHEMA_ENCODING, schemas::MESSAGE_ENCODING);
+        let protobuf = (
+            schemas::PROTOBUF_SCHEMA_ENCODING,
+            schemas::PROTOBUF_MESSAGE_ENCODING,
+        );
+        let mut channel = |topic: &str, name: &str, encodings: (&str, &str), schema: &[u8]| {
+            let (schema_encoding, message_encoding) = encodings;
+            let schema_id = writer.add_schema(name, schema_encoding, schema)?;
+            writer.add_channel(schema_id, topic, message_encoding, &BTreeMap::new())
         };
         let channels = (|| {
             Ok::<_, ::mcap::McapError>(Channels {
-                decision: channel(TOPIC_DECISION, "foxglove.Grid", schemas::GRID)?,
+                decision: channel(
+                    TOPIC_DECISION,
+                    "foxglove.Grid",
+                    json,
+                    schemas::GRID.as_bytes(),
+                )?,
                 tf: channel(
                     TOPIC_TF,
                     "foxglove.FrameTransform",
-                    schemas::FRAME_TRANSFORM,
+                    json,
+                    schemas::FRAME_TRANSFORM.as_bytes(),
                 )?,
-                scan: channel(TOPIC_SCAN, "foxglove.PointCloud", schemas::POINT_CLOUD)?,
-                map: channel(TOPIC_MAP, "foxglove.SceneUpdate", schemas::SCENE_UPDATE)?,
-                gnss: channel(TOPIC_GNSS, "foxglove.LocationFix", schemas::LOCATION_FIX)?,
+                scan: channel(
+                    TOPIC_SCAN,
+                    "foxglove.PointCloud",
+                    protobuf,
+                    schemas::POINT_CLOUD_DESCRIPTORS,
+                )?,
+                map: channel(
+                    TOPIC_MAP,
+                    "foxglove.SceneUpdate",
+                    json,
+                    schemas::SCENE_UPDATE.as_bytes(),
+                )?,
+                gnss: channel(
+                    TOPIC_GNSS,
+                    "foxglove.LocationFix",
+                    json,
+                    schemas::LOCATION_FIX.as_bytes(),
+                )?,
             })
         })()
         .map_err(mcap_error)?;
@@ -251,6 +279,7 @@ impl McapRecorder {
             grid_interval_ns: seconds_to_ns(GRID_INTERVAL_S),
             last_grid_ns: None,
             last_frame_ns: None,
+            scan_buffer: Vec::new(),
             ground_z_origin_m: None,
             last_ground_z_m: 0.0,
         })
@@ -280,13 +309,13 @@ impl McapRecorder {
             self.channels.decision,
             TOPIC_DECISION,
             ns,
-            &message.to_json(),
+            message.to_json().as_bytes(),
         )?;
         self.last_grid_ns = Some(ns);
         Ok(())
     }
 
-    fn send(&mut self, channel: u16, topic: &str, ns: u64, data: &str) -> Result<(), OutputError> {
+    fn send(&mut self, channel: u16, topic: &str, ns: u64, data: &[u8]) -> Result<(), OutputError> {
         self.sequence = self.sequence.wrapping_add(1);
         let header = MessageHeader {
             channel_id: channel,
@@ -295,7 +324,7 @@ impl McapRecorder {
             publish_time: ns,
         };
         self.writer
-            .write_to_known_channel(&header, data.as_bytes())
+            .write_to_known_channel(&header, data)
             .map_err(|source| OutputError::Mcap {
                 path: self.path.clone(),
                 source,
@@ -332,7 +361,12 @@ impl McapRecorder {
                         [0.95, 0.75, 0.2, 1.0]),
                 ],
             });
-            self.send(self.channels.map, TOPIC_MAP, ns, &update.to_string())?;
+            self.send(
+                self.channels.map,
+                TOPIC_MAP,
+                ns,
+                update.to_string().as_bytes(),
+            )?;
         }
         // Heights relative to the first pose's ground (module docs).
         let mut world_from_sensor = *frame.world_from_sensor;
@@ -341,7 +375,7 @@ impl McapRecorder {
         world_from_sensor.translation.z -= origin_m;
         self.last_ground_z_m = ground_z_m - origin_m;
         let tf = messages::frame_transform(ns, FRAME_MAP, FRAME_SENSOR, &world_from_sensor);
-        self.send(self.channels.tf, TOPIC_TF, ns, &tf.to_string())?;
+        self.send(self.channels.tf, TOPIC_TF, ns, tf.to_string().as_bytes())?;
         let grid_due = self
             .last_grid_ns
             .is_none_or(|last| ns >= last.saturating_add(self.grid_interval_ns));
@@ -354,11 +388,25 @@ impl McapRecorder {
             self.send_grid(ns, &grid)?;
         }
         self.last_frame_ns = Some(ns);
-        let scan = messages::point_cloud(ns, FRAME_SENSOR, frame.points_in_sensor, frame.intensity);
-        self.send(self.channels.scan, TOPIC_SCAN, ns, &scan.to_json())?;
+        let mut scan = std::mem::take(&mut self.scan_buffer);
+        protobuf::point_cloud(
+            &mut scan,
+            ns,
+            FRAME_SENSOR,
+            frame.points_in_sensor,
+            frame.intensity,
+        );
+        let sent = self.send(self.channels.scan, TOPIC_SCAN, ns, &scan);
+        self.scan_buffer = scan;
+        sent?;
         if let (Some(fix), Some(fix_ns)) = (frame.fix, fix_ns) {
             let message = messages::location_fix(fix_ns, FRAME_GNSS, &fix);
-            self.send(self.channels.gnss, TOPIC_GNSS, fix_ns, &message.to_string())?;
+            self.send(
+                self.channels.gnss,
+                TOPIC_GNSS,
+                fix_ns,
+                message.to_string().as_bytes(),
+            )?;
         }
         Ok(())
     }
@@ -454,7 +502,17 @@ mod tests {
             let message = message.unwrap();
             *per_topic.entry(message.channel.topic.clone()).or_default() += 1;
             let schema = message.channel.schema.as_ref().unwrap();
+            if message.channel.topic == TOPIC_SCAN {
+                assert_eq!(schema.encoding, "protobuf");
+                assert_eq!(message.channel.message_encoding, "protobuf");
+                assert_eq!(&schema.data[..], schemas::POINT_CLOUD_DESCRIPTORS);
+                // The NaN point is left out: 12 bytes of data (field 6).
+                let fields = protobuf::decode::fields(&message.data);
+                assert_eq!(protobuf::decode::len(&fields, 6).len(), 12);
+                continue;
+            }
             assert_eq!(schema.encoding, "jsonschema");
+            assert_eq!(message.channel.message_encoding, "json");
             let value: serde_json::Value = serde_json::from_slice(&message.data).unwrap();
             if message.channel.topic == TOPIC_DECISION {
                 times.push(message.log_time);
@@ -463,10 +521,6 @@ mod tests {
                 // First cell (10, -1): F, occupancy 0; second: S, 100.
                 let data = value["data"].as_str().unwrap();
                 assert!(data.starts_with(&base64(&[1, 0])[..2]), "{data}");
-            }
-            if message.channel.topic == TOPIC_SCAN {
-                // The NaN point is left out: 12 bytes, 16 base64 characters.
-                assert_eq!(value["data"].as_str().unwrap().len(), 16);
             }
         }
         assert_eq!(per_topic, counts.messages);
@@ -586,16 +640,35 @@ mod tests {
             assert_eq!(tf[k]["translation"]["x"], 3.0);
         }
         // Two finite points of x, y, z, intensity: 32 bytes, the NaN point and its intensity
-        // left out; the second point's intensity is 0.75.
-        let scan = &messages_of(&bytes, TOPIC_SCAN)[0];
-        assert_eq!(scan["point_stride"], 16);
-        assert_eq!(scan["fields"][3]["name"], "intensity");
-        let data = scan["data"].as_str().unwrap();
+        // left out; the second point's intensity is 0.75. PointCloud's fields: 4 point_stride
+        // (fixed32), 5 fields (PackedElementField: 1 name), 6 data.
+        let scans: Vec<Vec<u8>> = ::mcap::MessageStream::new(&bytes)
+            .unwrap()
+            .map(|m| m.unwrap())
+            .filter(|m| m.channel.topic == TOPIC_SCAN)
+            .map(|m| m.data.into_owned())
+            .collect();
+        assert_eq!(scans.len(), 2);
+        let scan = protobuf::decode::fields(&scans[0]);
+        assert_eq!(
+            protobuf::decode::all(&scan, 4),
+            [protobuf::decode::Value::I32(16u32.to_le_bytes())]
+        );
+        let names: Vec<&[u8]> = protobuf::decode::all(&scan, 5)
+            .into_iter()
+            .map(|field| match field {
+                protobuf::decode::Value::Len(bytes) => {
+                    protobuf::decode::len(&protobuf::decode::fields(bytes), 1)
+                }
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        assert_eq!(names, [&b"x"[..], b"y", b"z", b"intensity"]);
         let mut expected = Vec::new();
         for v in [1.0f32, 2.0, 3.0, 0.25, 4.0, 5.0, 6.0, 0.75] {
             expected.extend_from_slice(&v.to_le_bytes());
         }
-        assert_eq!(data, base64(&expected));
+        assert_eq!(protobuf::decode::len(&scan, 6), expected);
     }
 
     #[test]

@@ -1,27 +1,39 @@
-//! JSON Schemas of the `foxglove.*` messages the recording uses, for channels encoded as JSON.
+//! Schemas of the `foxglove.*` messages the recording uses: JSON Schemas for the channels
+//! encoded as JSON, a protobuf descriptor set for the scan's.
 //!
-//! Foxglove recognises a channel by its schema *name* (`foxglove.Grid`, …) and decodes its
-//! messages as JSON when the schema encoding is `jsonschema`: timestamps are `{sec, nsec}`,
-//! byte arrays base64 strings (`contentEncoding: base64`), enums their integer values.
+//! Foxglove recognises a channel by its schema *name* (`foxglove.Grid`, …). It decodes its
+//! messages as JSON when the schema encoding is `jsonschema` (timestamps `{sec, nsec}`, byte
+//! arrays base64 strings, enums their integer values), and as protobuf when it is `protobuf`,
+//! the schema's data then a serialised `google.protobuf.FileDescriptorSet` holding the message
+//! and every file it imports. The scan is protobuf: its points as raw bytes, not base64 text
+//! (`super::protobuf`); the other channels stay JSON, which any MCAP reader decodes without a
+//! descriptor.
 //!
 //! The schemas are Foxglove's own, not copies by hand: the files in `schemas/` are generated
-//! from the official `@foxglove/schemas` package (`scripts/foxglove_schemas.sh`, version in
-//! `schemas/VERSION`) and embedded as they are. Why not the `foxglove` crate, which ships the
-//! same definitions: its messages are protobuf (JSON needs its `serde` feature and brings no
-//! JSON Schema), and even without default features it adds the SDK's logging context,
-//! `prost` and a proc-macro to the first build (ARCHITECTURE.md, `crates/output`).
+//! from the official `@foxglove/schemas` package (`scripts/foxglove_schemas.sh` the JSON
+//! Schemas, `scripts/foxglove_descriptors.sh` the descriptor set, through the package's own
+//! `.proto` generator and `protoc`; version in `schemas/VERSION`) and embedded as they are.
+//! Why not the `foxglove` crate, which ships the same definitions: even without default
+//! features it adds the SDK's logging context, `prost` and a proc-macro to the first build, for
+//! one message whose encoding is a few dozen lines (ARCHITECTURE.md, `crates/output`).
 
-/// Schema encoding of every channel of the recording.
+/// Schema encoding of the JSON channels.
 pub const SCHEMA_ENCODING: &str = "jsonschema";
-/// Message encoding of every channel of the recording.
+/// Message encoding of the JSON channels.
 pub const MESSAGE_ENCODING: &str = "json";
+/// Schema encoding of the protobuf channel (`/scan`).
+pub const PROTOBUF_SCHEMA_ENCODING: &str = "protobuf";
+/// Message encoding of the protobuf channel (`/scan`).
+pub const PROTOBUF_MESSAGE_ENCODING: &str = "protobuf";
 /// The `@foxglove/schemas` release the schemas come from.
 pub const FOXGLOVE_SCHEMAS_VERSION: &str = include_str!("schemas/VERSION");
 
 /// `foxglove.Grid`.
 pub const GRID: &str = include_str!("schemas/Grid.json");
-/// `foxglove.PointCloud`.
-pub const POINT_CLOUD: &str = include_str!("schemas/PointCloud.json");
+/// `foxglove.PointCloud` as a serialised `FileDescriptorSet`: `foxglove/PointCloud.proto` and
+/// the files it imports (PackedElementField, Pose, Vector3, Quaternion,
+/// `google/protobuf/timestamp.proto`), without source info.
+pub const POINT_CLOUD_DESCRIPTORS: &[u8] = include_bytes!("schemas/PointCloud.fds");
 /// `foxglove.FrameTransform`.
 pub const FRAME_TRANSFORM: &str = include_str!("schemas/FrameTransform.json");
 /// `foxglove.LocationFix`.
@@ -38,7 +50,6 @@ mod tests {
     fn each_schema_is_foxglove_s_own_under_its_name() {
         for (text, title) in [
             (GRID, "foxglove.Grid"),
-            (POINT_CLOUD, "foxglove.PointCloud"),
             (FRAME_TRANSFORM, "foxglove.FrameTransform"),
             (LOCATION_FIX, "foxglove.LocationFix"),
             (SCENE_UPDATE, "foxglove.SceneUpdate"),
