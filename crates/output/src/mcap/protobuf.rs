@@ -179,6 +179,7 @@ pub(crate) fn point_cloud(
 
 /// A protobuf message decoded one level deep, for the tests: each field's number and value.
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 pub(crate) mod decode {
     /// A field's value by wire type.
     #[derive(Clone, Debug, PartialEq)]
