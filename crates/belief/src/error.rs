@@ -164,3 +164,90 @@ impl fmt::Display for BeliefError {
 }
 
 impl std::error::Error for BeliefError {}
+
+impl BeliefError {
+    /// The error in the words of a user who named the sets of `frame`: sets as their element
+    /// names (`[F, O]`, [`Frame::set_label`]) rather than bitmasks, and a sum with the tolerance
+    /// it missed. One line, for the command line's and the Python package's messages alike.
+    ///
+    /// ```
+    /// use belief::{BeliefError, Frame};
+    ///
+    /// let frame = Frame::new(["F", "O"])?;
+    /// let error = BeliefError::NegativeMass { set: frame.set(&["O"])?, value: -0.5 };
+    /// assert_eq!(error.describe_in(&frame), "negative mass -0.5 on set [O]");
+    /// # Ok::<(), BeliefError>(())
+    /// ```
+    pub fn describe_in(&self, frame: &Frame) -> String {
+        match self {
+            Self::NegativeMass { set, value } => {
+                format!("negative mass {value} on set {}", frame.set_label(*set))
+            }
+            Self::NotFinite { set, value } => {
+                format!("mass {value} on set {} is not finite", frame.set_label(*set))
+            }
+            Self::InvalidSum { sum } => format!(
+                "masses sum to {sum}, not 1 (tolerance {})",
+                <f64 as crate::Real>::TOLERANCE
+            ),
+            Self::RepeatedSet { set } => {
+                format!("set {} is listed twice", frame.set_label(*set))
+            }
+            Self::SetOutsideFrame { set, .. } => {
+                format!("set {set} is not a subset of the frame {frame}")
+            }
+            other => other.to_string(),
+        }
+    }
+}
+
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn described_in_a_frame_sets_are_named_by_their_elements() -> Result<(), BeliefError> {
+        let frame = Frame::new(["F", "O", "M"])?;
+        let fo = Set::from_bits(0b011);
+        let cases = [
+            (
+                BeliefError::NegativeMass {
+                    set: fo,
+                    value: -0.25,
+                },
+                "negative mass -0.25 on set [F, O]",
+            ),
+            (
+                BeliefError::NotFinite {
+                    set: Set::EMPTY,
+                    value: f64::INFINITY,
+                },
+                "mass inf on set [] is not finite",
+            ),
+            (
+                BeliefError::InvalidSum { sum: 0.5 },
+                "masses sum to 0.5, not 1 (tolerance 0.000000001)",
+            ),
+            (
+                BeliefError::RepeatedSet {
+                    set: Set::from_bits(0b100),
+                },
+                "set [M] is listed twice",
+            ),
+            (
+                BeliefError::SetOutsideFrame {
+                    set: Set::from_bits(0b1001),
+                    frame_len: 3,
+                },
+                "set {0, 3} is not a subset of the frame {F, O, M}",
+            ),
+            // Without sets to name: the plain message.
+            (BeliefError::NoInputs, "no mass function to combine"),
+        ];
+        for (error, expected) in cases {
+            assert_eq!(error.describe_in(&frame), expected);
+        }
+        Ok(())
+    }
+}

@@ -147,6 +147,12 @@ impl Frame {
         }
     }
 
+    /// `set` as its element names in brackets, `[a, b]`, and `[]` for ∅: the notation of the
+    /// mass files, used in messages.
+    pub fn set_label(&self, set: Set) -> String {
+        format!("[{}]", self.names_of(set).join(", "))
+    }
+
     /// The names of the elements of `set`, in frame order (bits beyond the frame are ignored).
     pub fn names_of(&self, set: Set) -> Vec<&str> {
         self.names

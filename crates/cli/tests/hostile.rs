@@ -1104,6 +1104,8 @@ fn every_signal_ends_a_run_cleanly_and_a_second_one_at_once() {
     } else {
         assert_eq!(hup.status.code(), Some(129), "{hup:?}");
         assert_eq!(summary(&d.join("hup"))["complete"], false);
+        // The stop text names the signal that arrived (it said "SIGINT or SIGTERM").
+        assert_eq!(summary(&d.join("hup"))["stopped"], "interrupted by SIGHUP");
         assert!(temporaries(&d.join("hup")).is_empty());
     }
     // A second signal 50 ms after the first: at once, but no temporary and no torn record.

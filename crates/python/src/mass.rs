@@ -40,18 +40,18 @@ impl MassArg {
         for (names, _) in &focal {
             let set = frame
                 .set(names)
-                .map_err(|e| input_error(format!("{label}: {}", describe(&e, &frame))))?;
+                .map_err(|e| input_error(format!("{label}: {}", e.describe_in(&frame))))?;
             if listed.contains(&set) {
                 return Err(input_error(format!(
                     "{label}: set {} is listed twice",
-                    set_label(&frame, set)
+                    frame.set_label(set)
                 )));
             }
             listed.push(set);
         }
         let pairs = listed.into_iter().zip(focal.iter().map(|(_, m)| *m));
         let mass = Mass::from_focal(&frame, pairs)
-            .map_err(|e| input_error(format!("{label}: {}", describe(&e, &frame))))?;
+            .map_err(|e| input_error(format!("{label}: {}", e.describe_in(&frame))))?;
         Ok(Input { label, mass })
     }
 }
@@ -71,34 +71,6 @@ fn mass_out(mass: &Mass<f64>) -> MassOut {
 
 fn names_of(frame: &Frame, set: Set) -> Vec<String> {
     frame.names_of(set).into_iter().map(str::to_owned).collect()
-}
-
-/// A belief-crate error as one line that names sets by their elements (as `evigrid mass` does).
-fn describe(error: &BeliefError, frame: &Frame) -> String {
-    match error {
-        BeliefError::NegativeMass { set, value } => {
-            format!("negative mass {value} on set {}", set_label(frame, *set))
-        }
-        BeliefError::NotFinite { set, value } => {
-            format!(
-                "mass {value} on set {} is not finite",
-                set_label(frame, *set)
-            )
-        }
-        BeliefError::InvalidSum { sum } => format!(
-            "masses sum to {sum}, not 1 (tolerance {})",
-            <f64 as belief::Real>::TOLERANCE
-        ),
-        BeliefError::RepeatedSet { set } => {
-            format!("set {} is listed twice", set_label(frame, *set))
-        }
-        other => other.to_string(),
-    }
-}
-
-/// `[a, b]` for a set, `[]` for ∅: the notation of the mass files.
-fn set_label(frame: &Frame, set: Set) -> String {
-    format!("[{}]", frame.names_of(set).join(", "))
 }
 
 /// The calculator's functions, the submodule `evigrid._evigrid.mass`.
@@ -161,7 +133,7 @@ pub mod mass {
                 BeliefError::TotalConflict => {
                     "total conflict (K = 1): Dempster's rule is undefined".to_owned()
                 }
-                other => describe(&other, first.mass.frame()),
+                other => other.describe_in(first.mass.frame()),
             };
             input_error(format!("{}: {problem}", labels.join(", ")))
         })?;
@@ -231,7 +203,7 @@ pub mod mass {
                 "{}: m(∅) = 1, so the pignistic probability is undefined",
                 input.label
             )),
-            other => input_error(format!("{}: {}", input.label, describe(&other, frame))),
+            other => input_error(format!("{}: {}", input.label, other.describe_in(frame))),
         })?;
         Ok(frame.names().iter().cloned().zip(betp).collect())
     }

@@ -21,8 +21,9 @@ pub enum SessionError {
     /// A sink failed (the message names the file).
     #[error(transparent)]
     Output(#[from] OutputError),
-    /// The caller's stop flag was raised.
-    #[error("interrupted (SIGINT or SIGTERM)")]
+    /// The caller's stop flag was raised. The session does not know why (a signal, Ctrl-C in
+    /// Python); a caller that knows says so in the summary's `stopped`.
+    #[error("interrupted (stop requested)")]
     Interrupted,
     /// The session ended early ([`crate::run_drive`]): the summary says what was done (marked
     /// incomplete), `cause` why it ended.

@@ -27,7 +27,7 @@ use belief::{
 use clap::{ArgGroup, Args, Subcommand, ValueEnum};
 
 use crate::exit::BadInput;
-use json::{Input, describe, read_input};
+use json::{Input, read_input};
 
 /// Subcommands of `evigrid mass`.
 #[derive(Debug, Subcommand)]
@@ -212,7 +212,7 @@ fn combine(args: &CombineArgs) -> Result<()> {
             BeliefError::TotalConflict => {
                 "total conflict (K = 1): Dempster's rule is undefined".to_owned()
             }
-            other => describe(&other, first.mass.frame()),
+            other => other.describe_in(first.mass.frame()),
         };
         BadInput::new(format!("{}: {problem}", labels.join(", ")))
     })?;
@@ -321,7 +321,7 @@ fn pignistic(args: &SingleArgs) -> Result<()> {
             "{}: m(∅) = 1, so the pignistic probability is undefined",
             input.label
         )),
-        other => BadInput::new(format!("{}: {}", input.label, describe(&other, frame))),
+        other => BadInput::new(format!("{}: {}", input.label, other.describe_in(frame))),
     })?;
     if args.output.table {
         json::print(&json::pignistic_table(frame, &betp))

@@ -79,7 +79,11 @@ pub fn run(args: RunArgs) -> Result<()> {
         session::run_placed(placement, config, &mut sinks, interrupt.flag(), &mut bars)
             .map_err(session_error)?
     };
-    let summary = outcome.summary;
+    let mut summary = outcome.summary;
+    if outcome.error.as_ref().is_some_and(SessionError::is_interrupted) {
+        // The session knows its stop flag was raised, not by which signal: name it.
+        summary.stopped = Some(crate::interrupt::Interrupted.to_string());
+    }
     let text = serde_json::to_string_pretty(&WrittenSummary {
         tool: concat!("evigrid ", env!("CARGO_PKG_VERSION")),
         command_line: crate::input::command_line(),

@@ -7,7 +7,7 @@
 use std::io::Read;
 use std::path::Path;
 
-use belief::{BeliefError, Frame, Mass, Set, SetFunction};
+use belief::{Frame, Mass, Set, SetFunction};
 use serde::Deserialize;
 
 use crate::exit::BadInput;
@@ -68,45 +68,14 @@ fn parse_mass(text: &str) -> Result<Mass<f64>, String> {
     let frame = Frame::new(file.frame).map_err(|e| format!("bad frame: {e}"))?;
     let mut listed: Vec<Set> = Vec::with_capacity(file.mass.len());
     for entry in &file.mass {
-        let set = frame.set(&entry.set).map_err(|e| describe(&e, &frame))?;
+        let set = frame.set(&entry.set).map_err(|e| e.describe_in(&frame))?;
         if listed.contains(&set) {
-            return Err(format!("set {} is listed twice", set_label(&frame, set)));
+            return Err(format!("set {} is listed twice", frame.set_label(set)));
         }
         listed.push(set);
     }
     let focal = listed.into_iter().zip(file.mass.iter().map(|e| e.m));
-    Mass::from_focal(&frame, focal).map_err(|e| describe(&e, &frame))
-}
-
-/// A belief-crate error as one line that names sets by their elements.
-pub fn describe(error: &BeliefError, frame: &Frame) -> String {
-    match error {
-        BeliefError::NegativeMass { set, value } => {
-            format!("negative mass {value} on set {}", set_label(frame, *set))
-        }
-        BeliefError::NotFinite { set, value } => {
-            format!(
-                "mass {value} on set {} is not finite",
-                set_label(frame, *set)
-            )
-        }
-        BeliefError::InvalidSum { sum } => format!(
-            "masses sum to {sum}, not 1 (tolerance {})",
-            <f64 as belief::Real>::TOLERANCE
-        ),
-        BeliefError::RepeatedSet { set } => {
-            format!("set {} is listed twice", set_label(frame, *set))
-        }
-        BeliefError::SetOutsideFrame { set, .. } => {
-            format!("set {set} is not a subset of the frame {frame}")
-        }
-        other => other.to_string(),
-    }
-}
-
-/// `[a, b]` for a set, `[]` for ∅: the notation of the input files.
-pub fn set_label(frame: &Frame, set: Set) -> String {
-    format!("[{}]", frame.names_of(set).join(", "))
+    Mass::from_focal(&frame, focal).map_err(|e| e.describe_in(&frame))
 }
 
 #[derive(serde::Serialize)]
@@ -172,7 +141,7 @@ pub fn mass_json(mass: &Mass<f64>) -> anyhow::Result<String> {
 pub fn mass_table(mass: &Mass<f64>) -> String {
     let rows = mass
         .focal_sets()
-        .map(|(set, m)| (set_label(mass.frame(), set), m))
+        .map(|(set, m)| (mass.frame().set_label(set), m))
         .collect();
     table(("set", "m"), rows)
 }
@@ -232,7 +201,7 @@ pub fn set_function_table(name: &str, function: &SetFunction<f64>) -> String {
     let frame = function.frame();
     let rows = frame
         .subsets()
-        .map(|set| (set_label(frame, set), function.get(set)))
+        .map(|set| (frame.set_label(set), function.get(set)))
         .collect();
     table(("set", name), rows)
 }
