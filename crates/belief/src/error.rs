@@ -184,7 +184,10 @@ impl BeliefError {
                 format!("negative mass {value} on set {}", frame.set_label(*set))
             }
             Self::NotFinite { set, value } => {
-                format!("mass {value} on set {} is not finite", frame.set_label(*set))
+                format!(
+                    "mass {value} on set {} is not finite",
+                    frame.set_label(*set)
+                )
             }
             Self::InvalidSum { sum } => format!(
                 "masses sum to {sum}, not 1 (tolerance {})",
@@ -200,7 +203,6 @@ impl BeliefError {
         }
     }
 }
-
 
 #[cfg(test)]
 mod tests {

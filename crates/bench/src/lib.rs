@@ -30,6 +30,7 @@ pub mod workload;
 
 use evigrid::{Params, PerceptionGrid};
 use serde::Serialize;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// What to measure.
@@ -199,6 +200,9 @@ pub struct BenchReport {
     pub windows: Vec<WindowReport>,
     /// Largest difference between the naive step and the library's on random cells.
     pub naive_max_difference: f32,
+    /// False when the bench was stopped before its last round ([`run_until`]): the windows
+    /// report the rounds measured (a window with none is left out).
+    pub complete: bool,
 }
 
 /// Runs the bench. `progress` receives a short description of each round as it starts.
@@ -206,8 +210,18 @@ pub struct BenchReport {
 /// # Errors
 /// Invalid options, a naive step that disagrees with the library, or real inputs that cannot be
 /// read.
-pub fn run(
+pub fn run(options: &BenchOptions, progress: impl FnMut(&str)) -> Result<BenchReport, BenchError> {
+    run_until(options, &AtomicBool::new(false), progress)
+}
+
+/// [`run`] that stops between two rounds once `stop` is raised (a signal): the report of the
+/// rounds measured, [`BenchReport::complete`] false.
+///
+/// # Errors
+/// As [`run`].
+pub fn run_until(
     options: &BenchOptions,
+    stop: &AtomicBool,
     mut progress: impl FnMut(&str),
 ) -> Result<BenchReport, BenchError> {
     if options.sizes.contains(&0) || options.rounds == 0 {
@@ -228,10 +242,19 @@ pub fn run(
         .map_err(|e| BenchError::ThreadPool(e.to_string()))?;
     let threads = rayon::current_num_threads();
     let mut windows = Vec::new();
+    let mut complete = true;
     for &size in &options.sizes {
+        if stop.load(Ordering::Relaxed) {
+            complete = false;
+            break;
+        }
         let mut cases = Cases::new(size, &params, options, threads)?;
         let mut rounds: Vec<Vec<(String, f64)>> = Vec::new();
         for round in 0..=options.rounds {
+            if stop.load(Ordering::Relaxed) {
+                complete = false;
+                break;
+            }
             progress(&format!("{size}×{size}: round {round}/{}", options.rounds));
             let with_naive = round >= 1 && round <= options.naive_rounds;
             let times = cases.round(&one_thread, with_naive)?;
@@ -239,11 +262,15 @@ pub fn run(
                 rounds.push(times);
             }
         }
+        if rounds.is_empty() {
+            break;
+        }
         windows.push(cases.report(&rounds));
     }
     Ok(BenchReport {
         windows,
         naive_max_difference,
+        complete,
     })
 }
 
@@ -609,6 +636,33 @@ mod tests {
         assert_eq!(target_of("copy/step@N"), None);
         let naive = target_of("naive/step@1").map(|t| t.to_string());
         assert_eq!(naive.as_deref(), Some("≥ 100"));
+    }
+
+    #[test]
+    fn a_raised_stop_ends_the_bench_between_rounds() -> Result<(), BenchError> {
+        let options = BenchOptions {
+            sizes: vec![16, 32],
+            rounds: 5,
+            naive_rounds: 0,
+            ..BenchOptions::default()
+        };
+        let stop = AtomicBool::new(false);
+        let mut started = Vec::new();
+        // Raised as round 2 of the first window starts: it runs, round 3 does not.
+        let report = run_until(&options, &stop, |round| {
+            started.push(round.to_string());
+            if round.ends_with("round 2/5") {
+                stop.store(true, Ordering::Relaxed);
+            }
+        })?;
+        assert_eq!(
+            started,
+            ["16×16: round 0/5", "16×16: round 1/5", "16×16: round 2/5"]
+        );
+        assert!(!report.complete);
+        assert_eq!(report.windows.len(), 1);
+        assert_eq!(report.windows[0].size, 16);
+        Ok(())
     }
 
     #[test]

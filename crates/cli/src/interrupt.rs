@@ -1,12 +1,12 @@
 //! SIGINT, SIGTERM and SIGHUP, handled alike.
 //!
-//! - **A command that stops between frames** (`run`, `odometry`) calls [`Interrupt::install`]
-//!   and checks [`Interrupt::flag`] between frames: the first signal makes it stop and
-//!   still write what it has (the summary or pose file marked incomplete).
-//! - **A command that cannot stop midway** (`demo`, `eval`, `tune`, `bench`: their libraries run
-//!   a drive to its end) calls [`Interrupt::install_ending`]: the first signal ends it as a second
-//!   signal ends the others.
-//! - **Ending at once**: the temporary files of the output folders registered with
+//! - **The first signal stops between units of work**: every long command (`run`, `odometry`,
+//!   `demo`, `eval`, `tune`, `bench`) calls [`Interrupt::install`] and hands [`Interrupt::flag`]
+//!   to its library, which checks it between frames (drives, candidates, rounds): the command
+//!   stops there and still writes what it has, marked incomplete (the summary, the pose file,
+//!   the report; an output folder's marker by [`crate::out_dir::OutDir::finish_interrupted`]),
+//!   and exits 128 + the signal.
+//! - **A second signal ends at once**: the temporary files of the output folders registered with
 //!   [`remove_temporaries_on_exit`] are removed, the folders' markers say the run was
 //!   interrupted, and the process exits 128 + the signal (130 SIGINT, 143 SIGTERM, 129 SIGHUP).
 //!   A record being written ([`output::WholeLines`]) is finished first, so no file ends in a torn
@@ -67,14 +67,8 @@ impl Interrupt {
     /// process at once. If the handlers cannot be installed, the signals keep their default
     /// action (the process ends), which loses the summary but nothing else.
     pub fn install() -> Self {
-        listen(false);
+        listen();
         Self(())
-    }
-
-    /// The first signal ends the process at once (temporary files removed, folders marked):
-    /// for commands that have no point to stop at.
-    pub fn install_ending() {
-        listen(true);
     }
 
     /// The flag the first signal raises, for a library that polls it between frames.
@@ -84,7 +78,7 @@ impl Interrupt {
 }
 
 /// Starts the thread that receives the signals.
-fn listen(end_on_first: bool) {
+fn listen() {
     let Ok(mut signals) = signal_hook::iterator::Signals::new(HANDLED) else {
         return;
     };
@@ -96,7 +90,7 @@ fn listen(end_on_first: bool) {
                     .compare_exchange(0, signal, Ordering::SeqCst, Ordering::SeqCst)
                     .is_ok();
                 STOP.store(true, Ordering::SeqCst);
-                if !first || end_on_first {
+                if !first {
                     end_now(signal);
                 }
             }
@@ -159,6 +153,12 @@ fn remove_temporaries(dir: &Path, suffix: &str, depth: usize) {
             let _ = std::fs::remove_file(entry.path());
         }
     }
+}
+
+/// Adds `interrupted: SIGNAL` (the first signal received) to an output folder's marker, for a
+/// command that stopped on it and finished its outputs.
+pub fn mark_received(marker: &Path) {
+    mark_interrupted(marker, RECEIVED.load(Ordering::Relaxed));
 }
 
 /// Adds `interrupted: SIGNAL` to an output folder's marker, if it is there.

@@ -2,7 +2,7 @@
 //! Python follows too): its refusals as bad input (exit 2), in the words of the flags.
 
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::Result;
 use output::out_dir::{self, OutDirError};
@@ -28,20 +28,23 @@ pub struct OutDir {
 }
 
 impl OutDir {
-    /// Checks, without creating or changing anything, that [`OutDir::prepare`] will succeed.
+    /// Checks, without creating or changing anything, that [`OutDir::prepare`] will succeed
+    /// with these `inputs`.
     ///
     /// # Errors
     /// Bad input naming `path`, as [`OutDir::prepare`] would give.
-    pub fn check(path: &Path, force: bool) -> Result<()> {
+    pub fn check(path: &Path, inputs: &[&Path], force: bool) -> Result<()> {
+        out_dir::OutDir::check_inputs(path, inputs).map_err(bad)?;
         out_dir::OutDir::check(path, force).map_err(bad)
     }
 
-    /// Checks `path` as the output folder of `command` and prepares it
-    /// ([`out_dir::OutDir::prepare`]).
+    /// Checks `path` as the output folder of `command` reading `inputs` (none of which it may
+    /// hold, [`out_dir::OutDir::check_inputs`]) and prepares it ([`out_dir::OutDir::prepare`]).
     ///
     /// # Errors
     /// Bad input naming `path`.
-    pub fn prepare(path: &Path, force: bool, command: &str) -> Result<Self> {
+    pub fn prepare(path: &Path, inputs: &[&Path], force: bool, command: &str) -> Result<Self> {
+        out_dir::OutDir::check_inputs(path, inputs).map_err(bad)?;
         let prepared = out_dir::OutDir::prepare(path, force, command).map_err(bad)?;
         // A process that ends at once on a signal removes its temporaries here and marks the
         // folder interrupted.
@@ -66,6 +69,26 @@ impl OutDir {
     }
 }
 
+impl OutDir {
+    /// [`OutDir::finish`] for a command that stopped on a signal after writing what it had:
+    /// the marker also says `incomplete: true` and which signal stopped it.
+    ///
+    /// # Errors
+    /// If the marker cannot be written (naming it).
+    pub fn finish_interrupted(&self) -> Result<()> {
+        self.finish()?;
+        let marker = self.inner.path().join(out_dir::MARKER);
+        let mut file = fs::OpenOptions::new()
+            .append(true)
+            .open(&marker)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", marker.display()))?;
+        std::io::Write::write_all(&mut file, b"incomplete: true\n")
+            .map_err(|e| anyhow::anyhow!("{}: {e}", marker.display()))?;
+        crate::interrupt::mark_received(&marker);
+        Ok(())
+    }
+}
+
 impl Drop for OutDir {
     /// A command that ends on an error (a full disk, a bad input found late) leaves its folder
     /// marked: `incomplete: true` in the marker, which the next run into it clears.
@@ -80,153 +103,31 @@ impl Drop for OutDir {
     }
 }
 
-/// Creates and removes a probe file in `dir`: the only sure test that a folder is writable.
-fn probe_writable(dir: &Path) -> std::io::Result<()> {
-    let probe = dir.join(format!(".evigrid-probe-{}", std::process::id()));
-    fs::write(&probe, b"")?;
-    fs::remove_file(&probe)
-}
-
-/// Checks a single output file before any work; the same rule holds for the side files a
-/// command writes beside it (`odometry`'s `.times.txt`):
-///
-/// - never one of `inputs`, also through a symbolic or a hard link (compared by device and
-///   inode; a folder input stands for every file in it, and a KITTI raw drive's `calib_*.txt`
-///   beside it), whatever `force` says;
-/// - never a special file or a folder;
-/// - an existing file is replaced only with `force` (the replacement is an atomic rename, so a
-///   symbolic link is replaced, never the file it points to);
-/// - its folder exists and can be written in.
+/// Checks a single output file before any work ([`out_dir::check_out_file`]: never an input,
+/// never a special file, an existing file only with `--force`).
 ///
 /// # Errors
-/// Bad input naming `path`.
+/// Bad input naming `--out` and the file.
 pub fn check_out_file(path: &Path, inputs: &[&Path], force: bool) -> Result<()> {
-    check_file("--out ", path, inputs, force)
+    out_dir::check_out_file(path, inputs, force).map_err(|e| bad_file("--out ", e))
 }
 
 /// [`check_out_file`] for a side file written beside the `--out` file.
 ///
 /// # Errors
-/// Bad input naming `path`.
+/// Bad input naming the file.
 pub fn check_side_file(path: &Path, inputs: &[&Path], force: bool) -> Result<()> {
-    check_file("", path, inputs, force)
+    out_dir::check_out_file(path, inputs, force).map_err(|e| bad_file("", e))
 }
 
-fn check_file(label: &str, path: &Path, inputs: &[&Path], force: bool) -> Result<()> {
-    let bad = |why: &str| BadInput::new(format!("{label}{}: {why}", path.display()));
-    if let Ok(link) = fs::symlink_metadata(path) {
-        match fs::metadata(path) {
-            Ok(meta) if !meta.is_file() => {
-                return Err(bad(
-                    "exists and is not a regular file; evigrid writes regular files only",
-                ));
-            }
-            Ok(meta) => {
-                if let Some(input) = input_with_identity(inputs, identity(&meta)) {
-                    return Err(bad(&format!(
-                        "is the input {}; writing it would destroy it",
-                        input.display()
-                    )));
-                }
-            }
-            // A link to nothing: replacing the link loses nothing but the link.
-            Err(_) => {}
-        }
-        if !force {
-            let what = if link.file_type().is_symlink() {
-                "is an existing link"
-            } else {
-                "exists"
-            };
-            return Err(bad(&format!(
-                "{what}; evigrid replaces a file only with --force (and never an input)"
-            )));
-        }
+/// A refused output file as one line, after `label`, with the remedy when there is one.
+fn bad_file(label: &str, error: OutDirError) -> anyhow::Error {
+    match error {
+        OutDirError::Exists { .. } => BadInput::new(format!(
+            "{label}{error}; evigrid replaces a file only with --force (and never an input)"
+        )),
+        other => BadInput::new(format!("{label}{other}")),
     }
-    let parent = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    if !parent.is_dir() {
-        return Err(bad(&format!(
-            "the folder {} does not exist",
-            parent.display()
-        )));
-    }
-    probe_writable(parent).map_err(|e| bad(&format!("cannot write here: {e}")))
-}
-
-/// A file's identity: device and inode, the same through any link.
-fn identity(meta: &fs::Metadata) -> (u64, u64) {
-    use std::os::unix::fs::MetadataExt;
-    (meta.dev(), meta.ino())
-}
-
-/// Folders deeper than this under a folder input are not searched for the output file.
-const INPUT_DEPTH: usize = 4;
-
-/// Entries visited at most under the folder inputs.
-const INPUT_ENTRIES: usize = 200_000;
-
-/// The input (or the file of a folder input) whose identity is `target`.
-fn input_with_identity(inputs: &[&Path], target: (u64, u64)) -> Option<PathBuf> {
-    let mut budget = INPUT_ENTRIES;
-    for input in inputs {
-        let Ok(meta) = fs::metadata(input) else {
-            continue;
-        };
-        if identity(&meta) == target {
-            return Some(input.to_path_buf());
-        }
-        if meta.is_dir() {
-            if let Some(found) = file_with_identity(input, target, 0, &mut budget) {
-                return Some(found);
-            }
-            // A KITTI raw drive folder reads its calibration from the folder above it.
-            let calib = input.parent().and_then(|date| fs::read_dir(date).ok());
-            for entry in calib.into_iter().flatten().flatten() {
-                let name = entry.file_name();
-                let name = name.to_string_lossy();
-                if name.starts_with("calib_")
-                    && name.ends_with(".txt")
-                    && fs::metadata(entry.path()).is_ok_and(|m| identity(&m) == target)
-                {
-                    return Some(entry.path());
-                }
-            }
-        }
-    }
-    None
-}
-
-/// The file under `dir` (links to files followed, links to folders not) whose identity is
-/// `target`.
-fn file_with_identity(
-    dir: &Path,
-    target: (u64, u64),
-    depth: usize,
-    budget: &mut usize,
-) -> Option<PathBuf> {
-    for entry in fs::read_dir(dir).ok()?.flatten() {
-        if *budget == 0 {
-            return None;
-        }
-        *budget -= 1;
-        let path = entry.path();
-        let Ok(kind) = entry.file_type() else {
-            continue;
-        };
-        if kind.is_dir() {
-            if depth < INPUT_DEPTH
-                && let Some(found) = file_with_identity(&path, target, depth + 1, budget)
-            {
-                return Some(found);
-            }
-        } else if fs::metadata(&path).is_ok_and(|m| identity(&m) == target) {
-            return Some(path);
-        }
-    }
-    None
 }
 
 #[cfg(test)]
@@ -237,7 +138,7 @@ mod tests {
     fn refusals_name_the_flags_as_before() -> Result<()> {
         let tmp = tempfile::tempdir()?;
         std::fs::write(tmp.path().join("thesis.tex"), "precious")?;
-        let refused = OutDir::prepare(tmp.path(), false, "run")
+        let refused = OutDir::prepare(tmp.path(), &[], false, "run")
             .err()
             .map(|e| e.to_string())
             .unwrap_or_default();
@@ -250,7 +151,9 @@ mod tests {
             )
         );
         let file = tmp.path().join("thesis.tex/x");
-        let message = OutDir::check(&file, false).err().map(|e| e.to_string());
+        let message = OutDir::check(&file, &[], false)
+            .err()
+            .map(|e| e.to_string());
         assert!(message.is_some_and(|m| m.starts_with(&format!("--out {}: ", file.display()))));
         Ok(())
     }
@@ -260,78 +163,46 @@ mod tests {
     }
 
     #[test]
-    fn an_output_file_is_never_an_input_or_a_device() -> Result<()> {
-        let tmp = tempfile::tempdir()?;
-        let input = tmp.path().join("map.osm.pbf");
-        fs::write(&input, "pbf")?;
-        let same = tmp.path().join("./map.osm.pbf");
-        assert!(message(check_out_file(&same, &[&input], true)).contains("is the input"));
-        assert!(
-            message(check_out_file(Path::new("/dev/full"), &[], true))
-                .contains("not a regular file")
-        );
-        assert!(
-            message(check_out_file(
-                &tmp.path().join("no/such/x.png"),
-                &[],
-                false
-            ))
-            .contains("does not exist")
-        );
-        check_out_file(&tmp.path().join("new.png"), &[&input], false)?;
-        Ok(())
-    }
-
-    #[test]
-    fn an_input_is_never_replaced_through_a_link_or_inside_a_folder_even_with_force() -> Result<()>
-    {
-        let tmp = tempfile::tempdir()?;
-        let date = tmp.path().join("2011_09_26");
-        let drive = date.join("drive_0001_sync");
-        fs::create_dir_all(drive.join("velodyne_points/data"))?;
-        let scan = drive.join("velodyne_points/data/0000000000.bin");
-        let calib = date.join("calib_imu_to_velo.txt");
-        fs::write(&scan, "scan")?;
-        fs::write(&calib, "calib")?;
-        let link = tmp.path().join("link.bin");
-        std::os::unix::fs::symlink(&scan, &link)?;
-        let hard = tmp.path().join("hard.txt");
-        fs::hard_link(&calib, &hard)?;
-        for (out, input) in [
-            (&scan, &scan),
-            (&link, &scan),
-            (&hard, &calib),
-            (&calib, &calib),
-        ] {
-            let refused = message(check_out_file(out, &[&drive], true));
-            assert!(
-                refused.contains(&format!("is the input {}", input.display())),
-                "{refused}"
-            );
-        }
-        assert_eq!(fs::read_to_string(&scan)?, "scan");
-        Ok(())
-    }
-
-    #[test]
-    fn an_existing_user_file_is_replaced_only_with_force() -> Result<()> {
+    fn file_refusals_name_the_flag_and_the_remedy() -> Result<()> {
         let tmp = tempfile::tempdir()?;
         let notes = tmp.path().join("notes.txt");
         fs::write(&notes, "mine")?;
-        let refused = message(check_out_file(&notes, &[], false));
-        assert!(refused.contains("exists; evigrid replaces a file only with --force"));
-        check_out_file(&notes, &[], true)?;
-        let side = message(check_side_file(&notes, &[], false));
-        assert!(
-            side.starts_with(&format!("{}: exists", notes.display())),
-            "{side}"
+        assert_eq!(
+            message(check_out_file(&notes, &[], false)),
+            format!(
+                "--out {}: exists; evigrid replaces a file only with --force (and never an input)",
+                notes.display()
+            )
         );
+        assert_eq!(
+            message(check_side_file(&notes, &[], false)),
+            format!(
+                "{}: exists; evigrid replaces a file only with --force (and never an input)",
+                notes.display()
+            )
+        );
+        assert_eq!(
+            message(check_out_file(&notes, &[&notes], true)),
+            format!(
+                "--out {0}: is the input {0}; writing it would destroy it",
+                notes.display()
+            )
+        );
+        check_out_file(&notes, &[], true)?;
         Ok(())
     }
 
     #[test]
-    fn an_unwritable_folder_is_bad_input() {
-        let refused = message(check_out_file(Path::new("/proc/poses.txt"), &[], false));
-        assert!(refused.contains("cannot write here"), "{refused}");
+    fn an_output_folder_holding_an_input_is_refused_even_with_force() -> Result<()> {
+        let tmp = tempfile::tempdir()?;
+        let bag = tmp.path().join("run.mcap");
+        fs::write(&bag, "recording")?;
+        let refused = message(OutDir::prepare(tmp.path(), &[&bag], true, "run"));
+        assert!(
+            refused.starts_with(&format!("--out {}: holds the input ", tmp.path().display())),
+            "{refused}"
+        );
+        assert!(!tmp.path().join(out_dir::MARKER).exists());
+        Ok(())
     }
 }

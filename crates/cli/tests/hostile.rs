@@ -1163,11 +1163,28 @@ fn an_interrupted_odometry_writes_the_poses_so_far_marked_incomplete() {
     assert!(temporaries(d).is_empty());
 }
 
+/// An output folder a first signal stopped: the outputs of the work done, marked incomplete in
+/// the marker (with the signal), no temporary; `stderr` one line saying so.
+fn assert_stopped_and_finished(folder: &Path, signal: &str, stderr: &[u8]) {
+    let stderr = String::from_utf8_lossy(stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("(marked incomplete)"), "{stderr}");
+    assert!(temporaries(folder).is_empty(), "{:?}", temporaries(folder));
+    let marker = fs::read_to_string(folder.join(".evigrid-output")).unwrap();
+    assert!(marker.contains("incomplete: true"), "{marker}");
+    assert!(
+        marker.contains(&format!("interrupted: SIG{signal}")),
+        "{marker}"
+    );
+    assert!(marker.contains("file: report.md"), "{marker}");
+}
+
 #[test]
-fn an_interrupted_demo_leaves_no_temporary_and_says_so() {
+fn a_first_signal_stops_a_demo_between_frames_and_finishes_its_outputs() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    // Issue 31 #3: `demo` had no handling: killed, a temporary left, nothing marked.
+    // Issue 31 #3: `demo` had no handling: killed, a temporary left, nothing marked. Then the
+    // first signal ended it at once; now it stops between frames and finishes what it has.
     let out = signalled(
         d,
         &["demo", "--frames", "40", "--out", "demo"],
@@ -1178,9 +1195,146 @@ fn an_interrupted_demo_leaves_no_temporary_and_says_so() {
         return;
     }
     assert_eq!(out.status.code(), Some(143), "{out:?}");
+    let folder = d.join("demo");
+    assert_stopped_and_finished(&folder, "TERM", &out.stderr);
+    if folder.join("metrics.json").is_file() {
+        let metrics: serde_json::Value =
+            serde_json::from_str(&fs::read_to_string(folder.join("metrics.json")).unwrap())
+                .unwrap();
+        assert_eq!(metrics["complete"], false);
+        let run = metrics["frames_run"].as_u64().unwrap();
+        assert!((1..40).contains(&run), "{run}");
+        assert!(folder.join("decision.gif").is_file());
+        assert!(folder.join("index.html").is_file());
+    }
+}
+
+#[test]
+fn a_second_signal_ends_a_demo_at_once_without_a_temporary() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let out = signalled(
+        d,
+        &["demo", "--frames", "40", "--out", "demo"],
+        &[("INT", 3000), ("INT", 30)],
+    );
+    if out.status.code() == Some(0) {
+        eprintln!("not checked: the demo ended before the signals");
+        return;
+    }
+    assert_eq!(out.status.code(), Some(130), "{out:?}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(temporaries(&d.join("demo")).is_empty());
     let marker = fs::read_to_string(d.join("demo/.evigrid-output")).unwrap();
-    assert!(marker.contains("interrupted: SIGTERM"), "{marker}");
+    assert!(marker.contains("interrupted: SIGINT"), "{marker}");
+}
+
+/// A long scenario on the shared village map, in `dir`: (map, scenario).
+fn long_scenario(dir: &Path) -> Option<(String, String)> {
+    let map = geodata::testdata::shared_file("data/osm/bavarian-village.osm")?;
+    let scenario = dir.join("long.toml");
+    fs::write(
+        &scenario,
+        "seed = 4\nduration_s = 20.0\n[traffic]\nmoving_cars = 2\nparked_cars = 2\n",
+    )
+    .unwrap();
+    Some((map.display().to_string(), scenario.display().to_string()))
+}
+
+#[test]
+fn a_first_signal_stops_eval_between_frames_and_writes_the_report_of_those_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let Some((map, scenario)) = long_scenario(d) else {
+        eprintln!("skipped: shared map not found (set EVIGRID_SHARED)");
+        return;
+    };
+    let args = [
+        "eval",
+        "--map",
+        &map,
+        "--scenario",
+        &scenario,
+        "--seeds",
+        "3",
+        "--out",
+        "eval",
+    ];
+    let out = signalled(d, &args, &[("INT", 4000)]);
+    if out.status.code() == Some(0) {
+        eprintln!("not checked: the evaluation ended before the signal");
+        return;
+    }
+    assert_eq!(out.status.code(), Some(130), "{out:?}");
+    let folder = d.join("eval");
+    assert_stopped_and_finished(&folder, "INT", &out.stderr);
+    let metrics: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(folder.join("metrics.json")).unwrap()).unwrap();
+    assert_eq!(metrics["complete"], false);
+    assert!(metrics["frames_run"].as_u64().unwrap() < 3 * 200);
+    let report = fs::read_to_string(folder.join("report.md")).unwrap();
+    assert!(report.contains("**Incomplete**"), "{report}");
+}
+
+#[test]
+fn a_first_signal_stops_tune_between_candidates_and_writes_the_best_so_far() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let Some((map, scenario)) = long_scenario(d) else {
+        eprintln!("skipped: shared map not found (set EVIGRID_SHARED)");
+        return;
+    };
+    let args = [
+        "tune",
+        "--map",
+        &map,
+        "--scenario",
+        &scenario,
+        "--seeds",
+        "1",
+        "--rounds",
+        "3",
+        "--out",
+        "tune",
+    ];
+    let out = signalled(d, &args, &[("HUP", 4000)]);
+    if out.status.code() == Some(0) {
+        eprintln!("not checked: the search ended before the signal");
+        return;
+    }
+    assert_eq!(out.status.code(), Some(129), "{out:?}");
+    let folder = d.join("tune");
+    assert_stopped_and_finished(&folder, "HUP", &out.stderr);
+    assert!(folder.join("tuned.toml").is_file());
+    let json: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(folder.join("tune.json")).unwrap()).unwrap();
+    assert_eq!(json["search"]["complete"], false);
+    assert!(!json["search"]["candidates"].as_array().unwrap().is_empty());
+}
+
+#[test]
+fn a_first_signal_stops_bench_between_rounds() {
+    let tmp = tempfile::tempdir().unwrap();
+    let args = [
+        "bench",
+        "--synthetic-only",
+        "--sizes",
+        "1000",
+        "--rounds",
+        "10000",
+        "--naive-rounds",
+        "0",
+    ];
+    let out = signalled(tmp.path(), &args, &[("TERM", 3000)]);
+    if out.status.code() == Some(0) {
+        eprintln!("not checked: the bench ended before the signal");
+        return;
+    }
+    assert_eq!(out.status.code(), Some(143), "{out:?}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("bench stopped"), "{stderr}");
 }
 
 #[test]

@@ -45,7 +45,9 @@ pub mod variant;
 pub use method::GridMethod;
 pub use plots::{confusion_heatmap, per_class_iou_chart};
 pub use report::{EvalReport, SeedScores, VariantReport};
-pub use runner::{EvalConfig, FusionFrame, Progress, Variant, evaluate, evaluate_observed};
+pub use runner::{
+    EvalConfig, FusionFrame, Progress, Variant, evaluate, evaluate_observed, evaluate_until,
+};
 pub use sim::Label;
 
 use sim::SimError;

@@ -59,7 +59,14 @@ pub struct VariantReport {
 pub struct EvalReport {
     /// The scenario (its seed replaced by each of `seeds`).
     pub scenario: Scenario,
-    /// Seeds run.
+    /// False when the evaluation was stopped before its last frame (a signal): the scores are
+    /// those of the frames run.
+    #[serde(default = "complete_by_default")]
+    pub complete: bool,
+    /// Frames run and scored, over every seed.
+    #[serde(default)]
+    pub frames_run: usize,
+    /// Seeds run (the last one only in part when the evaluation was stopped).
     pub seeds: Vec<u64>,
     /// Frames per seed.
     pub frames_per_seed: usize,
@@ -69,6 +76,11 @@ pub struct EvalReport {
     pub variants: Vec<VariantReport>,
     /// Mean wall-clock time per frame of the simulation itself (actors, scan, truth), ms.
     pub simulation_ms_per_frame: f64,
+}
+
+/// Reports written before `complete` existed were complete.
+fn complete_by_default() -> bool {
+    true
 }
 
 fn fmt(v: Option<f64>) -> String {
@@ -101,6 +113,13 @@ impl EvalReport {
     /// IoU per class and the confusion matrices (in view).
     pub fn to_markdown(&self) -> String {
         let mut s = String::new();
+        if !self.complete {
+            s.push_str(&format!(
+                "**Incomplete**: stopped after {} frames; the scores are those of the frames \
+                 run.\n\n",
+                self.frames_run
+            ));
+        }
         s.push_str(&format!(
             "Seeds {:?}, {} frames each ({:.0} ms apart); simulation {:.2} ms per frame.\n\n",
             self.seeds,

@@ -41,6 +41,7 @@ use sim::drive::{Drive, Frame};
 use sim::scenario::Scenario;
 use sim::sensor::HitTarget;
 use sim::truth;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Settings of the methods under evaluation. By default evigrid's default parameters and the
@@ -230,6 +231,29 @@ pub fn evaluate_observed(
     progress: &mut dyn FnMut(Progress),
     observer: &mut dyn FnMut(FusionFrame<'_>),
 ) -> Result<EvalReport, EvalError> {
+    let never = AtomicBool::new(false);
+    evaluate_until(
+        map, scenario, variants, seeds, config, &never, progress, observer,
+    )
+}
+
+/// [`evaluate_observed`] that stops between two frames once `stop` is raised (a signal, a
+/// caller's deadline): the report then scores the frames run so far, in the seeds started
+/// ([`EvalReport::seeds`]), and says so ([`EvalReport::complete`] false).
+///
+/// # Errors
+/// As [`evaluate`]; stopping is not an error.
+#[allow(clippy::too_many_arguments)]
+pub fn evaluate_until(
+    map: &LocalMap,
+    scenario: &Scenario,
+    variants: &[Variant],
+    seeds: &[u64],
+    config: &EvalConfig,
+    stop: &AtomicBool,
+    progress: &mut dyn FnMut(Progress),
+    observer: &mut dyn FnMut(FusionFrame<'_>),
+) -> Result<EvalReport, EvalError> {
     if seeds.is_empty() {
         return Err(EvalError::NoSeeds);
     }
@@ -244,7 +268,15 @@ pub fn evaluate_observed(
     let mut frames_per_seed = 0;
     let mut frame_period_s = 0.0;
     let mut simulation_s = 0.0;
+    let mut frames_run = 0;
+    let mut seeds_run = Vec::with_capacity(seeds.len());
+    let mut complete = true;
     for (seed_index, &seed) in seeds.iter().enumerate() {
+        if stop.load(Ordering::Relaxed) {
+            complete = false;
+            break;
+        }
+        seeds_run.push(seed);
         let scenario = Scenario {
             seed,
             ..scenario.clone()
@@ -262,15 +294,18 @@ pub fn evaluate_observed(
             .iter()
             .map(|&v| Runner::new(v, &params, config, len))
             .collect::<Result<Vec<_>, _>>()?;
-        simulation_s += run_drive(
+        let (seconds, frames) = run_drive(
             &mut drive,
             &mut front_end,
             &mut runners,
-            seed_index,
-            seeds.len(),
+            (seed_index, seeds.len()),
+            stop,
             progress,
             observer,
         )?;
+        simulation_s += seconds;
+        frames_run += frames;
+        complete &= frames == frames_per_seed;
         for (k, r) in runners.into_iter().enumerate() {
             // Per seed, the headline mask: cells in view.
             let s = r.visible.scores();
@@ -285,7 +320,7 @@ pub fn evaluate_observed(
             }
         }
     }
-    let frames_total = (frames_per_seed * seeds.len()).max(1) as f64;
+    let frames_total = frames_run.max(1) as f64;
     let variants = totals
         .into_iter()
         .zip(per_seed)
@@ -307,7 +342,9 @@ pub fn evaluate_observed(
         .collect();
     Ok(EvalReport {
         scenario: scenario.clone(),
-        seeds: seeds.to_vec(),
+        complete,
+        frames_run,
+        seeds: seeds_run,
         frames_per_seed,
         frame_period_s,
         variants,
@@ -315,17 +352,18 @@ pub fn evaluate_observed(
     })
 }
 
-/// Feeds one drive to the front end, then every runner; returns the seconds spent simulating
-/// (scans and truth).
+/// Feeds one drive to the front end, then every runner, until its end or until `stop` is
+/// raised (checked before each frame); returns the seconds spent simulating (scans and truth)
+/// and the frames run. `(seed_index, seeds)`: where this drive is in the seed list.
 fn run_drive(
     drive: &mut Drive,
     front_end: &mut FrontEnd,
     runners: &mut [Runner],
-    seed_index: usize,
-    seeds: usize,
+    (seed_index, seeds): (usize, usize),
+    stop: &AtomicBool,
     progress: &mut dyn FnMut(Progress),
     observer: &mut dyn FnMut(FusionFrame<'_>),
-) -> Result<f64, EvalError> {
+) -> Result<(f64, usize), EvalError> {
     let mut simulation_s = 0.0;
     let len = front_end.window().len();
     let mut observed = vec![false; len];
@@ -346,7 +384,11 @@ fn run_drive(
         ..NeverSeenMoving::default()
     };
     let frames = drive.frame_count();
+    let mut frames_run = 0;
     loop {
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
         let started = Instant::now();
         let Some(frame) = drive.next_frame() else {
             break;
@@ -455,6 +497,7 @@ fn run_drive(
             }
             update_latency(&mut r.latency, drive, &frame, &pose, window, &r.predicted);
         }
+        frames_run += 1;
         progress(Progress {
             seed_index,
             seeds,
@@ -462,7 +505,7 @@ fn run_drive(
             frames,
         });
     }
-    Ok(simulation_s)
+    Ok((simulation_s, frames_run))
 }
 
 /// Who the truth's never-seen-moving rule covers: road users standing since they came into
@@ -634,6 +677,67 @@ mod tests {
         for (a, b) in observed.variants.iter().zip(&plain.variants) {
             assert_eq!(a.confusion, b.confusion);
         }
+    }
+
+    #[test]
+    fn a_raised_stop_ends_the_evaluation_between_frames_with_what_was_scored() {
+        let mut scenario = small_scenario(6);
+        scenario.duration_s = 1.0;
+        let variants = [Variant::Kurdej2013, Variant::LogOdds];
+        let stop = AtomicBool::new(false);
+        let mut frames_seen = 0;
+        // Raised after the fourth frame of the first seed: no fifth frame, no second seed.
+        let report = evaluate_until(
+            &town(),
+            &scenario,
+            &variants,
+            &[6, 7],
+            &small_config(),
+            &stop,
+            &mut |p: Progress| {
+                frames_seen += 1;
+                if p.frame == 4 {
+                    stop.store(true, Ordering::Relaxed);
+                }
+            },
+            &mut |_| {},
+        )
+        .unwrap();
+        assert_eq!(frames_seen, 4);
+        assert!(!report.complete);
+        assert_eq!(report.frames_run, 4);
+        assert_eq!(report.seeds, [6]);
+        assert_eq!(report.frames_per_seed, 10);
+        assert_eq!(report.variants[0].per_seed.len(), 1);
+        // The four frames scored are those a four-frame drive scores.
+        let mut short = scenario.clone();
+        short.duration_s = 0.4;
+        let whole = evaluate(
+            &town(),
+            &short,
+            &variants,
+            &[6],
+            &small_config(),
+            &mut |_| {},
+        )
+        .unwrap();
+        assert!(whole.complete && whole.frames_run == 4);
+        for (a, b) in report.variants.iter().zip(&whole.variants) {
+            assert_eq!(a.confusion, b.confusion);
+        }
+        // Raised before the start: nothing run, still a report.
+        let none = evaluate_until(
+            &town(),
+            &scenario,
+            &variants,
+            &[6],
+            &small_config(),
+            &AtomicBool::new(true),
+            &mut |_| {},
+            &mut |_| {},
+        )
+        .unwrap();
+        assert!(!none.complete && none.frames_run == 0 && none.seeds.is_empty());
     }
 
     #[test]

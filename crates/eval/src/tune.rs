@@ -36,6 +36,7 @@
 //! ```
 
 use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use evigrid::Params;
 use geodata::LocalMap;
@@ -109,6 +110,15 @@ pub struct Search {
     pub best_score: f64,
     /// Every point evaluated, in order (the start first).
     pub trials: Vec<Trial>,
+    /// False when the search was stopped before its end ([`coordinate_search_until`]): `best`
+    /// is the best of the trials made.
+    #[serde(default = "complete_by_default")]
+    pub complete: bool,
+}
+
+/// Searches and reports written before `complete` existed were complete.
+fn complete_by_default() -> bool {
+    true
 }
 
 /// Maximises `objective` over the box `bounds` from `start` by coordinate pattern search (see the
@@ -123,6 +133,24 @@ pub fn coordinate_search<E>(
     start: &[f64],
     rounds: usize,
     min_gain: f64,
+    objective: impl FnMut(&[f64]) -> Result<f64, E>,
+) -> Result<Search, E> {
+    let never = AtomicBool::new(false);
+    coordinate_search_until(bounds, start, rounds, min_gain, &never, objective)
+}
+
+/// [`coordinate_search`] that stops before the next evaluation of the objective once `stop` is
+/// raised (a signal): the search so far, [`Search::complete`] false. The start is always
+/// evaluated.
+///
+/// # Errors
+/// The objective's first error, returned as is.
+pub fn coordinate_search_until<E>(
+    bounds: &[Bounds],
+    start: &[f64],
+    rounds: usize,
+    min_gain: f64,
+    stop: &AtomicBool,
     mut objective: impl FnMut(&[f64]) -> Result<f64, E>,
 ) -> Result<Search, E> {
     let mut best: Vec<f64> = bounds
@@ -141,7 +169,8 @@ pub fn coordinate_search<E>(
         score: best_score,
         accepted: true,
     }];
-    for round in 0..rounds {
+    let mut complete = true;
+    'rounds: for round in 0..rounds {
         let scale = 0.5f64.powi(round as i32);
         for (d, b) in bounds.iter().enumerate() {
             let step = b.step * scale;
@@ -157,6 +186,10 @@ pub fn coordinate_search<E>(
                     let score = match seen.get(&k) {
                         Some(&s) => s,
                         None => {
+                            if stop.load(Ordering::Relaxed) {
+                                complete = false;
+                                break 'rounds;
+                            }
                             let s = objective(&candidate)?;
                             seen.insert(k, s);
                             trials.push(Trial {
@@ -190,6 +223,7 @@ pub fn coordinate_search<E>(
         best,
         best_score,
         trials,
+        complete,
     })
 }
 
@@ -497,6 +531,10 @@ pub struct TuneReport {
     pub best: Params,
     /// Every candidate tried, in order.
     pub candidates: Vec<Candidate>,
+    /// False when the search was stopped before its end ([`tune_until`]): `best` is the best
+    /// of the candidates tried.
+    #[serde(default = "complete_by_default")]
+    pub complete: bool,
 }
 
 impl TuneReport {
@@ -533,6 +571,22 @@ pub fn tune(
     options: &TuneOptions,
     progress: &mut dyn FnMut(TuneProgress),
 ) -> Result<TuneReport, EvalError> {
+    tune_until(start, sets, options, &AtomicBool::new(false), progress)
+}
+
+/// [`tune`] that stops between two candidates once `stop` is raised (a signal): the report of
+/// the candidates tried, [`TuneReport::complete`] false. The starting candidate is always
+/// scored.
+///
+/// # Errors
+/// As [`tune`].
+pub fn tune_until(
+    start: &Params,
+    sets: &[DriveSet<'_>],
+    options: &TuneOptions,
+    stop: &AtomicBool,
+    progress: &mut dyn FnMut(TuneProgress),
+) -> Result<TuneReport, EvalError> {
     if options.space.is_empty() {
         return Err(EvalError::InvalidTuneOption {
             field: "tune.space",
@@ -564,25 +618,32 @@ pub fn tune(
     };
     let mut scored: Vec<VariantScore> = Vec::new();
     let mut best_so_far = f64::NEG_INFINITY;
-    let search = coordinate_search(&bounds, &initial, options.rounds, options.min_gain, |x| {
-        let score = score_drives(
-            &with(x),
-            sets,
-            &[options.variant],
-            options.moving_iou_weight,
-        )?
-        .into_iter()
-        .next()
-        .ok_or(EvalError::NoVariants)?;
-        best_so_far = best_so_far.max(score.objective);
-        let objective = score.objective;
-        scored.push(score);
-        progress(TuneProgress {
-            candidates: scored.len(),
-            best_objective: best_so_far,
-        });
-        Ok::<f64, EvalError>(objective)
-    })?;
+    let search = coordinate_search_until(
+        &bounds,
+        &initial,
+        options.rounds,
+        options.min_gain,
+        stop,
+        |x| {
+            let score = score_drives(
+                &with(x),
+                sets,
+                &[options.variant],
+                options.moving_iou_weight,
+            )?
+            .into_iter()
+            .next()
+            .ok_or(EvalError::NoVariants)?;
+            best_so_far = best_so_far.max(score.objective);
+            let objective = score.objective;
+            scored.push(score);
+            progress(TuneProgress {
+                candidates: scored.len(),
+                best_objective: best_so_far,
+            });
+            Ok::<f64, EvalError>(objective)
+        },
+    )?;
     let candidates = search
         .trials
         .iter()
@@ -612,6 +673,7 @@ pub fn tune(
         start: with(search.trials.first().map_or(&initial, |t| &t.point)),
         best: with(&search.best),
         candidates,
+        complete: search.complete,
     })
 }
 
@@ -680,6 +742,30 @@ mod tests {
         })
         .unwrap();
         assert_eq!(first, Some(1.0));
+    }
+
+    #[test]
+    fn a_raised_stop_ends_the_search_before_the_next_candidate() {
+        // Increasing in x: the whole search climbs 0.5 → 0.75 → 1.0 (step 0.25), three trials.
+        let whole =
+            coordinate_search(&unit_box(0.25, 1), &[0.5], 1, 0.0, |x| Ok::<_, ()>(x[0])).unwrap();
+        assert!(whole.complete);
+        assert_eq!(whole.trials.len(), 3);
+        // Raised during the second evaluation: no third, the best of the two tried.
+        let stop = AtomicBool::new(false);
+        let mut evaluated = 0;
+        let stopped = coordinate_search_until(&unit_box(0.25, 1), &[0.5], 1, 0.0, &stop, |x| {
+            evaluated += 1;
+            if evaluated == 2 {
+                stop.store(true, Ordering::Relaxed);
+            }
+            Ok::<_, ()>(x[0])
+        })
+        .unwrap();
+        assert_eq!(evaluated, 2);
+        assert!(!stopped.complete);
+        assert_eq!(stopped.best, vec![0.75]);
+        assert_eq!(stopped.trials, whole.trials[..2]);
     }
 
     #[test]

@@ -6,8 +6,13 @@
 //!   forced, so a typo never mixes results into, or overwrites, a user's own files.
 //! - Reusing an evigrid folder first removes what the previous run listed in its marker, so an old
 //!   `summary.json` never sits beside new frames.
-//! - An output file must not be one of the command's inputs, nor a special file (`/dev/full`, a
-//!   FIFO): it is replaced by an atomic rename, which would replace the device node itself.
+//! - An output folder never is, nor holds, one of the command's inputs ([`OutDir::check_inputs`]):
+//!   its files are cleared and written, so a recording replayed from its own folder would be
+//!   destroyed while it is read.
+//! - An output file ([`check_out_file`], and the side files written beside it) is never one of
+//!   the command's inputs, also through a symbolic or a hard link; never a special file
+//!   (`/dev/full`, a FIFO: the atomic rename would replace the device node itself); and an
+//!   existing file is replaced only when forced.
 //! - Every problem is an [`OutDirError`] naming the path, found before the work starts; the
 //!   caller words the remedy (`--force`, `force=True`).
 
@@ -26,6 +31,35 @@ pub enum OutDirError {
     NotOurs {
         /// The folder.
         path: PathBuf,
+    },
+    /// An output that is one of the inputs (or a file of a folder input), through any link;
+    /// refused whether forced or not.
+    #[error("{}: is the input {}; writing it would destroy it", path.display(), input.display())]
+    IsInput {
+        /// The output.
+        path: PathBuf,
+        /// The input it is.
+        input: PathBuf,
+    },
+    /// An output folder holding one of the inputs; refused whether forced or not.
+    #[error(
+        "{}: holds the input {}; an output folder is cleared and written, choose another",
+        path.display(),
+        input.display()
+    )]
+    HoldsInput {
+        /// The folder.
+        path: PathBuf,
+        /// The input inside it.
+        input: PathBuf,
+    },
+    /// An existing output file (or a symbolic link), not forced: the caller names its remedy.
+    #[error("{}: {}", path.display(), if *link { "is an existing link" } else { "exists" })]
+    Exists {
+        /// The file.
+        path: PathBuf,
+        /// True when `path` is a symbolic link.
+        link: bool,
     },
     /// Any other problem: `why` says it.
     #[error("{}: {why}", path.display())]
@@ -99,6 +133,30 @@ impl OutDir {
             return Err(bad(&format!("{} is not a folder", ancestor.display())));
         }
         probe_writable(ancestor).map_err(|e| bad(&format!("cannot create: {e}")))
+    }
+
+    /// Checks that the output folder `path` is none of `inputs` and holds none of them (each
+    /// input and the folder compared by their real paths, links resolved), whatever `force`
+    /// says: [`OutDir::prepare`] clears the last run's files and the run writes new ones, so an
+    /// input inside (a recording replayed from its own folder, a pose file beside the outputs)
+    /// could be replaced or removed while it is read. A folder that does not exist yet holds
+    /// nothing.
+    ///
+    /// # Errors
+    /// [`OutDirError::HoldsInput`] naming the folder and the input.
+    pub fn check_inputs(path: &Path, inputs: &[&Path]) -> Result<()> {
+        let Ok(folder) = fs::canonicalize(path) else {
+            return Ok(());
+        };
+        for input in inputs {
+            if fs::canonicalize(input).is_ok_and(|input| input.starts_with(&folder)) {
+                return Err(OutDirError::HoldsInput {
+                    path: path.to_path_buf(),
+                    input: input.to_path_buf(),
+                });
+            }
+        }
+        Ok(())
     }
 
     /// The folder.
@@ -236,27 +294,45 @@ fn is_empty_dir(path: &Path) -> bool {
     fs::read_dir(path).is_ok_and(|mut entries| entries.next().is_none())
 }
 
-/// Checks a single output file before any work: not one of `inputs`, not a special file or a
-/// folder, and its folder exists. An existing regular file is replaced (the user named it).
+/// Checks a single output file before any work; the same rule holds for the side files a
+/// command writes beside it (`odometry`'s `.times.txt`):
+///
+/// - never one of `inputs`, also through a symbolic or a hard link (compared by device and
+///   inode; a folder input stands for every file in it, and a KITTI raw drive's `calib_*.txt`
+///   beside it), whatever `force` says;
+/// - never a special file or a folder;
+/// - an existing file is replaced only with `force` (the replacement is an atomic rename, so a
+///   symbolic link is replaced, never the file it points to);
+/// - its folder exists and can be written in.
 ///
 /// # Errors
-/// Bad input naming `path`.
-pub fn check_out_file(path: &Path, inputs: &[&Path]) -> Result<()> {
+/// [`OutDirError::IsInput`], [`OutDirError::Exists`] (not forced), or
+/// [`OutDirError::Refused`] for a special file or a folder that is missing or not writable.
+pub fn check_out_file(path: &Path, inputs: &[&Path], force: bool) -> Result<()> {
     let bad = |why: &str| refused(path, why);
-    if let Ok(meta) = fs::metadata(path) {
-        if !meta.is_file() {
-            return Err(bad(
-                "exists and is not a regular file; evigrid writes new files only",
-            ));
-        }
-        let target = fs::canonicalize(path).ok();
-        for input in inputs {
-            if target.is_some() && fs::canonicalize(input).ok() == target {
-                return Err(bad(&format!(
-                    "is the input {}; writing it would destroy it",
-                    input.display()
-                )));
+    if let Ok(link) = fs::symlink_metadata(path) {
+        match fs::metadata(path) {
+            Ok(meta) if !meta.is_file() => {
+                return Err(bad(
+                    "exists and is not a regular file; evigrid writes regular files only",
+                ));
             }
+            Ok(meta) => {
+                if let Some(input) = input_with_identity(inputs, identity(&meta)) {
+                    return Err(OutDirError::IsInput {
+                        path: path.to_path_buf(),
+                        input,
+                    });
+                }
+            }
+            // A link to nothing: replacing the link loses nothing but the link.
+            Err(_) => {}
+        }
+        if !force {
+            return Err(OutDirError::Exists {
+                path: path.to_path_buf(),
+                link: link.file_type().is_symlink(),
+            });
         }
     }
     let parent = match path.parent() {
@@ -269,7 +345,80 @@ pub fn check_out_file(path: &Path, inputs: &[&Path]) -> Result<()> {
             parent.display()
         )));
     }
-    Ok(())
+    probe_writable(parent).map_err(|e| bad(&format!("cannot write here: {e}")))
+}
+
+/// A file's identity: device and inode, the same through any link.
+fn identity(meta: &fs::Metadata) -> (u64, u64) {
+    use std::os::unix::fs::MetadataExt;
+    (meta.dev(), meta.ino())
+}
+
+/// Folders deeper than this under a folder input are not searched for the output file.
+const INPUT_DEPTH: usize = 4;
+
+/// Entries visited at most under the folder inputs.
+const INPUT_ENTRIES: usize = 200_000;
+
+/// The input (or the file of a folder input) whose identity is `target`.
+fn input_with_identity(inputs: &[&Path], target: (u64, u64)) -> Option<PathBuf> {
+    let mut budget = INPUT_ENTRIES;
+    for input in inputs {
+        let Ok(meta) = fs::metadata(input) else {
+            continue;
+        };
+        if identity(&meta) == target {
+            return Some(input.to_path_buf());
+        }
+        if meta.is_dir() {
+            if let Some(found) = file_with_identity(input, target, 0, &mut budget) {
+                return Some(found);
+            }
+            // A KITTI raw drive folder reads its calibration from the folder above it.
+            let calib = input.parent().and_then(|date| fs::read_dir(date).ok());
+            for entry in calib.into_iter().flatten().flatten() {
+                let name = entry.file_name();
+                let name = name.to_string_lossy();
+                if name.starts_with("calib_")
+                    && name.ends_with(".txt")
+                    && fs::metadata(entry.path()).is_ok_and(|m| identity(&m) == target)
+                {
+                    return Some(entry.path());
+                }
+            }
+        }
+    }
+    None
+}
+
+/// The file under `dir` (links to files followed, links to folders not) whose identity is
+/// `target`.
+fn file_with_identity(
+    dir: &Path,
+    target: (u64, u64),
+    depth: usize,
+    budget: &mut usize,
+) -> Option<PathBuf> {
+    for entry in fs::read_dir(dir).ok()?.flatten() {
+        if *budget == 0 {
+            return None;
+        }
+        *budget -= 1;
+        let path = entry.path();
+        let Ok(kind) = entry.file_type() else {
+            continue;
+        };
+        if kind.is_dir() {
+            if depth < INPUT_DEPTH
+                && let Some(found) = file_with_identity(&path, target, depth + 1, budget)
+            {
+                return Some(found);
+            }
+        } else if fs::metadata(&path).is_ok_and(|m| identity(&m) == target) {
+            return Some(path);
+        }
+    }
+    None
 }
 
 #[cfg(test)]
@@ -390,15 +539,114 @@ mod tests {
         let input = tmp.path().join("map.osm.pbf");
         fs::write(&input, "pbf")?;
         let same = tmp.path().join("./map.osm.pbf");
-        assert!(message(check_out_file(&same, &[&input])).contains("is the input"));
-        assert!(
-            message(check_out_file(Path::new("/dev/full"), &[])).contains("not a regular file")
+        assert_eq!(
+            message(check_out_file(&same, &[&input], true)),
+            format!(
+                "{}: is the input {}; writing it would destroy it",
+                same.display(),
+                input.display()
+            )
         );
-        assert!(
-            message(check_out_file(&tmp.path().join("no/such/x.png"), &[]))
-                .contains("does not exist")
+        assert_eq!(
+            message(check_out_file(Path::new("/dev/full"), &[], true)),
+            "/dev/full: exists and is not a regular file; evigrid writes regular files only"
         );
-        check_out_file(&tmp.path().join("new.png"), &[&input])?;
+        let missing = tmp.path().join("no/such/x.png");
+        assert!(
+            message(check_out_file(&missing, &[], false)).ends_with(&format!(
+                "the folder {} does not exist",
+                tmp.path().join("no/such").display()
+            ))
+        );
+        check_out_file(&tmp.path().join("new.png"), &[&input], false)?;
+        Ok(())
+    }
+
+    #[test]
+    fn an_input_is_never_replaced_through_a_link_or_inside_a_folder_even_with_force() -> Result<()>
+    {
+        let tmp = tempfile::tempdir()?;
+        let date = tmp.path().join("2011_09_26");
+        let drive = date.join("drive_0001_sync");
+        fs::create_dir_all(drive.join("velodyne_points/data"))?;
+        let scan = drive.join("velodyne_points/data/0000000000.bin");
+        let calib = date.join("calib_imu_to_velo.txt");
+        fs::write(&scan, "scan")?;
+        fs::write(&calib, "calib")?;
+        let link = tmp.path().join("link.bin");
+        std::os::unix::fs::symlink(&scan, &link)?;
+        let hard = tmp.path().join("hard.txt");
+        fs::hard_link(&calib, &hard)?;
+        for (out, input) in [
+            (&scan, &scan),
+            (&link, &scan),
+            (&hard, &calib),
+            (&calib, &calib),
+        ] {
+            match check_out_file(out, &[&drive], true) {
+                Err(OutDirError::IsInput { input: found, .. }) => assert_eq!(&found, input),
+                other => panic!("{out:?}: {other:?}"),
+            }
+        }
+        assert_eq!(fs::read_to_string(&scan)?, "scan");
+        Ok(())
+    }
+
+    #[test]
+    fn an_existing_user_file_is_replaced_only_when_forced() -> Result<()> {
+        let tmp = tempfile::tempdir()?;
+        let notes = tmp.path().join("notes.txt");
+        fs::write(&notes, "mine")?;
+        assert_eq!(
+            message(check_out_file(&notes, &[], false)),
+            format!("{}: exists", notes.display())
+        );
+        check_out_file(&notes, &[], true)?;
+        let link = tmp.path().join("link.txt");
+        std::os::unix::fs::symlink(&notes, &link)?;
+        assert!(matches!(
+            check_out_file(&link, &[], false),
+            Err(OutDirError::Exists { link: true, .. })
+        ));
+        // A link to nothing is replaced when forced: only the link is lost.
+        let dangling = tmp.path().join("dangling.txt");
+        std::os::unix::fs::symlink(tmp.path().join("gone"), &dangling)?;
+        check_out_file(&dangling, &[], true)?;
+        Ok(())
+    }
+
+    #[test]
+    fn an_unwritable_folder_is_refused_before_the_work() {
+        let refused = message(check_out_file(Path::new("/proc/poses.txt"), &[], false));
+        assert!(refused.contains("cannot write here"), "{refused}");
+    }
+
+    #[test]
+    fn an_output_folder_never_holds_an_input() -> Result<()> {
+        let tmp = tempfile::tempdir()?;
+        let out = tmp.path().join("out");
+        fs::create_dir(&out)?;
+        let bag = out.join("run.mcap");
+        fs::write(&bag, "a recording of an earlier run")?;
+        let refused = message(OutDir::check_inputs(&out, &[&bag]));
+        assert_eq!(
+            refused,
+            format!(
+                "{}: holds the input {}; an output folder is cleared and written, choose another",
+                out.display(),
+                bag.display()
+            )
+        );
+        // The folder itself as the input, and through a link to it.
+        let link = tmp.path().join("link");
+        std::os::unix::fs::symlink(&out, &link)?;
+        assert!(OutDir::check_inputs(&link, &[&out]).is_err());
+        // Beside it, or above it (a drive folder holding the output folder), is fine.
+        let poses = tmp.path().join("poses.txt");
+        fs::write(&poses, "0 0 0 0 0 0 0 1")?;
+        OutDir::check_inputs(&out, &[&poses, tmp.path()])?;
+        // A folder not yet created holds nothing.
+        OutDir::check_inputs(&tmp.path().join("new"), &[&bag])?;
         Ok(())
     }
 }

@@ -31,8 +31,9 @@ const SIGNAL_POLL: Duration = Duration::from_millis(50);
 /// `source` is a drive path (as `evigrid.open_drive` takes it, with the same keyword options)
 /// or a drive `evigrid.open_drive` returned. Every output file of `evigrid run` is written into
 /// `out` (the command's output policy: a new or empty folder, or one evigrid wrote before;
-/// `force=True` writes into any folder); `out=None` writes nothing and only returns the
-/// summary. `mcap=False` leaves out the Foxglove recording `run.mcap`.
+/// `force=True` writes into any folder, but never into one that holds an input, nor onto a
+/// file); `out=None` writes nothing and only returns the summary. A refused `out` raises
+/// `evigrid.InputError` before any work. `mcap=False` leaves out the Foxglove recording `run.mcap`.
 ///
 /// The GIL is released while the drive runs, so other threads run meanwhile. Ctrl-C stops the
 /// drive between frames; the outputs are finished (the summary marked incomplete) before
@@ -91,7 +92,13 @@ pub fn run<'py>(
     let out = match out.filter(|o| !o.is_none()) {
         Some(out) => {
             let path = options::path_arg(out, "out")?;
-            // Checked before any work, so that a bad folder costs nothing.
+            // Checked before any work, so that a bad folder costs nothing; the folder never
+            // holds an input, whatever `force` says (it is cleared and written while the drive
+            // is read).
+            let map_path = map.and_then(|m| options::path_arg(m, "map").ok());
+            let mut inputs = spec.input_paths();
+            inputs.extend(map_path.as_deref());
+            OutDir::check_inputs(&path, &inputs).map_err(out_dir_error)?;
             OutDir::check(&path, force).map_err(out_dir_error)?;
             config.out = path.display().to_string();
             Some(Outputs { path, force, mcap })

@@ -67,3 +67,48 @@ def test_a_map_that_cannot_be_read_is_an_input_error_naming_it(tmp_path):
     not_a_map.write_bytes(b"\x00\x01garbage")
     with pytest.raises(evigrid.InputError, match="scan.pcd"):
         evigrid.Session(map=not_a_map)
+
+
+def _snapshot(root: Path) -> dict:
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in root.rglob("*") if p.is_file()}
+
+
+@pytest.mark.parametrize("force", [False, True])
+def test_run_never_writes_onto_an_input_or_a_file_even_with_force(tmp_path, force):
+    # Issue 31: the output policy of the command, in evigrid.run too.
+    scans = folder(tmp_path, "scans", pcd("WIDTH 1\nHEIGHT 1\nPOINTS 1", "ascii\n5 1 0.5\n"))
+    beside = tmp_path / "beside"
+    beside.mkdir()
+    poses = beside / "p.txt"
+    poses.write_text("0 0 0 0 0 0 0\n", encoding="utf-8")
+    before = _snapshot(tmp_path)
+    # The scans' folder itself, a folder holding the pose file, the pose file, a link to it.
+    (tmp_path / "link.txt").symlink_to(poses)
+    before["link.txt"] = poses.read_bytes()
+    for out, why in [
+        (scans, "holds the input"),
+        (beside, "holds the input"),
+        (poses, "exists and is not a folder"),
+        (tmp_path / "link.txt", "exists and is not a folder"),
+    ]:
+        with pytest.raises(evigrid.InputError, match=why) as raised:
+            evigrid.run(scans, poses=poses, out=out, force=force)
+        assert isinstance(raised.value, evigrid.Error)
+        assert str(out) in str(raised.value)
+    assert _snapshot(tmp_path) == before
+
+
+def test_run_writes_into_a_folder_of_someone_elses_files_only_with_force(tmp_path):
+    scans = folder(tmp_path, "scans", pcd("WIDTH 1\nHEIGHT 1\nPOINTS 1", "ascii\n5 1 0.5\n"))
+    poses = tmp_path / "p.txt"
+    poses.write_text("0 0 0 0 0 0 0\n", encoding="utf-8")
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "thesis.tex").write_text("precious", encoding="utf-8")
+    with pytest.raises(evigrid.InputError, match="force=True"):
+        evigrid.run(scans, poses=poses, out=mine)
+    assert sorted(p.name for p in mine.iterdir()) == ["thesis.tex"]
+    # Forced, the run goes on (here to the scan it cannot use) and the user's file stays.
+    with pytest.raises(evigrid.InputError, match="a.pcd|no usable scan"):
+        evigrid.run(scans, poses=poses, out=mine, force=True)
+    assert (mine / "thesis.tex").read_text(encoding="utf-8") == "precious"

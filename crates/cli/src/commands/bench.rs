@@ -49,8 +49,10 @@ const ODOMETRY_SCANS: usize = 20;
 
 /// Runs `evigrid bench`.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
-    // Writes no file: a signal ends it at once, with the exit status of the signal.
-    crate::interrupt::Interrupt::install_ending();
+    // Installed first, so that no signal finds the default action. The first signal stops the
+    // bench between rounds and the rounds measured are reported (`complete: false`); a second
+    // ends it at once.
+    let interrupt = crate::interrupt::Interrupt::install();
     if args.sizes.is_empty() || args.sizes.contains(&0) {
         return Err(BadInput::new(
             "--sizes: every size must be a positive number of cells",
@@ -121,7 +123,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     };
     let total = options.sizes.len() as u64 * (options.rounds as u64 + 1);
     let bar = progress::bar(total, "bench");
-    let report = evigrid_bench::run(&options, |round| {
+    let report = evigrid_bench::run_until(&options, interrupt.flag(), |round| {
         bar.set_message(round.to_string());
         bar.inc(1);
     });
@@ -137,6 +139,14 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         );
     } else {
         crate::out!("{}", table(&report));
+    }
+    if !report.complete {
+        return Err(
+            anyhow::Error::new(crate::interrupt::Interrupted).context(format!(
+                "bench stopped; {} window(s) measured, the report above is incomplete",
+                report.windows.len()
+            )),
+        );
     }
     Ok(())
 }

@@ -101,10 +101,10 @@ Map data © OpenStreetMap contributors, ODbL.";
 
 /// Runs `evigrid demo`.
 pub fn run(args: DemoArgs) -> Result<()> {
-    // Installed first, so that no signal finds the default action. There is no point to stop
-    // at inside the evaluation: a signal ends the command at once, its temporary files removed
-    // and the output folder marked interrupted.
-    crate::interrupt::Interrupt::install_ending();
+    // Installed first, so that no signal finds the default action. The first signal stops the
+    // drive between frames and the outputs of the frames run are finished (the GIF, the
+    // recording, the report), marked incomplete; a second ends the command at once.
+    let interrupt = crate::interrupt::Interrupt::install();
     let started = Instant::now();
     if args.frames == Some(0) {
         return Err(BadInput::new("--frames 0: at least one frame is needed"));
@@ -128,7 +128,8 @@ pub fn run(args: DemoArgs) -> Result<()> {
         params: Params::default(),
         ..EvalConfig::default()
     };
-    let out_dir = crate::out_dir::OutDir::prepare(&args.out, args.force, "demo")?;
+    // Every input is built in: no file to protect.
+    let out_dir = crate::out_dir::OutDir::prepare(&args.out, &[], args.force, "demo")?;
     let delay_ms = (1000.0 / scenario.sensor.rate_hz).round() as u32;
 
     // One pass over the drive: the evaluation runs the variants frame by frame, and the
@@ -155,12 +156,13 @@ pub fn run(args: DemoArgs) -> Result<()> {
         // The ego's positions so far, for the path drawn over the views.
         let mut path: Vec<[f64; 2]> = Vec::with_capacity(frames);
         let period_s = 1.0 / scenario.sensor.rate_hz;
-        let report = eval::evaluate_observed(
+        let report = eval::evaluate_until(
             &loaded.map,
             &scenario,
             &VARIANTS,
             &[scenario.seed],
             &config,
+            interrupt.flag(),
             &mut |p: Progress| bar.set_position(p.frame as u64),
             &mut |f: FusionFrame<'_>| {
                 if f.variant != VIEWS_OF || rendered.is_err() {
@@ -185,6 +187,11 @@ pub fn run(args: DemoArgs) -> Result<()> {
         (report, rendered, encoded)
     });
     let report = report.context("evaluating the demo drive")?;
+    if report.frames_run == 0 {
+        // Stopped before the first frame: nothing to show (the folder's marker says so).
+        return Err(anyhow::Error::new(crate::interrupt::Interrupted)
+            .context("stopped before the first frame, no output written"));
+    }
     rendered?;
     recorded?;
     if let Some(recorder) = recorder {
@@ -199,6 +206,16 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let json = super::eval::write_outputs(&args.out, &report, &params, "evigrid demo", seconds)?;
     append_attribution(&args.out.join("report.md"))?;
     crate::demo_page::write_index(&args.out, &report, &COLOURS)?;
+    if !report.complete {
+        out_dir.finish_interrupted()?;
+        return Err(
+            anyhow::Error::new(crate::interrupt::Interrupted).context(format!(
+                "demo stopped after {} of {frames} frames; outputs in {} (marked incomplete)",
+                report.frames_run,
+                args.out.display()
+            )),
+        );
+    }
     out_dir.finish()?;
 
     if args.json {

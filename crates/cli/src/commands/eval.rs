@@ -81,10 +81,10 @@ pub(crate) const MAX_SEEDS: u64 = 1000;
 
 /// Runs `evigrid eval`.
 pub fn run(args: EvalArgs) -> Result<()> {
-    // Installed first, so that no signal finds the default action. There is no point to stop
-    // at inside the evaluation: a signal ends the command at once, its temporary files removed
-    // and the output folder marked interrupted.
-    crate::interrupt::Interrupt::install_ending();
+    // Installed first, so that no signal finds the default action. The first signal stops the
+    // evaluation between frames and the outputs of the frames run are written, marked
+    // incomplete; a second ends the command at once.
+    let interrupt = crate::interrupt::Interrupt::install();
     let started = Instant::now();
     // Every input is checked before any work, and nothing is written before the evaluation has
     // succeeded: a bad input leaves no output behind.
@@ -110,7 +110,12 @@ pub fn run(args: EvalArgs) -> Result<()> {
     sim::drive::check_map_span(&loaded.map)
         .map_err(|e| BadInput::new(with_path(&args.map, &e.to_string())))?;
 
-    let out_dir = crate::out_dir::OutDir::prepare(&args.out, args.force, "eval")?;
+    let inputs: Vec<&Path> = [Some(&args.map), Some(&args.scenario), args.config.as_ref()]
+        .into_iter()
+        .flatten()
+        .map(PathBuf::as_path)
+        .collect();
+    let out_dir = crate::out_dir::OutDir::prepare(&args.out, &inputs, args.force, "eval")?;
 
     let seeds: Vec<u64> = (0..args.seeds)
         .map(|k| scenario.seed.wrapping_add(k))
@@ -121,18 +126,25 @@ pub fn run(args: EvalArgs) -> Result<()> {
     };
     let frames = scenario.frame_count();
     let bar = crate::progress::bar(frames as u64 * seeds.len() as u64, "eval");
-    let report = eval::evaluate(
+    let report = eval::evaluate_until(
         &loaded.map,
         &scenario,
         &variants,
         &seeds,
         &config,
+        interrupt.flag(),
         &mut |p: Progress| {
             bar.set_position((p.seed_index * p.frames + p.frame) as u64);
         },
+        &mut |_| {},
     )
     .map_err(|e| evaluation_error(e, &args))?;
     bar.finish_and_clear();
+    if report.frames_run == 0 {
+        // Stopped before the first frame: nothing to report (the folder's marker says so).
+        return Err(anyhow::Error::new(crate::interrupt::Interrupted)
+            .context("stopped before the first frame, no report written"));
+    }
     // Only now that every input has proved good: a bad input gets its one line and no other.
     for warning in warnings {
         crate::errln!("{warning}");
@@ -145,6 +157,16 @@ pub fn run(args: EvalArgs) -> Result<()> {
         "evigrid eval",
         started.elapsed().as_secs_f64(),
     )?;
+    if !report.complete {
+        out_dir.finish_interrupted()?;
+        return Err(
+            anyhow::Error::new(crate::interrupt::Interrupted).context(format!(
+                "evaluation stopped after {} frames; outputs in {} (marked incomplete)",
+                report.frames_run,
+                args.out.display()
+            )),
+        );
+    }
     out_dir.finish()?;
 
     if args.json {

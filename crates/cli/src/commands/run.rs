@@ -32,7 +32,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     let drive = Drive::open(&args.drive_spec()?).map_err(source_error)?;
     // Checked before any work (a wrong --out must not cost the run), created once every input
     // has been checked (a bad input leaves no folder behind).
-    crate::out_dir::OutDir::check(&args.out, args.force)?;
+    crate::out_dir::OutDir::check(&args.out, &args.input_paths(), args.force)?;
     let interrupt = crate::interrupt::Interrupt::install();
     let map = match &args.map {
         Some(path) => Some(Map::load(path, origin).map_err(session_error)?),
@@ -72,7 +72,8 @@ pub fn run(args: RunArgs) -> Result<()> {
             "vacuous (no map)"
         }
     );
-    let out_dir = crate::out_dir::OutDir::prepare(&args.out, args.force, "run")?;
+    let out_dir =
+        crate::out_dir::OutDir::prepare(&args.out, &args.input_paths(), args.force, "run")?;
     let outcome = {
         let mut sinks = Sinks::create(&args, &config)?;
         let mut sinks = sinks.as_dyn();
@@ -80,7 +81,11 @@ pub fn run(args: RunArgs) -> Result<()> {
             .map_err(session_error)?
     };
     let mut summary = outcome.summary;
-    if outcome.error.as_ref().is_some_and(SessionError::is_interrupted) {
+    if outcome
+        .error
+        .as_ref()
+        .is_some_and(SessionError::is_interrupted)
+    {
         // The session knows its stop flag was raised, not by which signal: name it.
         summary.stopped = Some(crate::interrupt::Interrupted.to_string());
     }

@@ -116,10 +116,10 @@ struct Drives {
 
 /// Runs `evigrid tune`.
 pub fn run(args: TuneArgs) -> Result<()> {
-    // Installed first, so that no signal finds the default action. There is no point to stop
-    // at inside the evaluation: a signal ends the command at once, its temporary files removed
-    // and the output folder marked interrupted.
-    crate::interrupt::Interrupt::install_ending();
+    // Installed first, so that no signal finds the default action. The first signal stops the
+    // search between candidates and the best so far is written, marked incomplete; a second
+    // ends the command at once.
+    let interrupt = crate::interrupt::Interrupt::install();
     let started = Instant::now();
     // Every input is checked before any work; nothing is written before the search succeeds.
     if args.seeds == 0 {
@@ -164,7 +164,14 @@ pub fn run(args: TuneArgs) -> Result<()> {
         "--holdout-map",
         "--holdout-scenario",
     )?;
-    let out_dir = crate::out_dir::OutDir::prepare(&args.out, args.force, "tune")?;
+    let inputs: Vec<&Path> = (args.map.iter())
+        .chain(&args.scenario)
+        .chain(&args.holdout_map)
+        .chain(&args.holdout_scenario)
+        .chain(&args.config)
+        .map(PathBuf::as_path)
+        .collect();
+    let out_dir = crate::out_dir::OutDir::prepare(&args.out, &inputs, args.force, "tune")?;
     let tuning_seeds: Vec<Vec<u64>> = seeds_of(&tuning, 0, args.seeds);
     let holdout_seeds: Vec<Vec<u64>> = seeds_of(&holdout, args.seeds, args.holdout_seeds);
     let tuning_sets = sets(&tuning, &tuning_seeds);
@@ -178,19 +185,27 @@ pub fn run(args: TuneArgs) -> Result<()> {
     // About two candidates per dimension per round; the bar grows if the search needs more.
     let estimate = 1 + 2 * options.space.len() * options.rounds;
     let bar = crate::progress::bar(estimate as u64, "tune");
-    let report = eval::tune::tune(&start, &tuning_sets, &options, &mut |p: TuneProgress| {
-        if p.candidates as u64 > bar.length().unwrap_or(0) {
-            bar.set_length(p.candidates as u64);
-        }
-        bar.set_position(p.candidates as u64);
-    })
+    let report = eval::tune::tune_until(
+        &start,
+        &tuning_sets,
+        &options,
+        interrupt.flag(),
+        &mut |p: TuneProgress| {
+            if p.candidates as u64 > bar.length().unwrap_or(0) {
+                bar.set_length(p.candidates as u64);
+            }
+            bar.set_position(p.candidates as u64);
+        },
+    )
     .map_err(|e| search_error(e, &args))?;
     bar.finish_and_clear();
+    let stopped = !report.complete;
 
     // Starting against tuned parameters, every variant, on both sets.
     let mut comparison = Vec::new();
     for (set_name, drive_sets) in [("tuning", &tuning_sets), ("held-out", &holdout_sets)] {
-        if drive_sets.is_empty() {
+        // A stopped search is not compared: that would be the long work the signal declined.
+        if drive_sets.is_empty() || stopped {
             continue;
         }
         let w = options.moving_iou_weight;
@@ -216,6 +231,16 @@ pub fn run(args: TuneArgs) -> Result<()> {
     };
     let seconds = started.elapsed().as_secs_f64();
     let json = write_outputs(&args.out, &output, seconds)?;
+    if stopped {
+        out_dir.finish_interrupted()?;
+        return Err(
+            anyhow::Error::new(crate::interrupt::Interrupted).context(format!(
+                "search stopped after {} candidates, the best so far in {} (marked incomplete)",
+                output.search.candidates.len(),
+                args.out.join("tuned.toml").display()
+            )),
+        );
+    }
     out_dir.finish()?;
     if args.json {
         crate::outln!("{json}");
@@ -367,6 +392,14 @@ fn write_outputs(out: &Path, output: &TuneOutput, seconds: f64) -> Result<String
         f.write_all(b"\n")
     })?;
     let mut md = String::from("# evigrid tune\n\n");
+    if !output.search.complete {
+        let _ = writeln!(
+            md,
+            "**Incomplete**: the search was stopped after {} candidates; the parameters are the \
+             best of those, not compared on the drives.\n",
+            output.search.candidates.len()
+        );
+    }
     let _ = writeln!(
         md,
         "Command (wall time {seconds:.1} s):\n\n```sh\n{}\n```\n",

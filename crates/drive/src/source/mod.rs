@@ -79,6 +79,27 @@ pub enum DriveSpec {
     },
 }
 
+impl DriveSpec {
+    /// Every file or folder the spec names (the scans' folder or recording, the pose, calibration
+    /// and times files): what an output must never replace.
+    pub fn input_paths(&self) -> Vec<&Path> {
+        let (main, times, poses) = match self {
+            Self::KittiRaw { dir, poses } => (dir, None, poses.as_ref()),
+            Self::ScanFolder { dir, times, poses } => (dir, times.as_ref(), poses.as_ref()),
+            Self::Bag { path, .. } => (path, None, None),
+        };
+        let pose_files = poses
+            .into_iter()
+            .flat_map(|p| [Some(&p.path), p.calib.as_ref()]);
+        [Some(main), times]
+            .into_iter()
+            .chain(pose_files)
+            .flatten()
+            .map(PathBuf::as_path)
+            .collect()
+    }
+}
+
 /// A pose file and how to read it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PoseFileSpec {

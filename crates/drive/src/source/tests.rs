@@ -231,3 +231,35 @@ fn a_recording_placed_by_navsatfix_needs_a_projection() {
         "{error}"
     );
 }
+
+#[test]
+fn a_spec_names_every_input_path() {
+    let poses = PoseFileSpec {
+        path: PathBuf::from("p.txt"),
+        format: None,
+        calib: Some(PathBuf::from("calib.txt")),
+        mounting: None,
+    };
+    let folder = DriveSpec::ScanFolder {
+        dir: PathBuf::from("scans"),
+        times: Some(PathBuf::from("times.txt")),
+        poses: Some(poses.clone()),
+    };
+    let names = |spec: &DriveSpec| -> Vec<String> {
+        (spec.input_paths().iter())
+            .map(|p| p.display().to_string())
+            .collect()
+    };
+    assert_eq!(names(&folder), ["scans", "times.txt", "p.txt", "calib.txt"]);
+    let raw = DriveSpec::KittiRaw {
+        dir: PathBuf::from("2011_09_26"),
+        poses: None,
+    };
+    assert_eq!(names(&raw), ["2011_09_26"]);
+    let bag = DriveSpec::Bag {
+        path: PathBuf::from("d.mcap"),
+        cloud_topic: None,
+        pose_source: PoseSource::Auto,
+    };
+    assert_eq!(names(&bag), ["d.mcap"]);
+}

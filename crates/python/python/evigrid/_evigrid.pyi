@@ -146,6 +146,8 @@ def run(
     pose_source: Optional[str] = None,
     max_frames: Optional[int] = None,
     strict: bool = False,
+    # Write into a folder of someone else's files; never onto a file or into a folder holding
+    # an input (evigrid.InputError).
     force: bool = False,
     mcap: bool = True,
 ) -> Dict[str, Any]: ...

@@ -1,6 +1,6 @@
 //! The flags of `evigrid run`, and the drive they name.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
 use drive::DriveSpec;
@@ -156,6 +156,24 @@ Outputs (in --out):
                                when it ended early), skipped scans";
 
 impl RunArgs {
+    /// Every file or folder the flags name as an input, for the output policy.
+    pub fn input_paths(&self) -> Vec<&Path> {
+        [
+            &self.map,
+            &self.scans,
+            &self.drive,
+            &self.bag,
+            &self.poses,
+            &self.calib,
+            &self.times,
+            &self.config,
+        ]
+        .into_iter()
+        .flatten()
+        .map(PathBuf::as_path)
+        .collect()
+    }
+
     /// The drive the flags name, checked: the pose-file flags need `--poses`, `--times` is not
     /// for a KITTI raw drive, at least one frame.
     pub fn drive_spec(&self) -> anyhow::Result<DriveSpec> {
