@@ -108,7 +108,11 @@ def test_run_writes_into_a_folder_of_someone_elses_files_only_with_force(tmp_pat
     with pytest.raises(evigrid.InputError, match="force=True"):
         evigrid.run(scans, poses=poses, out=mine)
     assert sorted(p.name for p in mine.iterdir()) == ["thesis.tex"]
-    # Forced, the run goes on (here to the scan it cannot use) and the user's file stays.
-    with pytest.raises(evigrid.InputError, match="a.pcd|no usable scan"):
+    # Forced, the folder is taken (its marker written) and the user's file stays; whether the
+    # one-point drive then runs to its end is not this test's matter.
+    try:
         evigrid.run(scans, poses=poses, out=mine, force=True)
+    except evigrid.InputError as error:
+        assert "force" not in str(error)
+    assert (mine / ".evigrid-output").is_file()
     assert (mine / "thesis.tex").read_text(encoding="utf-8") == "precious"

@@ -199,12 +199,13 @@ pub fn run(args: TuneArgs) -> Result<()> {
     )
     .map_err(|e| search_error(e, &args))?;
     bar.finish_and_clear();
-    let stopped = !report.complete;
+    let mut stopped = !report.complete;
 
     // Starting against tuned parameters, every variant, on both sets.
     let mut comparison = Vec::new();
     for (set_name, drive_sets) in [("tuning", &tuning_sets), ("held-out", &holdout_sets)] {
         // A stopped search is not compared: that would be the long work the signal declined.
+        stopped |= interrupt.flag().load(std::sync::atomic::Ordering::Relaxed);
         if drive_sets.is_empty() || stopped {
             continue;
         }
