@@ -143,17 +143,22 @@ impl OutDir {
     /// nothing.
     ///
     /// # Errors
-    /// [`OutDirError::HoldsInput`] naming the folder and the input.
+    /// [`OutDirError::IsInput`] when `path` is an input, [`OutDirError::HoldsInput`] when it
+    /// holds one, each naming the folder and the input.
     pub fn check_inputs(path: &Path, inputs: &[&Path]) -> Result<()> {
         let Ok(folder) = fs::canonicalize(path) else {
             return Ok(());
         };
         for input in inputs {
-            if fs::canonicalize(input).is_ok_and(|input| input.starts_with(&folder)) {
-                return Err(OutDirError::HoldsInput {
-                    path: path.to_path_buf(),
-                    input: input.to_path_buf(),
-                });
+            let Ok(real) = fs::canonicalize(input) else {
+                continue;
+            };
+            let (path, input) = (path.to_path_buf(), input.to_path_buf());
+            if real == folder {
+                return Err(OutDirError::IsInput { path, input });
+            }
+            if real.starts_with(&folder) {
+                return Err(OutDirError::HoldsInput { path, input });
             }
         }
         Ok(())
@@ -640,7 +645,10 @@ mod tests {
         // The folder itself as the input, and through a link to it.
         let link = tmp.path().join("link");
         std::os::unix::fs::symlink(&out, &link)?;
-        assert!(OutDir::check_inputs(&link, &[&out]).is_err());
+        assert!(matches!(
+            OutDir::check_inputs(&link, &[&out]),
+            Err(OutDirError::IsInput { .. })
+        ));
         // Beside it, or above it (a drive folder holding the output folder), is fine.
         let poses = tmp.path().join("poses.txt");
         fs::write(&poses, "0 0 0 0 0 0 0 1")?;

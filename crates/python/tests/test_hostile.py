@@ -81,15 +81,17 @@ def test_run_never_writes_onto_an_input_or_a_file_even_with_force(tmp_path, forc
     beside.mkdir()
     poses = beside / "p.txt"
     poses.write_text("0 0 0 0 0 0 0\n", encoding="utf-8")
-    before = _snapshot(tmp_path)
-    # The scans' folder itself, a folder holding the pose file, the pose file, a link to it.
+    # The scans' folder itself, a folder holding the pose file, the pose file, a link to it;
+    # an existing file that is no input is refused too (not a folder), forced or not.
+    (tmp_path / "notes.txt").write_text("mine", encoding="utf-8")
     (tmp_path / "link.txt").symlink_to(poses)
-    before["link.txt"] = poses.read_bytes()
+    before = _snapshot(tmp_path)
     for out, why in [
-        (scans, "holds the input"),
+        (scans, "is the input"),
         (beside, "holds the input"),
-        (poses, "exists and is not a folder"),
-        (tmp_path / "link.txt", "exists and is not a folder"),
+        (poses, "is the input"),
+        (tmp_path / "link.txt", "is the input"),
+        (tmp_path / "notes.txt", "exists and is not a folder"),
     ]:
         with pytest.raises(evigrid.InputError, match=why) as raised:
             evigrid.run(scans, poses=poses, out=out, force=force)
