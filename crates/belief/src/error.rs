@@ -202,11 +202,49 @@ impl BeliefError {
             other => other.to_string(),
         }
     }
+
+    /// [`Self::describe_in`] for an error of combining masses: total conflict named as
+    /// Dempster's rule meets it.
+    pub fn describe_combination_in(&self, frame: &Frame) -> String {
+        match self {
+            Self::TotalConflict => {
+                "total conflict (K = 1): Dempster's rule is undefined".to_owned()
+            }
+            other => other.describe_in(frame),
+        }
+    }
+
+    /// [`Self::describe_in`] for an error of the pignistic transform: total conflict named as
+    /// what it leaves undefined.
+    pub fn describe_pignistic_in(&self, frame: &Frame) -> String {
+        match self {
+            Self::TotalConflict => "m(∅) = 1, so the pignistic probability is undefined".to_owned(),
+            other => other.describe_in(frame),
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn total_conflict_is_named_by_what_it_leaves_undefined() -> Result<(), BeliefError> {
+        let frame = Frame::new(["F", "O"])?;
+        let conflict = BeliefError::TotalConflict;
+        assert_eq!(
+            conflict.describe_combination_in(&frame),
+            "total conflict (K = 1): Dempster's rule is undefined"
+        );
+        assert_eq!(
+            conflict.describe_pignistic_in(&frame),
+            "m(∅) = 1, so the pignistic probability is undefined"
+        );
+        let sum = BeliefError::InvalidSum { sum: 0.5 };
+        assert_eq!(sum.describe_combination_in(&frame), sum.describe_in(&frame));
+        assert_eq!(sum.describe_pignistic_in(&frame), sum.describe_in(&frame));
+        Ok(())
+    }
 
     #[test]
     fn described_in_a_frame_sets_are_named_by_their_elements() -> Result<(), BeliefError> {

@@ -129,12 +129,7 @@ pub mod mass {
         let masses: Vec<Mass<f64>> = inputs.iter().map(|i| i.mass.clone()).collect();
         let combined = rule.combine_all(&masses).map_err(|e| {
             let labels: Vec<&str> = inputs.iter().map(|i| i.label.as_str()).collect();
-            let problem = match e {
-                BeliefError::TotalConflict => {
-                    "total conflict (K = 1): Dempster's rule is undefined".to_owned()
-                }
-                other => other.describe_in(first.mass.frame()),
-            };
+            let problem = e.describe_combination_in(first.mass.frame());
             input_error(format!("{}: {problem}", labels.join(", ")))
         })?;
         Ok(mass_out(&combined))
@@ -198,12 +193,12 @@ pub mod mass {
     fn pignistic(m: MassArg) -> PyResult<Vec<(String, f64)>> {
         let input = m.parse()?;
         let frame = input.mass.frame();
-        let betp = input.mass.pignistic().map_err(|e| match e {
-            BeliefError::TotalConflict => input_error(format!(
-                "{}: m(∅) = 1, so the pignistic probability is undefined",
-                input.label
-            )),
-            other => input_error(format!("{}: {}", input.label, other.describe_in(frame))),
+        let betp = input.mass.pignistic().map_err(|e| {
+            input_error(format!(
+                "{}: {}",
+                input.label,
+                e.describe_pignistic_in(frame)
+            ))
         })?;
         Ok(frame.names().iter().cloned().zip(betp).collect())
     }

@@ -208,12 +208,7 @@ fn combine(args: &CombineArgs) -> Result<()> {
     let masses: Vec<Mass<f64>> = inputs.iter().map(|i| i.mass.clone()).collect();
     let combined = rule.combine_all(&masses).map_err(|e| {
         let labels: Vec<&str> = inputs.iter().map(|i| i.label.as_str()).collect();
-        let problem = match e {
-            BeliefError::TotalConflict => {
-                "total conflict (K = 1): Dempster's rule is undefined".to_owned()
-            }
-            other => other.describe_in(first.mass.frame()),
-        };
+        let problem = e.describe_combination_in(first.mass.frame());
         BadInput::new(format!("{}: {problem}", labels.join(", ")))
     })?;
     print_mass(&combined, &args.output)
@@ -316,12 +311,12 @@ fn check_rate(flag: &str, arg: &str, rate: f64) -> Result<()> {
 fn pignistic(args: &SingleArgs) -> Result<()> {
     let input = read_input(&args.input)?;
     let frame = input.mass.frame();
-    let betp = input.mass.pignistic().map_err(|e| match e {
-        BeliefError::TotalConflict => BadInput::new(format!(
-            "{}: m(∅) = 1, so the pignistic probability is undefined",
-            input.label
-        )),
-        other => BadInput::new(format!("{}: {}", input.label, other.describe_in(frame))),
+    let betp = input.mass.pignistic().map_err(|e| {
+        BadInput::new(format!(
+            "{}: {}",
+            input.label,
+            e.describe_pignistic_in(frame)
+        ))
     })?;
     if args.output.table {
         json::print(&json::pignistic_table(frame, &betp))
