@@ -282,6 +282,25 @@ pub const MAX_YAW_RAD: f64 = 200.0 * std::f64::consts::PI;
 /// Largest offset of a sensor from the vehicle's origin in a mounting, metres.
 pub const MAX_MOUNTING_OFFSET_M: f64 = 50.0;
 
+/// Checks every coordinate of a position against [`MAX_POSITION_M`].
+fn check_position_bound(
+    path: &Path,
+    line: usize,
+    position: &Vector3<f64>,
+) -> Result<(), ReadError> {
+    match position.iter().find(|v| v.abs() > MAX_POSITION_M) {
+        Some(far) => Err(line_error(
+            path,
+            line,
+            format!(
+                "position coordinate {} m is beyond ±{MAX_POSITION_M:e} m",
+                show(*far)
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Checks a pose's position against [`MAX_POSITION_M`] and its jump from the previous pose
 /// (`previous`: its time and position) against [`MAX_POSE_SPEED_MPS`] and
 /// [`POSE_JUMP_SLACK_M`]; then makes it the previous pose.
@@ -292,16 +311,7 @@ fn check_position(
     position: Vector3<f64>,
     previous: &mut Option<(f64, Vector3<f64>)>,
 ) -> Result<(), ReadError> {
-    if let Some(far) = position.iter().find(|v| v.abs() > MAX_POSITION_M) {
-        return Err(line_error(
-            path,
-            line,
-            format!(
-                "position coordinate {} m is beyond ±{MAX_POSITION_M:e} m",
-                show(*far)
-            ),
-        ));
-    }
+    check_position_bound(path, line, &position)?;
     if let Some((t0, p0)) = *previous {
         let jump_m = (position - p0).norm();
         let dt_s = (time - t0).abs();
@@ -521,21 +531,7 @@ pub fn read_kitti_odometry_cam0(path: &Path) -> Result<Vec<Isometry3<f64>>, Read
             "KITTI odometry: a 3x4 row-major world_from_cam0 matrix",
         )?;
         let pose = isometry_from_3x4(&v).map_err(|m| line_error(path, line, m))?;
-        if let Some(far) = pose
-            .translation
-            .vector
-            .iter()
-            .find(|v| v.abs() > MAX_POSITION_M)
-        {
-            return Err(line_error(
-                path,
-                line,
-                format!(
-                    "position coordinate {} m is beyond ±{MAX_POSITION_M:e} m",
-                    show(*far)
-                ),
-            ));
-        }
+        check_position_bound(path, line, &pose.translation.vector)?;
         poses.push(pose);
     }
     Ok(poses)
