@@ -161,7 +161,8 @@ pub(crate) fn register(
         .iter()
         .map(|p| (initial * Point3::from(*p)).coords)
         .collect();
-    // Each point's 27 voxels, looked up again only when it changes voxel.
+    // Each point's 27 voxels, looked up again only when it changes voxel, and its last search,
+    // skipped while the point's move since cannot have changed the answer.
     let mut around = vec![Neighbourhood::default(); moved.len()];
     let mut outcome = IcpOutcome {
         world_from_sensor: estimate,
