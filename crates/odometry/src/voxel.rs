@@ -12,10 +12,26 @@ pub(crate) type VoxelKey = [i32; 3];
 /// (validated-against) absurd coordinate lands in an edge voxel rather than misbehaving.
 pub(crate) fn voxel_of(point: &Vector3<f64>, inverse_size: f64) -> VoxelKey {
     [
-        (point.x * inverse_size).floor() as i32,
-        (point.y * inverse_size).floor() as i32,
-        (point.z * inverse_size).floor() as i32,
+        floor_to_i32(point.x * inverse_size),
+        floor_to_i32(point.y * inverse_size),
+        floor_to_i32(point.z * inverse_size),
     ]
+}
+
+/// `value.floor() as i32`, exactly (NaN to 0, out of range saturated), without `floor`: on
+/// x86-64 without SSE4.1 that is a call to a software routine of about 25 instructions, which
+/// made 3.9 % of the default KITTI run's instructions (the search and the downsampling call it
+/// three times a point). Truncation is one instruction; a negative non-integer is one below.
+fn floor_to_i32(value: f64) -> i32 {
+    // Saturating: |value| ≥ 2⁶³ is already an integer, and NaN gives 0, as `floor` would.
+    let truncated = value as i64;
+    // Exact below 2⁵³; from there `value` is an integer and `truncated` equals it.
+    let floored = if (truncated as f64) > value {
+        truncated.saturating_sub(1)
+    } else {
+        truncated
+    };
+    floored.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
 }
 
 /// A multiplicative hasher for voxel keys (the FxHash scheme): keys are not attacker-chosen, and
@@ -253,7 +269,6 @@ impl VoxelMap {
         max_distance_sq: f64,
         around: &mut Neighbourhood,
     ) -> Option<(Vector3<f64>, f64)> {
-        let scaled = query * self.inverse_size;
         let centre = voxel_of(query, self.inverse_size);
         if around.centre != Some(centre) {
             for (range, offset) in around.ranges.iter_mut().zip(&NEIGHBOURS) {
@@ -277,6 +292,7 @@ impl VoxelMap {
             });
         }
         // Position inside the voxel, in metres from its lower corner, per axis.
+        let scaled = query * self.inverse_size;
         let inside = [
             (scaled.x - f64::from(centre[0])) * self.voxel_size,
             (scaled.y - f64::from(centre[1])) * self.voxel_size,
@@ -411,6 +427,53 @@ pub(crate) struct Neighbourhood {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_to_i32_is_floor_then_a_saturating_cast() {
+        let two_31 = 2_f64.powi(31);
+        let two_53 = 2_f64.powi(53);
+        let edges = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            -1e-300,
+            0.999_999_999_999_999_9,
+            -0.999_999_999_999_999_9,
+            two_31 - 0.5,
+            two_31,
+            -two_31,
+            -two_31 - 0.5,
+            -two_31 + 0.5,
+            two_53 + 2.0,
+            -two_53 - 2.0,
+            1e300,
+            -1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            f64::MIN_POSITIVE,
+        ];
+        for value in edges {
+            assert_eq!(floor_to_i32(value), value.floor() as i32, "{value}");
+        }
+        let mut state = 3_u64;
+        for _ in 0..100_000 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            let unit = (state >> 11) as f64 / (1u64 << 53) as f64;
+            // Coordinates over ±2000 voxels, with a quarter of them exactly on a boundary.
+            let value = if state & 3 == 0 {
+                (unit * 4000.0 - 2000.0).round()
+            } else {
+                unit * 4000.0 - 2000.0
+            };
+            assert_eq!(floor_to_i32(value), value.floor() as i32, "{value}");
+        }
+    }
 
     #[test]
     fn neighbours_are_all_27_offsets_nearest_first() {
