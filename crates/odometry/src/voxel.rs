@@ -96,20 +96,29 @@ pub(crate) fn downsampled(points: &[Vector3<f64>], voxel_size: f64) -> Vec<Vecto
 /// deterministic.
 pub(crate) fn downsample(points: &[Vector3<f64>], voxel_size: f64) -> Vec<usize> {
     let inverse = 1.0 / voxel_size;
-    let mut chosen: HashMap<VoxelKey, (u64, usize), BuildVoxelHasher> =
+    // Per voxel its slot in `chosen`, which holds the (rank, index) of the voxel's best point.
+    // A scan's consecutive points mostly share a voxel (a ring's neighbours in azimuth), so the
+    // last voxel's slot is kept and the hash map is asked only when the voxel changes.
+    let mut slots: HashMap<VoxelKey, usize, BuildVoxelHasher> =
         HashMap::with_capacity_and_hasher(points.len() / 4, BuildVoxelHasher::default());
+    let mut chosen: Vec<(u64, usize)> = Vec::with_capacity(points.len() / 4);
+    let mut last: Option<(VoxelKey, usize)> = None;
     for (index, point) in points.iter().enumerate() {
         let rank = scramble(index as u64);
-        chosen
-            .entry(voxel_of(point, inverse))
-            .and_modify(|best| {
-                if rank < best.0 {
-                    *best = (rank, index);
-                }
-            })
-            .or_insert((rank, index));
+        let voxel = voxel_of(point, inverse);
+        let slot = match last {
+            Some((last_voxel, slot)) if last_voxel == voxel => slot,
+            _ => *slots.entry(voxel).or_insert_with(|| {
+                chosen.push((rank, index));
+                chosen.len() - 1
+            }),
+        };
+        last = Some((voxel, slot));
+        if rank < chosen[slot].0 {
+            chosen[slot] = (rank, index);
+        }
     }
-    let mut indices: Vec<usize> = chosen.into_values().map(|(_, index)| index).collect();
+    let mut indices: Vec<usize> = chosen.into_iter().map(|(_, index)| index).collect();
     indices.sort_unstable();
     indices
 }
@@ -502,6 +511,33 @@ mod tests {
         let mut voxels: Vec<VoxelKey> = kept.iter().map(|&i| voxel_of(&points[i], 1.0)).collect();
         voxels.sort_unstable();
         assert_eq!(voxels, vec![[-1, 0, 0], [0, 0, 0], [1, 0, 0]]);
+    }
+
+    #[test]
+    fn downsample_keeps_each_voxels_lowest_rank_when_voxels_recur() {
+        // Runs of points in one voxel, and voxels visited again after others (as a ring comes
+        // back to an object): the kept point of a voxel is its lowest-ranked one wherever it
+        // came, as a plain pass over all points finds it.
+        let points: Vec<Vector3<f64>> = (0..3000)
+            .map(|i| {
+                let i = f64::from(i);
+                Vector3::new(
+                    (i * 0.013) % 3.0,
+                    (i * 0.0007) % 2.0,
+                    0.5 * ((i / 50.0) % 2.0),
+                )
+            })
+            .collect();
+        let mut lowest: HashMap<VoxelKey, (u64, usize)> = HashMap::new();
+        for (index, point) in points.iter().enumerate() {
+            let candidate = (scramble(index as u64), index);
+            let entry = lowest.entry(voxel_of(point, 2.0)).or_insert(candidate);
+            *entry = (*entry).min(candidate);
+        }
+        let mut expected: Vec<usize> = lowest.into_values().map(|(_, index)| index).collect();
+        expected.sort_unstable();
+        assert!(expected.len() > 20);
+        assert_eq!(downsample(&points, 0.5), expected);
     }
 
     #[test]
