@@ -8,10 +8,10 @@
 use evigrid::{Label, Window};
 use image::{Rgb, RgbImage};
 
-use crate::error::OutputError;
+use crate::error::{OutputError, check_len};
 use crate::figure::PATH;
 use crate::text::{draw_text, text_width};
-use crate::views::{ClassColours, decision_image};
+use crate::views::{ClassColours, colour_table, paint_into};
 
 /// Height of the legend strip under the map, pixels.
 pub const STRIP_PX: u32 = 18;
@@ -72,10 +72,18 @@ pub fn frame_picture(
     ego_xy: [f64; 2],
     colours: &ClassColours,
 ) -> Result<RgbImage, OutputError> {
-    let map = decision_image(window, decisions, colours)?;
-    let (w, h) = map.dimensions();
-    let mut canvas = RgbImage::from_pixel(w, h + STRIP_PX, PAPER);
-    image::imageops::replace(&mut canvas, &map, 0, 0);
+    check_len("decisions", decisions.len(), window)?;
+    let (w, h) = (window.width() as u32, window.height() as u32);
+    // The map painted straight into the canvas (no picture of its own copied over), the strip
+    // below it on paper.
+    let mut canvas = RgbImage::new(w, h + STRIP_PX);
+    let table = colour_table(colours);
+    paint_into(window, &mut canvas, |idx| table[decisions[idx] as usize]);
+    let strip_start = 3 * w as usize * h as usize;
+    let bytes: &mut [u8] = &mut canvas;
+    for pixel in bytes[strip_start..].chunks_exact_mut(3) {
+        pixel.copy_from_slice(&PAPER.0);
+    }
     // The ego's cell, in image pixels (row 0 north).
     let s = window.cell_size_m();
     let col = (ego_xy[0] / s).floor() - window.first_col() as f64;

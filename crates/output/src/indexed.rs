@@ -99,8 +99,8 @@ pub fn write_indexed_png(image: &RgbImage, path: &Path) -> Result<(), OutputErro
     let mut codes = Vec::with_capacity(w * h);
     // Runs of one colour are the rule (a map's cells): look up only when the colour changes.
     let mut last: Option<([u8; 3], u8)> = None;
-    for pixel in image.pixels() {
-        let colour = pixel.0;
+    for pixel in image.as_raw().chunks_exact(3) {
+        let colour = [pixel[0], pixel[1], pixel[2]];
         let code = match last {
             Some((c, code)) if c == colour => code,
             _ => {
@@ -121,14 +121,23 @@ pub fn write_indexed_png(image: &RgbImage, path: &Path) -> Result<(), OutputErro
         codes.push(code);
     }
     let (depth, bits) = bit_depth(entries.len());
-    let per_byte = (8 / bits) as usize;
-    let row_bytes = w.div_ceil(per_byte);
-    let mut packed = vec![0u8; row_bytes * h];
-    for (k, &code) in codes.iter().enumerate() {
-        let (x, row) = (k % w, k / w);
-        let shift = 8 - bits * (1 + (x % per_byte) as u32);
-        packed[row * row_bytes + x / per_byte] |= ((u32::from(code)) << shift) as u8;
-    }
+    let packed = if bits == 8 {
+        // One byte a pixel: the codes are the rows as they are.
+        codes
+    } else {
+        let per_byte = (8 / bits) as usize;
+        let row_bytes = w.div_ceil(per_byte);
+        let mut packed = vec![0u8; row_bytes * h];
+        if w > 0 {
+            for (row, codes) in packed.chunks_exact_mut(row_bytes).zip(codes.chunks_exact(w)) {
+                for (x, &code) in codes.iter().enumerate() {
+                    let shift = 8 - bits * (1 + (x % per_byte) as u32);
+                    row[x / per_byte] |= (u32::from(code) << shift) as u8;
+                }
+            }
+        }
+        packed
+    };
     write_palette_png(path, (w, h), &entries, depth, &packed)
 }
 

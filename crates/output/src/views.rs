@@ -10,7 +10,7 @@
 //!   moving during the drive painted red, from a [`MovingTrace`] kept world-fixed in the window.
 
 use evigrid::{Label, MovingTrace, PerceptionGrid, Window, betp};
-use image::{Rgb, RgbImage};
+use image::RgbImage;
 
 use crate::error::{OutputError, check_len};
 
@@ -97,19 +97,50 @@ impl ClassColours {
 }
 
 /// Paints one pixel per cell, north-up, with `colour(storage_index)`.
-fn paint(window: &Window, mut colour: impl FnMut(usize) -> [u8; 3]) -> RgbImage {
+fn paint(window: &Window, colour: impl FnMut(usize) -> [u8; 3]) -> RgbImage {
     let (w, h) = (window.width() as u32, window.height() as u32);
     let mut image = RgbImage::new(w, h);
-    let mut pixel = 0u32;
-    // World-order spans run south to north, west to east; image rows run north to south.
-    for span in window.world_order_spans() {
-        for idx in span {
-            let (x, row_from_south) = (pixel % w, pixel / w);
-            image.put_pixel(x, h - 1 - row_from_south, Rgb(colour(idx)));
-            pixel += 1;
-        }
-    }
+    paint_into(window, &mut image, colour);
     image
+}
+
+/// Paints one pixel per cell, north-up, with `colour(storage_index)` into the top
+/// `window.height()` rows of `image`, which is `window.width()` pixels wide and at least that
+/// tall (the frame picture draws its legend strip below).
+///
+/// Row by row into the image's bytes: the per-frame picture paints 102,400 cells a frame on
+/// KITTI, and a pixel's division into column and row plus a checked `put_pixel` were most of
+/// its cost (`docs/benchmarks.md`).
+pub(crate) fn paint_into(
+    window: &Window,
+    image: &mut RgbImage,
+    mut colour: impl FnMut(usize) -> [u8; 3],
+) {
+    let (w, h) = (window.width(), window.height());
+    debug_assert!(image.width() as usize == w && image.height() as usize >= h);
+    let row_bytes = 3 * w;
+    let bytes: &mut [u8] = &mut *image;
+    // World-order spans run south to north, west to east, each within one row (a row is one
+    // span, or two where the storage wraps); image rows run north to south.
+    let mut pixel = 0usize;
+    for span in window.world_order_spans() {
+        let (x, row_from_south) = (pixel % w, pixel / w);
+        let start = (h - 1 - row_from_south) * row_bytes + 3 * x;
+        let len = span.len();
+        for (idx, rgb) in span.zip(bytes[start..start + 3 * len].chunks_exact_mut(3)) {
+            rgb.copy_from_slice(&colour(idx));
+        }
+        pixel += len;
+    }
+}
+
+/// Each label's colour by label code, for painting a decision map cell by cell.
+pub(crate) fn colour_table(colours: &ClassColours) -> [[u8; 3]; Label::ALL.len()] {
+    let mut table = [[0u8; 3]; Label::ALL.len()];
+    for label in Label::ALL {
+        table[label as usize] = colours.of(label);
+    }
+    table
 }
 
 /// The decision map: one colour per decided class (`decisions` in storage order, as
@@ -124,7 +155,8 @@ pub fn decision_image(
     colours: &ClassColours,
 ) -> Result<RgbImage, OutputError> {
     check_len("decisions", decisions.len(), window)?;
-    Ok(paint(window, |idx| colours.of(decisions[idx])))
+    let table = colour_table(colours);
+    Ok(paint(window, |idx| table[decisions[idx] as usize]))
 }
 
 /// The pignistic view: per cell the mean of the five class colours weighted by betP (eq 15),

@@ -28,7 +28,7 @@ use evigrid::Label;
 use evigrid::Params;
 use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, DynamicImage, RgbImage};
-use output::mcap::{McapFrame, McapRecorder};
+use output::mcap::{EVERY_GRID_ZSTD_LEVEL, McapFrame, McapRecorder};
 use output::{
     GridExports, Legend, Overlay, class_name, decision_image, figure, pignistic_image,
     readable_scale, trace_image, write_atomic, write_grid_exports, write_png,
@@ -141,10 +141,15 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let mut recorder = if args.no_mcap {
         None
     } else {
-        // Every frame's grid: the demo's frames are what it shows.
+        // Every frame's grid: the demo's frames are what it shows; zstd at the level that
+        // keeps them small.
         Some(
-            McapRecorder::create(&args.out.join("run.mcap"), Some(&loaded.map))?
-                .with_grid_interval(0.0),
+            McapRecorder::create_with_zstd_level(
+                &args.out.join("run.mcap"),
+                Some(&loaded.map),
+                EVERY_GRID_ZSTD_LEVEL,
+            )?
+            .with_grid_interval(0.0),
         )
     };
     // The MCAP frames and the final exports, written from the observer.

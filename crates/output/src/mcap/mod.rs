@@ -67,12 +67,34 @@ pub const FRAME_SENSOR: &str = "sensor";
 /// The GNSS receiver's frame (no transform is published for it: a fix is a WGS84 position).
 pub const FRAME_GNSS: &str = "gnss";
 
-/// The zstd level of the recording's chunks. Level 1 took about half the CPU of zstd's default
-/// 3 for a file some 20 % larger (53 against 45 MB on the 40 frames of KITTI 0013, when the
-/// scans were base64 JSON); compression runs on the writing thread, no pool.
-/// Named here, not left to the `mcap` crate's features: built alone this crate would write
-/// uncompressed chunks, in the CLI (whose drive reader enables zstd) zstd at level 3.
-pub const ZSTD_LEVEL: u32 = 1;
+/// The zstd level of the recording's chunks: −5, one of zstd's fast levels, which store the
+/// literals raw and look for matches at every few bytes only. The scan is most of the bytes
+/// (1.9 MB a KITTI frame of raw floats, which no level compresses by more than a fifth); at −5
+/// the default KITTI run's recording took 2.6 G instructions fewer than at level 1, 0.3 s of
+/// CPU, for a file 17 % larger (72.3 against 61.8 MB for the 40 frames of KITTI 0013,
+/// `docs/benchmarks.md`). Compression runs on the writing thread, no pool. Named here, not left
+/// to the `mcap` crate's features: built alone this crate would write uncompressed chunks, in
+/// the CLI (whose drive reader enables zstd) zstd at level 3.
+pub const ZSTD_LEVEL: i32 = -5;
+
+/// The zstd level of a recording that holds every frame's grid (`evigrid demo`,
+/// [`McapRecorder::with_grid_interval`] 0): its grids, base64 text, compress about twice as
+/// well at level 1 as at [`ZSTD_LEVEL`], which keeps the demo's folder under its 40 MB (35.9 MB
+/// at level 1, 46.5 MB at −5).
+pub const EVERY_GRID_ZSTD_LEVEL: i32 = 1;
+
+/// The writer's options: zstd at `level` on the writing thread (no pool), no profile.
+fn write_options(level: i32) -> ::mcap::WriteOptions {
+    // The `mcap` crate takes the level as a `u32` and hands zstd `level as i32`
+    // (`ChunkWriter::zstd_encoder` in its `write.rs`), so a negative ("fast") level goes
+    // through as its two's complement (tested).
+    ::mcap::WriteOptions::new()
+        .compression(Some(::mcap::Compression::Zstd))
+        .compression_level(level.cast_unsigned())
+        .compression_threads(0)
+        .profile("")
+        .library(concat!("evigrid-output ", env!("CARGO_PKG_VERSION")))
+}
 
 /// A GNSS fix, WGS84.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -210,17 +232,27 @@ impl McapRecorder {
     ///
     /// [`OutputError::Io`] or [`OutputError::Mcap`] naming `path`.
     pub fn create(path: &Path, map: Option<&LocalMap>) -> Result<Self, OutputError> {
+        Self::create_with_zstd_level(path, map, ZSTD_LEVEL)
+    }
+
+    /// [`create`](Self::create) with the chunks compressed at zstd `level` instead of
+    /// [`ZSTD_LEVEL`] (negative: zstd's fast levels; 0: zstd's default, 3), such as
+    /// [`EVERY_GRID_ZSTD_LEVEL`] for a recording of every frame's grid.
+    ///
+    /// # Errors
+    ///
+    /// [`OutputError::Io`] or [`OutputError::Mcap`] naming `path`.
+    pub fn create_with_zstd_level(
+        path: &Path,
+        map: Option<&LocalMap>,
+        level: i32,
+    ) -> Result<Self, OutputError> {
         let (atomic, file) = AtomicFile::create(path)?;
         let mcap_error = |source| OutputError::Mcap {
             path: path.to_path_buf(),
             source,
         };
-        let mut writer = ::mcap::WriteOptions::new()
-            .compression(Some(::mcap::Compression::Zstd))
-            .compression_level(ZSTD_LEVEL)
-            .compression_threads(0)
-            .profile("")
-            .library(concat!("evigrid-output ", env!("CARGO_PKG_VERSION")))
+        let mut writer = write_options(level)
             .create(BufWriter::new(file))
             .map_err(mcap_error)?;
         let json = (schemas::SCHEMA_ENCODING, schemas::MESSAGE_ENCODING);
@@ -669,6 +701,44 @@ mod tests {
             expected.extend_from_slice(&v.to_le_bytes());
         }
         assert_eq!(protobuf::decode::len(&scan, 6), expected);
+    }
+
+    /// The size of a recording of one message of `data`, chunks compressed at zstd `level`.
+    fn recorded_size(level: i32, data: &[u8]) -> usize {
+        let mut writer = write_options(level)
+            .create(std::io::Cursor::new(Vec::new()))
+            .unwrap();
+        let schema = writer.add_schema("bytes", "", &[]).unwrap();
+        let channel = writer
+            .add_channel(schema, "/bytes", "", &BTreeMap::new())
+            .unwrap();
+        let header = MessageHeader {
+            channel_id: channel,
+            sequence: 0,
+            log_time: 0,
+            publish_time: 0,
+        };
+        writer.write_to_known_channel(&header, data).unwrap();
+        writer.finish().unwrap();
+        writer.into_inner().into_inner().len()
+    }
+
+    #[test]
+    fn a_negative_zstd_level_reaches_zstd_as_a_fast_level() {
+        // 256 kB of 16 symbols in no order (a linear congruential sequence): no repeats to
+        // match, half a byte of entropy a byte. Levels from 1 up code the literals with
+        // Huffman, about 2:1; zstd's negative levels store them raw. Were the `mcap` crate to
+        // read -5 as a huge positive level, zstd would take its strongest, 22: smaller still.
+        let mut state = 12_345u32;
+        let data: Vec<u8> = (0..262_144)
+            .map(|_| {
+                state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                b'a' + (state >> 28) as u8
+            })
+            .collect();
+        let (level_1, fast) = (recorded_size(1, &data), recorded_size(-5, &data));
+        assert!(level_1 < 150_000, "{level_1}");
+        assert!(fast > 250_000, "{fast}");
     }
 
     #[test]

@@ -160,19 +160,43 @@ pub(crate) fn point_cloud(
         });
     }
     // The points straight into the message, after the length counted above (no point: no
-    // field, as an empty `bytes` is the default).
+    // field, as an empty `bytes` is the default), each written whole into its slot: four
+    // `extend_from_slice` a point, each checking the capacity, were most of the message's cost.
     if finite > 0 {
         len_prefix(out, point_cloud::DATA, finite * stride as usize);
     }
-    for (k, p) in points.iter().enumerate() {
-        if !p.iter().all(|c| c.is_finite()) {
-            continue;
+    let start = out.len();
+    out.resize(start + finite * stride as usize, 0);
+    let slots = out[start..].chunks_exact_mut(stride as usize);
+    let xyz = |slot: &mut [u8], p: &[f32; 3]| {
+        slot[0..4].copy_from_slice(&p[0].to_le_bytes());
+        slot[4..8].copy_from_slice(&p[1].to_le_bytes());
+        slot[8..12].copy_from_slice(&p[2].to_le_bytes());
+    };
+    match (finite == points.len(), with_intensity) {
+        // Every point finite (a KITTI scan): no test per point.
+        (true, true) => {
+            for ((p, i), slot) in points.iter().zip(intensity).zip(slots) {
+                xyz(slot, p);
+                slot[12..16].copy_from_slice(&i.to_le_bytes());
+            }
         }
-        for c in p {
-            out.extend_from_slice(&c.to_le_bytes());
+        (true, false) => {
+            for (p, slot) in points.iter().zip(slots) {
+                xyz(slot, p);
+            }
         }
-        if with_intensity {
-            out.extend_from_slice(&intensity[k].to_le_bytes());
+        (false, _) => {
+            let finite_points = points
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| p.iter().all(|c| c.is_finite()));
+            for ((k, p), slot) in finite_points.zip(slots) {
+                xyz(slot, p);
+                if with_intensity {
+                    slot[12..16].copy_from_slice(&intensity[k].to_le_bytes());
+                }
+            }
         }
     }
 }
@@ -262,6 +286,42 @@ pub(crate) mod decode {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+
+    /// The `data` bytes and the point stride of a point cloud of `points` and `intensity`.
+    fn data_of(points: &[[f32; 3]], intensity: &[f32]) -> (Vec<u8>, u32) {
+        let mut out = Vec::new();
+        point_cloud(&mut out, 5, "sensor", points, intensity);
+        let fields = decode::fields(&out);
+        let stride = match decode::all(&fields, 4)[..] {
+            [decode::Value::I32(bytes)] => u32::from_le_bytes(bytes),
+            ref other => panic!("{other:?}"),
+        };
+        (decode::len(&fields, 6).to_vec(), stride)
+    }
+
+    /// Little-endian bytes of the floats.
+    fn le(values: &[f32]) -> Vec<u8> {
+        values.iter().flat_map(|v| v.to_le_bytes()).collect()
+    }
+
+    #[test]
+    fn points_are_written_whole_with_or_without_intensity_and_non_finite_ones_left_out() {
+        let points = [[1.0, -2.0, 3.5], [0.25, 1e-3, -7.0]];
+        // All finite, with intensity: x, y, z, intensity a point, 16 bytes.
+        let (data, s) = data_of(&points, &[0.5, 0.75]);
+        assert_eq!(data, le(&[1.0, -2.0, 3.5, 0.5, 0.25, 1e-3, -7.0, 0.75]));
+        assert_eq!(s, 16);
+        // All finite, no intensity: 12 bytes a point.
+        let (data, s) = data_of(&points, &[]);
+        assert_eq!(data, le(&[1.0, -2.0, 3.5, 0.25, 1e-3, -7.0]));
+        assert_eq!(s, 12);
+        // An infinite point between them is left out with its intensity.
+        let with_gap = [points[0], [f32::INFINITY, 0.0, 0.0], points[1]];
+        let (data, _) = data_of(&with_gap, &[0.5, 0.6, 0.75]);
+        assert_eq!(data, le(&[1.0, -2.0, 3.5, 0.5, 0.25, 1e-3, -7.0, 0.75]));
+        let (data, _) = data_of(&with_gap, &[]);
+        assert_eq!(data, le(&[1.0, -2.0, 3.5, 0.25, 1e-3, -7.0]));
+    }
 
     #[test]
     fn varints_are_base_128_low_group_first() {
