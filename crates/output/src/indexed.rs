@@ -129,7 +129,10 @@ pub fn write_indexed_png(image: &RgbImage, path: &Path) -> Result<(), OutputErro
         let row_bytes = w.div_ceil(per_byte);
         let mut packed = vec![0u8; row_bytes * h];
         if w > 0 {
-            for (row, codes) in packed.chunks_exact_mut(row_bytes).zip(codes.chunks_exact(w)) {
+            for (row, codes) in packed
+                .chunks_exact_mut(row_bytes)
+                .zip(codes.chunks_exact(w))
+            {
                 for (x, &code) in codes.iter().enumerate() {
                     let shift = 8 - bits * (1 + (x % per_byte) as u32);
                     row[x / per_byte] |= (u32::from(code) << shift) as u8;
@@ -254,6 +257,28 @@ mod tests {
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(bytes[25], 2);
         assert_eq!(image::open(&path).unwrap().to_rgb8(), many);
+    }
+
+    #[test]
+    fn a_picture_of_few_colours_is_packed_below_a_byte_a_pixel() {
+        // Five pixels a row (not a whole number of bytes at 2 or 4 bits), three rows.
+        for colours in [3usize, 9] {
+            let mut picture = RgbImage::new(5, 3);
+            for (x, y, p) in picture.enumerate_pixels_mut() {
+                let k = ((x * 7 + y * 3) as usize % colours) as u8;
+                p.0 = [10 * k, 255 - k, 3];
+            }
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("f.png");
+            write_indexed_png(&picture, &path).unwrap();
+            let bytes = std::fs::read(&path).unwrap();
+            // Bit depth 2 for three colours, 4 for nine; colour type 3, palette.
+            assert_eq!(
+                (bytes[24], bytes[25]),
+                (if colours == 3 { 2 } else { 4 }, 3)
+            );
+            assert_eq!(image::open(&path).unwrap().to_rgb8(), picture);
+        }
     }
 
     #[test]
