@@ -27,11 +27,11 @@
 
 use crate::metrics::{ConfusionMatrix, TRUTH_NAMES};
 use crate::report::{EvalReport, VariantReport};
-use image::{Rgb, RgbImage};
+use output::raster::{Rgb, RgbImage};
 use output::text::{draw_text, draw_text_centred, draw_text_vertical, line_height, text_width};
 
 /// Colours of the variants' bars, in order (Okabe & Ito 2008, colour-blind safe).
-pub const PALETTE: [Rgb<u8>; 8] = [
+pub const PALETTE: [Rgb; 8] = [
     Rgb([0, 114, 178]),   // blue
     Rgb([230, 159, 0]),   // orange
     Rgb([0, 158, 115]),   // bluish green
@@ -43,15 +43,15 @@ pub const PALETTE: [Rgb<u8>; 8] = [
 ];
 
 /// Background of every picture.
-pub const BACKGROUND: Rgb<u8> = Rgb([255, 255, 255]);
+pub const BACKGROUND: Rgb = Rgb([255, 255, 255]);
 /// Colour of labels on a light background.
-pub const INK: Rgb<u8> = Rgb([0, 0, 0]);
+pub const INK: Rgb = Rgb([0, 0, 0]);
 /// Heat-map colour of a fraction of 1 (a fraction f mixes white and this linearly).
-pub const HEAT_FULL: Rgb<u8> = Rgb([8, 48, 107]);
+pub const HEAT_FULL: Rgb = Rgb([8, 48, 107]);
 /// Heat-map colour of a row with no truth cell.
-pub const EMPTY_ROW: Rgb<u8> = Rgb([200, 200, 200]);
+pub const EMPTY_ROW: Rgb = Rgb([200, 200, 200]);
 /// Colour of grid lines and of undefined-IoU stubs.
-pub const GRID_GREY: Rgb<u8> = Rgb([190, 190, 190]);
+pub const GRID_GREY: Rgb = Rgb([190, 190, 190]);
 
 /// Font sizes, pixels: titles, axis titles, labels, small print.
 const TITLE_PX: f32 = 20.0;
@@ -69,7 +69,7 @@ pub const CLASS_NAMES: [&str; 5] = [
 ];
 
 /// Fills a rectangle, clipped to the image.
-fn fill_rect(image: &mut RgbImage, x: i64, y: i64, width: u32, height: u32, colour: Rgb<u8>) {
+fn fill_rect(image: &mut RgbImage, x: i64, y: i64, width: u32, height: u32, colour: Rgb) {
     let x0 = x.clamp(0, i64::from(image.width())) as u32;
     let y0 = y.clamp(0, i64::from(image.height())) as u32;
     let x1 = (x + i64::from(width)).clamp(0, i64::from(image.width())) as u32;
@@ -82,14 +82,18 @@ fn fill_rect(image: &mut RgbImage, x: i64, y: i64, width: u32, height: u32, colo
 }
 
 /// White mixed with [`HEAT_FULL`] in proportion `fraction` (clamped to [0, 1]; NaN is 0).
-pub fn heat_colour(fraction: f64) -> Rgb<u8> {
+pub fn heat_colour(fraction: f64) -> Rgb {
     let f = if fraction.is_nan() {
         0.0
     } else {
         fraction.clamp(0.0, 1.0)
     };
     let mix = |full: u8| (255.0 + (f64::from(full) - 255.0) * f).round() as u8;
-    Rgb([mix(HEAT_FULL[0]), mix(HEAT_FULL[1]), mix(HEAT_FULL[2])])
+    Rgb([
+        mix(HEAT_FULL.0[0]),
+        mix(HEAT_FULL.0[1]),
+        mix(HEAT_FULL.0[2]),
+    ])
 }
 
 /// Labels of the heat map's columns: predictions F, I, U, S, M, O and unknown.
@@ -359,13 +363,13 @@ pub fn report_iou_chart(report: &EvalReport) -> RgbImage {
 mod tests {
     use super::*;
 
-    fn pixel(image: &RgbImage, x: u32, y: u32) -> Rgb<u8> {
-        *image.get_pixel(x, y)
+    fn pixel(image: &RgbImage, x: u32, y: u32) -> Rgb {
+        image.get_pixel(x, y)
     }
 
     /// Pixels in the rectangle that are neither of the two given colours (text's ink and its
     /// anti-aliased edge).
-    fn inked(image: &RgbImage, x: u32, y: u32, w: u32, h: u32, not: [Rgb<u8>; 2]) -> usize {
+    fn inked(image: &RgbImage, x: u32, y: u32, w: u32, h: u32, not: [Rgb; 2]) -> usize {
         (y..y + h)
             .flat_map(|py| (x..x + w).map(move |px| (px, py)))
             .filter(|&(px, py)| !not.contains(&pixel(image, px, py)))

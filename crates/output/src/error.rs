@@ -18,12 +18,12 @@ pub enum OutputError {
         source: std::io::Error,
     },
     /// Encoding the PNG failed.
-    #[error("{path}: {source}")]
-    Image {
+    #[error("{path}: PNG encoder: {source}")]
+    Png {
         /// The file.
         path: PathBuf,
         /// The encoder's error.
-        source: image::ImageError,
+        source: png::EncodingError,
     },
     /// Serialising JSON failed.
     #[error("{path}: {source}")]

@@ -12,9 +12,9 @@
 //! one white pixel wide along the shared cell edge; the ego's path as a reddish-purple line with
 //! a black casing, a dot at its last pose.
 
+use crate::raster::{Rgb, RgbImage};
 use evigrid::{GisGrid, Label, Window};
 use geodata::MapContext;
-use image::{Rgb, RgbImage};
 
 use crate::error::{MAX_FIGURE_PIXELS, OutputError, check_len};
 use crate::text::{draw_text, draw_text_centred, line_height, text_width};
@@ -23,12 +23,12 @@ use crate::views::ClassColours;
 /// A panel's long side is enlarged to at least this many pixels by [`readable_scale`].
 pub const READABLE_SIDE_PX: u32 = 800;
 /// Colour of the map outlines.
-pub const OUTLINE: Rgb<u8> = Rgb([255, 255, 255]);
+pub const OUTLINE: Rgb = Rgb([255, 255, 255]);
 /// Colour of the ego's path (Okabe–Ito reddish purple), drawn over a black casing.
-pub const PATH: Rgb<u8> = Rgb([204, 121, 167]);
+pub const PATH: Rgb = Rgb([204, 121, 167]);
 /// Background and ink of the frame around the panels.
-const PAPER: Rgb<u8> = Rgb([255, 255, 255]);
-const INK: Rgb<u8> = Rgb([0, 0, 0]);
+const PAPER: Rgb = Rgb([255, 255, 255]);
+const INK: Rgb = Rgb([0, 0, 0]);
 /// Outer margin and gap between panels, pixels.
 const MARGIN: u32 = 16;
 
@@ -316,12 +316,13 @@ pub fn figure(
 fn enlarge_into(canvas: &mut RgbImage, panel: &RgbImage, (left, top): (u32, u32), scale: u32) {
     let canvas_width = canvas.width() as usize;
     let mut wide = Vec::with_capacity(panel.width() as usize * scale as usize * 3);
-    let buffer: &mut [u8] = canvas;
-    for (y, row) in panel.rows().enumerate() {
+    let buffer = canvas.as_raw_mut();
+    let row_bytes = panel.width() as usize * 3;
+    for (y, row) in panel.as_raw().chunks_exact(row_bytes.max(1)).enumerate() {
         wide.clear();
-        for p in row {
+        for p in row.chunks_exact(3) {
             for _ in 0..scale {
-                wide.extend_from_slice(&p.0);
+                wide.extend_from_slice(p);
             }
         }
         for dy in 0..scale as usize {
@@ -482,7 +483,7 @@ fn draw_path(
         .filter(|p| p[0].is_finite() && p[1].is_finite())
         .map(to_px)
         .collect();
-    let clip = |canvas: &mut RgbImage, a: [f64; 2], b: [f64; 2], r: i64, c: Rgb<u8>| {
+    let clip = |canvas: &mut RgbImage, a: [f64; 2], b: [f64; 2], r: i64, c: Rgb| {
         if inside(a) || inside(b) {
             stroke(canvas, a, b, r, c, rect);
         }
@@ -551,7 +552,7 @@ fn stroke(
     a: [f64; 2],
     b: [f64; 2],
     radius: i64,
-    colour: Rgb<u8>,
+    colour: Rgb,
     rect: [i64; 4],
 ) {
     let length = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
@@ -589,7 +590,7 @@ fn draw_north_arrow(canvas: &mut RgbImage, cx: u32, top: u32) {
 }
 
 /// Fills a rectangle, clipped to the canvas.
-fn fill(canvas: &mut RgbImage, x: u32, y: u32, w: u32, h: u32, colour: Rgb<u8>) {
+fn fill(canvas: &mut RgbImage, x: u32, y: u32, w: u32, h: u32, colour: Rgb) {
     let (x1, y1) = (
         x.saturating_add(w).min(canvas.width()),
         y.saturating_add(h).min(canvas.height()),
@@ -602,7 +603,7 @@ fn fill(canvas: &mut RgbImage, x: u32, y: u32, w: u32, h: u32, colour: Rgb<u8>) 
 }
 
 /// Sets one pixel if it is on the canvas.
-fn put(canvas: &mut RgbImage, x: i64, y: i64, colour: Rgb<u8>) {
+fn put(canvas: &mut RgbImage, x: i64, y: i64, colour: Rgb) {
     if x >= 0 && y >= 0 && x < i64::from(canvas.width()) && y < i64::from(canvas.height()) {
         canvas.put_pixel(x as u32, y as u32, colour);
     }
@@ -670,27 +671,27 @@ mod tests {
         // Panel 0, cell (1, 1) from the north-west: a free square of 8 × 8 pixels.
         for dy in 0..scale {
             for dx in 0..scale {
-                assert_eq!(*fig.get_pixel(MARGIN + 8 + dx, top + 8 + dy), free);
+                assert_eq!(fig.get_pixel(MARGIN + 8 + dx, top + 8 + dy), free);
             }
         }
         // The building starts at window column 10: a white line on that cell's first pixel
         // column, in both panels, away from the path.
         for panel in 0..2 {
             let left = MARGIN + panel * (20 * scale + MARGIN);
-            assert_eq!(*fig.get_pixel(left + 10 * scale, top + scale / 2), OUTLINE);
-            assert_eq!(*fig.get_pixel(left + 10 * scale + 1, top + scale / 2), free);
+            assert_eq!(fig.get_pixel(left + 10 * scale, top + scale / 2), OUTLINE);
+            assert_eq!(fig.get_pixel(left + 10 * scale + 1, top + scale / 2), free);
             // …and where it ends (column 15).
-            assert_eq!(*fig.get_pixel(left + 15 * scale, top + scale / 2), OUTLINE);
+            assert_eq!(fig.get_pixel(left + 15 * scale, top + scale / 2), OUTLINE);
         }
         // The path at y = 27.6 m: row from north (30 − 27.6)/0.5 = 4.8 cells = 38.4 px; at
         // x = 53 m, column 6 cells = 48 px: path colour there, the casing 2 px off it.
         let (px, py) = (MARGIN + 48, top + 38);
-        assert_eq!(*fig.get_pixel(px, py), PATH);
-        assert_eq!(*fig.get_pixel(px, py + 2), INK);
-        assert_eq!(*fig.get_pixel(px, py + 6), free);
+        assert_eq!(fig.get_pixel(px, py), PATH);
+        assert_eq!(fig.get_pixel(px, py + 2), INK);
+        assert_eq!(fig.get_pixel(px, py + 6), free);
         // The legend swatches: F first, right of the second panel.
         let lx = MARGIN + 2 * (20 * scale + MARGIN);
-        assert_eq!(*fig.get_pixel(lx + 4, top + 4), free);
+        assert_eq!(fig.get_pixel(lx + 4, top + 4), free);
         // Wrong panel size, wrong GISGrid size: errors, not panics.
         let small = RgbImage::new(3, 3);
         assert!(figure(&w, &[("x", &small)], &overlay, &legend, 2).is_err());
@@ -747,11 +748,11 @@ mod tests {
         let y = top + (5.5 * 4.0) as u32;
         let x = |col: f64| MARGIN + (col * 4.0) as u32;
         for col in [5.5, 8.0, 11.5] {
-            assert_eq!(*fig.get_pixel(x(col), y), INK, "column {col}");
+            assert_eq!(fig.get_pixel(x(col), y), INK, "column {col}");
         }
         // Beyond the tip: the free colour again.
         assert_eq!(
-            *fig.get_pixel(x(14.5), y),
+            fig.get_pixel(x(14.5), y),
             Rgb(ClassColours::OKABE_ITO.classes[0])
         );
     }

@@ -5,8 +5,8 @@
 //! The colours are the figures' ([`crate::COLOURS`] by the callers), so a class looks the same
 //! in a frame, a figure, the GeoTIFF and Foxglove.
 
+use crate::raster::{Rgb, RgbImage};
 use evigrid::{Label, Window};
-use image::{Rgb, RgbImage};
 
 use crate::error::{OutputError, check_len};
 use crate::figure::PATH;
@@ -21,8 +21,8 @@ const STRIP_FONT_PX: f32 = 11.0;
 const SWATCH_PX: u32 = 10;
 /// Half the span of the ego's cross, pixels (cells).
 const EGO_ARM_PX: i64 = 3;
-const PAPER: Rgb<u8> = Rgb([255, 255, 255]);
-const INK: Rgb<u8> = Rgb([0, 0, 0]);
+const PAPER: Rgb = Rgb([255, 255, 255]);
+const INK: Rgb = Rgb([0, 0, 0]);
 
 /// The labels a frame's strip names, in order: every code a decision map can hold.
 pub const STRIP_LABELS: [Label; 7] = [
@@ -80,7 +80,7 @@ pub fn frame_picture(
     let table = colour_table(colours);
     paint_into(window, &mut canvas, |idx| table[decisions[idx] as usize]);
     let strip_start = 3 * w as usize * h as usize;
-    let bytes: &mut [u8] = &mut canvas;
+    let bytes = canvas.as_raw_mut();
     for pixel in bytes[strip_start..].chunks_exact_mut(3) {
         pixel.copy_from_slice(&PAPER.0);
     }
@@ -130,7 +130,7 @@ pub fn frame_picture(
 
 /// A plus sign of arms `arm` pixels, one pixel thick (three for the casing colour when drawn
 /// first), clipped to rows `..rows`.
-fn draw_cross(canvas: &mut RgbImage, (x, y): (i64, i64), rows: u32, arm: i64, colour: Rgb<u8>) {
+fn draw_cross(canvas: &mut RgbImage, (x, y): (i64, i64), rows: u32, arm: i64, colour: Rgb) {
     let thick = i64::from(colour == INK);
     for d in -arm..=arm {
         for t in -thick..=thick {
@@ -140,13 +140,13 @@ fn draw_cross(canvas: &mut RgbImage, (x, y): (i64, i64), rows: u32, arm: i64, co
     }
 }
 
-fn put(canvas: &mut RgbImage, x: i64, y: i64, rows: u32, colour: Rgb<u8>) {
+fn put(canvas: &mut RgbImage, x: i64, y: i64, rows: u32, colour: Rgb) {
     if x >= 0 && y >= 0 && x < i64::from(canvas.width()) && y < i64::from(rows) {
         canvas.put_pixel(x as u32, y as u32, colour);
     }
 }
 
-fn fill(canvas: &mut RgbImage, x: u32, y: u32, w: u32, h: u32, colour: Rgb<u8>) {
+fn fill(canvas: &mut RgbImage, x: u32, y: u32, w: u32, h: u32, colour: Rgb) {
     for py in y..(y + h).min(canvas.height()) {
         for px in x..(x + w).min(canvas.width()) {
             canvas.put_pixel(px, py, colour);

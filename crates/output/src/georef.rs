@@ -11,7 +11,6 @@ use std::path::{Path, PathBuf};
 
 use evigrid::{Label, Window};
 use geodata::TransverseMercator;
-use image::RgbaImage;
 
 use crate::atomic::write_atomic;
 use crate::error::{OutputError, check_len};
@@ -85,7 +84,7 @@ pub fn world_file(window: &Window) -> String {
 ///
 /// # Errors
 ///
-/// [`OutputError::Size`] if `decisions` does not have the window's size; [`OutputError::Image`]
+/// [`OutputError::Size`] if `decisions` does not have the window's size; [`OutputError::Png`]
 /// or [`OutputError::Io`] naming the file.
 pub fn write_georeferenced_png(
     window: &Window,
@@ -96,27 +95,21 @@ pub fn write_georeferenced_png(
     check_len("decisions", decisions.len(), window)?;
     let (width, height) = (window.width(), window.height());
     let size = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
-    let mut image = RgbaImage::new(size(width), size(height));
+    // Four bytes a pixel, rows from the top (the north).
+    let mut rgba = vec![0u8; window.len() * 4];
     // A row may come as two spans (the window's storage wraps), so count cells, not spans.
     let cells = window.world_order_spans().flat_map(|span| &decisions[span]);
     for (k, &label) in cells.enumerate() {
         let (row, col) = (k / width, k % width);
-        image.put_pixel(
-            size(col),
-            size(height - 1 - row),
-            image::Rgba(gis_colour(label)),
-        );
+        let at = ((height - 1 - row) * width + col) * 4;
+        rgba[at..at + 4].copy_from_slice(&gis_colour(label));
     }
-    let mut encoded = Vec::new();
-    image
-        .write_to(
-            &mut std::io::Cursor::new(&mut encoded),
-            image::ImageFormat::Png,
-        )
-        .map_err(|source| OutputError::Image {
+    let encoded = crate::raster::rgba_png(size(width), size(height), &rgba).map_err(|source| {
+        OutputError::Png {
             path: png_path.to_path_buf(),
             source,
-        })?;
+        }
+    })?;
     write_atomic(png_path, |f| f.write_all(&encoded))?;
     let wkt = wkt(projection);
     let pgw = png_path.with_extension("pgw");
@@ -164,10 +157,13 @@ mod tests {
         let files =
             write_georeferenced_png(&w, &d, &projection, &dir.path().join("d.png")).unwrap();
         assert_eq!(files.len(), 4);
-        let image = image::open(dir.path().join("d.png")).unwrap().to_rgba8();
-        assert_eq!(image.get_pixel(2, 0).0, gis_colour(Label::M));
-        assert_eq!(image.get_pixel(0, 1).0, gis_colour(Label::F));
-        assert_eq!(image.get_pixel(0, 0).0[3], 0);
+        let (colour, width, height, rgba) =
+            crate::testing::decode_png(&std::fs::read(dir.path().join("d.png")).unwrap());
+        assert_eq!((colour, width, height), (png::ColorType::Rgba, 3, 2));
+        // Pixel (x, y) at bytes 4 (y * 3 + x)..: (2, 0) moving, (0, 1) free, (0, 0) unknown.
+        assert_eq!(rgba[8..12], gis_colour(Label::M));
+        assert_eq!(rgba[12..16], gis_colour(Label::F));
+        assert_eq!(rgba[3], 0);
         let prj = std::fs::read_to_string(dir.path().join("d.prj")).unwrap();
         assert!(
             prj.contains("PARAMETER[\"central_meridian\",24.94]"),

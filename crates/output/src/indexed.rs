@@ -10,8 +10,8 @@
 use std::io::Write as _;
 use std::path::Path;
 
+use crate::raster::RgbImage;
 use evigrid::{Label, Window};
-use image::RgbImage;
 
 use crate::atomic::write_atomic;
 use crate::error::{OutputError, check_len};
@@ -54,7 +54,7 @@ fn bit_depth(entries: usize) -> (png::BitDepth, u32) {
 /// # Errors
 ///
 /// [`OutputError::Size`] if `decisions` does not have one entry per window cell;
-/// [`OutputError::Image`] or [`OutputError::Io`] naming `path`.
+/// [`OutputError::Png`] or [`OutputError::Io`] naming `path`.
 pub fn write_decision_png(
     window: &Window,
     decisions: &[Label],
@@ -92,7 +92,7 @@ pub fn write_decision_png(
 ///
 /// # Errors
 ///
-/// [`OutputError::Image`] or [`OutputError::Io`] naming `path`.
+/// [`OutputError::Png`] or [`OutputError::Io`] naming `path`.
 pub fn write_indexed_png(image: &RgbImage, path: &Path) -> Result<(), OutputError> {
     let (w, h) = (image.width() as usize, image.height() as usize);
     let mut entries: Vec<[u8; 3]> = Vec::new();
@@ -153,12 +153,9 @@ fn write_palette_png(
     depth: png::BitDepth,
     packed: &[u8],
 ) -> Result<(), OutputError> {
-    let image_error = |source: png::EncodingError| OutputError::Image {
+    let image_error = |source: png::EncodingError| OutputError::Png {
         path: path.to_path_buf(),
-        source: image::ImageError::Encoding(image::error::EncodingError::new(
-            image::error::ImageFormatHint::Exact(image::ImageFormat::Png),
-            source,
-        )),
+        source,
     };
     let mut encoded = Vec::new();
     {
@@ -178,6 +175,7 @@ fn write_palette_png(
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+    use crate::raster::Rgb;
     use crate::testing::window;
     use crate::{decision_image, write_png};
 
@@ -206,8 +204,8 @@ mod tests {
             let indexed = dir.path().join("indexed.png");
             write_png(&decision_image(&w, &d, &colours).unwrap(), &rgb).unwrap();
             write_decision_png(&w, &d, &colours, &indexed).unwrap();
-            let expected = image::open(&rgb).unwrap().to_rgb8();
-            let read = image::open(&indexed).unwrap().to_rgb8();
+            let expected = crate::testing::read_rgb(&rgb);
+            let read = crate::testing::read_rgb(&indexed);
             assert_eq!(read.dimensions(), (13, 7));
             assert_eq!(read, expected);
         }
@@ -247,16 +245,16 @@ mod tests {
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(bytes[25], 3);
         assert!(bytes[24] <= 8);
-        assert_eq!(image::open(&path).unwrap().to_rgb8(), picture);
+        assert_eq!(crate::testing::read_rgb(&path), picture);
         // 257 colours fall back to RGB (colour type 2), the same pixels.
         let mut many = RgbImage::new(257, 1);
-        for (x, _, p) in many.enumerate_pixels_mut() {
-            p.0 = [(x % 256) as u8, (x / 256) as u8, 7];
+        for x in 0..257 {
+            many.put_pixel(x, 0, Rgb([(x % 256) as u8, (x / 256) as u8, 7]));
         }
         write_indexed_png(&many, &path).unwrap();
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(bytes[25], 2);
-        assert_eq!(image::open(&path).unwrap().to_rgb8(), many);
+        assert_eq!(crate::testing::read_rgb(&path), many);
     }
 
     #[test]
@@ -264,9 +262,11 @@ mod tests {
         // Five pixels a row (not a whole number of bytes at 2 or 4 bits), three rows.
         for colours in [3usize, 9] {
             let mut picture = RgbImage::new(5, 3);
-            for (x, y, p) in picture.enumerate_pixels_mut() {
-                let k = ((x * 7 + y * 3) as usize % colours) as u8;
-                p.0 = [10 * k, 255 - k, 3];
+            for y in 0..3 {
+                for x in 0..5 {
+                    let k = ((x * 7 + y * 3) as usize % colours) as u8;
+                    picture.put_pixel(x, y, Rgb([10 * k, 255 - k, 3]));
+                }
             }
             let dir = tempfile::tempdir().unwrap();
             let path = dir.path().join("f.png");
@@ -277,7 +277,7 @@ mod tests {
                 (bytes[24], bytes[25]),
                 (if colours == 3 { 2 } else { 4 }, 3)
             );
-            assert_eq!(image::open(&path).unwrap().to_rgb8(), picture);
+            assert_eq!(crate::testing::read_rgb(&path), picture);
         }
     }
 

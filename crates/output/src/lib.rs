@@ -54,6 +54,7 @@ pub mod mcap;
 pub mod nav2;
 pub mod out_dir;
 pub mod palette;
+pub mod raster;
 pub mod run_figures;
 pub mod sink;
 #[cfg(test)]

@@ -3,8 +3,8 @@
 //! path, a legend, a scale bar and a north arrow ([`crate::figure`]), in the colour-blind-safe
 //! Okabe–Ito class colours.
 
+use crate::raster::RgbImage;
 use evigrid::{GisGrid, Label, MovingTrace, PerceptionGrid, Window};
-use image::RgbImage;
 
 use crate::{
     ClassColours, Legend, OutputError, Overlay, decision_image, figure, pignistic_image,

@@ -12,8 +12,8 @@ use std::collections::HashMap;
 use std::rc::Rc;
 use std::sync::LazyLock;
 
+use crate::raster::{Rgb, RgbImage};
 use ab_glyph::{Font, FontRef, GlyphId, PxScale, ScaleFont, point};
-use image::{Rgb, RgbImage};
 
 /// The embedded font file.
 const FONT_BYTES: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
@@ -117,7 +117,7 @@ fn raster(font: &FontRef<'static>, id: GlyphId, scale: PxScale) -> Rc<Raster> {
 /// Draws `text` with the top of its line box at `y` and its pen starting at `x`, blending
 /// `colour` by each pixel's coverage. Glyphs sit on whole pixels (the pen is rounded), so each
 /// is rasterised once per size. Pixels outside the image are skipped.
-pub fn draw_text(image: &mut RgbImage, x: i64, y: i64, text: &str, size_px: f32, colour: Rgb<u8>) {
+pub fn draw_text(image: &mut RgbImage, x: i64, y: i64, text: &str, size_px: f32, colour: Rgb) {
     let Some(font) = FONT.as_ref() else {
         return;
     };
@@ -149,7 +149,7 @@ pub fn draw_text_centred(
     y: i64,
     text: &str,
     size_px: f32,
-    colour: Rgb<u8>,
+    colour: Rgb,
 ) {
     let half = i64::from(text_width(text, size_px) / 2);
     draw_text(image, centre_x - half, y, text, size_px, colour);
@@ -163,7 +163,7 @@ pub fn draw_text_vertical(
     centre_y: i64,
     text: &str,
     size_px: f32,
-    colour: Rgb<u8>,
+    colour: Rgb,
 ) {
     let (w, h) = (text_width(text, size_px), line_height(size_px));
     if w == 0 || h == 0 {
@@ -173,7 +173,7 @@ pub fn draw_text_vertical(
     // text blends over whatever is below it.
     let mut strip = RgbImage::from_pixel(w, h, Rgb([255, 255, 255]));
     draw_text(&mut strip, 0, 0, text, size_px, Rgb([0, 0, 0]));
-    let turned = image::imageops::rotate270(&strip);
+    let turned = strip.rotate270();
     let top = centre_y - i64::from(w / 2);
     for (sx, sy, p) in turned.enumerate_pixels() {
         let coverage = 1.0 - f32::from(p.0[0]) / 255.0;
@@ -188,7 +188,7 @@ pub fn draw_text_vertical(
 }
 
 /// Mixes `colour` into the pixel (`x`, `y`) in proportion `coverage`, if it is in the image.
-fn blend(image: &mut RgbImage, x: i64, y: i64, colour: Rgb<u8>, coverage: f32) {
+fn blend(image: &mut RgbImage, x: i64, y: i64, colour: Rgb, coverage: f32) {
     if x < 0 || y < 0 || x >= i64::from(image.width()) || y >= i64::from(image.height()) {
         return;
     }
@@ -196,10 +196,12 @@ fn blend(image: &mut RgbImage, x: i64, y: i64, colour: Rgb<u8>, coverage: f32) {
     if a <= 0.0 {
         return;
     }
-    let pixel = image.get_pixel_mut(x as u32, y as u32);
+    let (x, y) = (x as u32, y as u32);
+    let mut pixel = image.get_pixel(x, y);
     for (dst, src) in pixel.0.iter_mut().zip(colour.0) {
         *dst = (f32::from(*dst) * (1.0 - a) + f32::from(src) * a).round() as u8;
     }
+    image.put_pixel(x, y, pixel);
 }
 
 #[cfg(test)]

@@ -9,8 +9,8 @@
 //! - the trace of moving objects ([`trace_image`]): the decision map with every cell ever decided
 //!   moving during the drive painted red, from a [`MovingTrace`] kept world-fixed in the window.
 
+use crate::raster::RgbImage;
 use evigrid::{Label, MovingTrace, PerceptionGrid, Window, betp};
-use image::RgbImage;
 
 use crate::error::{OutputError, check_len};
 
@@ -119,7 +119,7 @@ pub(crate) fn paint_into(
     let (w, h) = (window.width(), window.height());
     debug_assert!(image.width() as usize == w && image.height() as usize >= h);
     let row_bytes = 3 * w;
-    let bytes: &mut [u8] = &mut *image;
+    let bytes = image.as_raw_mut();
     // World-order spans run south to north, west to east, each within one row (a row is one
     // span, or two where the storage wraps); image rows run north to south.
     let mut pixel = 0usize;
@@ -298,7 +298,7 @@ mod tests {
             &path,
         )
         .unwrap();
-        let back = image::open(&path).unwrap().to_rgb8();
+        let back = crate::testing::read_rgb(&path);
         assert_eq!(back.get_pixel(2, 1).0, [0, 190, 0]);
         let bad = dir.path().join("missing-dir/d.png");
         assert!(matches!(

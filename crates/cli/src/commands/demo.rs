@@ -26,9 +26,8 @@ use clap::Args;
 use eval::{EvalConfig, FusionFrame, Progress, Variant};
 use evigrid::Label;
 use evigrid::Params;
-use image::codecs::gif::{GifEncoder, Repeat};
-use image::{Delay, DynamicImage, RgbImage};
 use output::mcap::{EVERY_GRID_ZSTD_LEVEL, McapFrame, McapRecorder};
+use output::raster::{GifAnimation, Rgb, RgbImage};
 use output::{
     GridExports, Legend, Overlay, class_name, decision_image, figure, pignistic_image,
     readable_scale, trace_image, write_atomic, write_grid_exports, write_png,
@@ -358,9 +357,9 @@ fn render_views(
     // The GIF: both panels at one pixel a cell with a strip between them, no text (the page
     // shows the legend beside it).
     let (w, h) = truth.dimensions();
-    let mut gif = RgbImage::from_pixel(2 * w + GIF_GAP, h, image::Rgb([255, 255, 255]));
-    image::imageops::replace(&mut gif, &truth, 0, 0);
-    image::imageops::replace(&mut gif, &decision, i64::from(w + GIF_GAP), 0);
+    let mut gif = RgbImage::from_pixel(2 * w + GIF_GAP, h, Rgb([255, 255, 255]));
+    gif.replace(&truth, 0, 0);
+    gif.replace(&decision, i64::from(w + GIF_GAP), 0);
     Ok(FrameViews { figures, gif })
 }
 
@@ -371,31 +370,18 @@ const GIF_GAP: u32 = 8;
 /// decision (built in memory, a few hundred kB: few colours, long runs; written atomically by
 /// the caller so that a write error is reported rather than lost in a drop).
 fn encode_views(views: mpsc::Receiver<FrameViews>, out: &Path, delay_ms: u32) -> Result<Vec<u8>> {
-    let mut gif_bytes = Vec::new();
-    {
-        // Speed 30: the decision view has a handful of colours, so the quantiser has nothing to
-        // gain from its slow modes.
-        let mut gif = GifEncoder::new_with_speed(&mut gif_bytes, 30);
-        gif.set_repeat(Repeat::Infinite)?;
-        for v in views {
-            // The figures are independent: encode them side by side.
-            v.figures
-                .par_iter()
-                .try_for_each(|(name, image)| write_png(image, &out.join(name)))?;
-            gif.encode_frame(gif_frame(v.gif, delay_ms))?;
-        }
-        // Dropping the encoder writes the GIF trailer.
+    // Speed 30: the decision view has a handful of colours, so the quantiser has nothing to
+    // gain from its slow modes.
+    let mut gif = GifAnimation::new(30);
+    let gif_path = || out.join("decision.gif").display().to_string();
+    for v in views {
+        // The figures are independent: encode them side by side.
+        v.figures
+            .par_iter()
+            .try_for_each(|(name, image)| write_png(image, &out.join(name)))?;
+        gif.push(&v.gif, delay_ms).with_context(gif_path)?;
     }
-    Ok(gif_bytes)
-}
-
-fn gif_frame(image: RgbImage, delay_ms: u32) -> image::Frame {
-    image::Frame::from_parts(
-        DynamicImage::ImageRgb8(image).to_rgba8(),
-        0,
-        0,
-        Delay::from_numer_denom_ms(delay_ms, 1),
-    )
+    gif.finish().with_context(gif_path)
 }
 
 /// Adds the map's attribution at the end of `report.md`.

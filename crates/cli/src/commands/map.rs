@@ -253,11 +253,12 @@ fn render(args: &RenderArgs) -> Result<()> {
     let bar = ScaleBar::for_width(width as f64 * args.cell);
     bar.draw(&mut pixels, width, height, args.cell);
 
-    let image = image::RgbImage::from_raw(width as u32, height as u32, pixels)
+    let image = output::raster::RgbImage::from_raw(width as u32, height as u32, pixels)
         .context("internal error: image buffer size")?;
-    let mut png = std::io::Cursor::new(Vec::new());
-    image.write_to(&mut png, image::ImageFormat::Png)?;
-    write_out(&args.out, png.get_ref())?;
+    let png = image
+        .to_png()
+        .with_context(|| format!("{}: PNG encoder", args.out.display()))?;
+    write_out(&args.out, &png)?;
     crate::errln!(
         "wrote {} ({width} x {height} px, {} m per pixel); scale bar bottom left: {} m in alternating {} m blocks; colours: building red-brown, road grey, other beige, unknown black",
         args.out.display(),
