@@ -11,6 +11,8 @@
 //!   colours) and the trace of moving objects ([`trace_image`]); colours in [`ClassColours`],
 //!   one palette for every output ([`COLOURS`], the colour-blind-safe Okabe–Ito one, checked
 //!   with [`palette`]).
+//! - The pictures' pixels, [`raster::RgbImage`], and their files: PNG through the `png` crate,
+//!   the demo's animated GIF through the `gif` crate ([`raster::GifAnimation`]).
 //! - Figures for people ([`figure`]): those pictures enlarged ([`readable_scale`]), side by side,
 //!   with map outlines and the ego's path ([`Overlay`]), a [`Legend`], a scale bar and a north
 //!   arrow; text in an embedded DejaVu Sans ([`text`]). A run's per-frame pictures

@@ -5,7 +5,7 @@
 //! Only what the views, figures and plots need: a buffer of 8-bit RGB pixels, row by row from the
 //! top left, that can be painted pixel by pixel, pasted into another ([`RgbImage::replace`]) and
 //! turned a quarter ([`RgbImage::rotate270`]). The files are written by the `png` and `gif`
-//! encoders directly, with the settings the pictures have always had: fast deflate with an
+//! encoders directly, with the settings the pictures had through the `image` crate: fast deflate with an
 //! adaptive filter per row for PNG, a palette per frame for GIF (the exact colours when a frame
 //! has at most 256, else NeuQuant at its fastest).
 //!
@@ -186,7 +186,7 @@ impl RgbImage {
     ///
     /// # Errors
     ///
-    /// The encoder's, for a picture PNG cannot hold (a side of 0 or above 2³¹ − 1 pixels).
+    /// The encoder's, for a picture PNG cannot hold (a side of 0 pixels).
     pub fn to_png(&self) -> Result<Vec<u8>, png::EncodingError> {
         encode_png(self.width, self.height, png::ColorType::Rgb, &self.data)
     }
@@ -306,9 +306,9 @@ impl GifAnimation {
     /// of another size than the first; [`GifError::Encoder`] if the encoder fails.
     pub fn push(&mut self, frame: &RgbImage, delay_ms: u32) -> Result<(), GifError> {
         let (width, height) = frame.dimensions();
-        let too_large = GifError::TooLarge { width, height };
-        let w = u16::try_from(width).map_err(|_| too_large)?;
-        let h = u16::try_from(height).map_err(|_| GifError::TooLarge { width, height })?;
+        let (Ok(w), Ok(h)) = (u16::try_from(width), u16::try_from(height)) else {
+            return Err(GifError::TooLarge { width, height });
+        };
         let encoder = match &mut self.encoder {
             Some(encoder) => {
                 let (first_width, first_height) = self.size;
