@@ -184,6 +184,12 @@ pub struct MotionStage {
     moving_objects: Vec<MovingObject>,
     /// Past frames each cluster's registration used this frame.
     cluster_frames: Vec<u32>,
+    /// The sensor's position this frame, world metres (`set_pose_uncertainty`).
+    sensor_xy_m: [f64; 2],
+    /// Standard deviation of the pose's error from one scan to another, per axis, metres.
+    pose_sigma_m: f64,
+    /// The same for the heading, radians.
+    pose_sigma_rad: f64,
 }
 
 impl MotionStage {
@@ -214,6 +220,9 @@ impl MotionStage {
             cell_states: Vec::new(),
             moving_objects: Vec::new(),
             cluster_frames: Vec::new(),
+            sensor_xy_m: [0.0; 2],
+            pose_sigma_m: 0.0,
+            pose_sigma_rad: 0.0,
         }
     }
 
@@ -285,6 +294,18 @@ impl MotionStage {
     /// Estimated velocity north of every cell, m/s (0 where no moving track covers it).
     pub fn velocity_north(&self) -> &[f32] {
         &self.velocity_north
+    }
+
+    /// Where the sensor is this frame (world metres, x east, y north) and how wrong its pose
+    /// may be: `sigma_m` per axis (metres) and `sigma_rad` of the heading (radians), for
+    /// the next [`MotionStage::update`]. A shift the pose's error explains at a cluster's
+    /// range (within `motion.pose_gate_sigmas` of it) is not taken as motion. Non-finite or
+    /// negative σ count as 0.
+    pub fn set_pose(&mut self, x_m: f64, y_m: f64, sigma_m: f64, sigma_rad: f64) {
+        let clean = |v: f64| if v.is_finite() && v > 0.0 { v } else { 0.0 };
+        self.sensor_xy_m = [x_m, y_m].map(|v| if v.is_finite() { v } else { 0.0 });
+        self.pose_sigma_m = clean(sigma_m);
+        self.pose_sigma_rad = clean(sigma_rad);
     }
 
     /// Measures the motion of the scan in `sensor` (taken at `time_s`, `dt_s` after the
@@ -363,6 +384,12 @@ impl MotionStage {
             let (clusters, history, params) = (&self.clusters, &self.history, &self.params);
             let m_free = sensor.m_free();
             let clear_now = &self.clear_now[..];
+            let sensor_cell = (
+                self.sensor_xy_m[0] / cell_size_m,
+                self.sensor_xy_m[1] / cell_size_m,
+            );
+            let (pose_sigma_cells, pose_sigma_rad) =
+                (self.pose_sigma_m / cell_size_m, self.pose_sigma_rad);
             let mut runs = Vec::with_capacity(parts);
             let (mut moved, mut registrations) = (&mut self.moved[..], &mut self.registrations[..]);
             let mut registrars = self.registrars.iter_mut();
@@ -395,6 +422,9 @@ impl MotionStage {
                             cluster: k as u32,
                             m_free,
                             clear_now,
+                            sensor_cell,
+                            pose_sigma_cells,
+                            pose_sigma_rad,
                         };
                         *slot = registrar.register(cells, window, history, now, params);
                         for (flag, c) in run_moved[first..first + cells.len()].iter_mut().zip(cells)
@@ -422,6 +452,7 @@ impl MotionStage {
             // A registration that implies a speed above `max_speed_mps` is refused: no
             // velocity measured this frame (the search's per-axis reach lets a diagonal shift
             // exceed it, and two shifts from different pasts can too).
+            let centroid_m = [sx / n * cell_size_m, sy / n * cell_size_m];
             let velocity = registration
                 .map(|r| {
                     let sigma =
@@ -432,7 +463,7 @@ impl MotionStage {
                 .filter(|([vx, vy], _)| vx.hypot(*vy) <= self.params.max_speed_mps);
             registered += usize::from(velocity.is_some());
             self.observations.push(Observation {
-                centroid_m: [sx / n * cell_size_m, sy / n * cell_size_m],
+                centroid_m,
                 velocity,
             });
         }

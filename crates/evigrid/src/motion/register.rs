@@ -63,6 +63,13 @@ pub(crate) struct Now<'a> {
     /// Cells seen empty by rays that met nothing within the sensor model's range
     /// ([`crate::SensorGrid::clear_cells`]).
     pub(crate) clear_now: &'a [bool],
+    /// The sensor's position, in cells (column, row).
+    pub(crate) sensor_cell: (f64, f64),
+    /// Standard deviation per axis of the pose's position error, cells, and of its heading
+    /// error, radians: what a static cluster's apparent shift between two scans comes from.
+    pub(crate) pose_sigma_cells: f64,
+    /// See `pose_sigma_cells`.
+    pub(crate) pose_sigma_rad: f64,
 }
 
 /// Scratch buffers of the search, kept between clusters and frames.
@@ -196,6 +203,16 @@ impl Registrar {
         }
 
         let zero = (radius * side + radius) as usize;
+        // The shortest shift the pose's error does not explain: the apparent shift of a static
+        // cluster between two scans has, per axis, twice the variance of one pose's error at
+        // the cluster's range.
+        let range_cells = ((c0 + c1) as f64 / 2.0 + 0.5 - now.sensor_cell.0)
+            .hypot((r0 + r1) as f64 / 2.0 + 0.5 - now.sensor_cell.1);
+        let pose_shift_sigma = std::f64::consts::SQRT_2
+            * now
+                .pose_sigma_cells
+                .hypot(range_cells * now.pose_sigma_rad);
+        let pose_gate_sq = (params.pose_gate_sigmas * pose_shift_sigma).powi(2);
         let needed = (params.match_fraction * f64::from(counted)).max(1.0);
         let margin = (params.shift_margin_fraction * f64::from(counted))
             .ceil()
@@ -235,7 +252,9 @@ impl Registrar {
             // parked car whose visible part slides as the ego passes), not a move.
             let seen =
                 self.seen_counts[((best.2 + radius) * side + best.1 + radius) as usize][slot];
-            let clear = best.0 >= n_zero + margin && seen >= margin;
+            // And it must be longer than the pose's error explains at the cluster's range.
+            let explained_by_pose = ((best.1 * best.1 + best.2 * best.2) as f64) <= pose_gate_sq;
+            let clear = best.0 >= n_zero + margin && seen >= margin && !explained_by_pose;
             let (matched, dx, dy) = if clear { best } else { (n_zero, 0, 0) };
             if f64::from(matched) < needed {
                 continue;
@@ -392,6 +411,9 @@ mod tests {
             cluster: 0,
             m_free: &ALL_FREE,
             clear_now: &[],
+            sensor_cell: (0.0, 0.0),
+            pose_sigma_cells: 0.0,
+            pose_sigma_rad: 0.0,
         }
     }
 
@@ -503,6 +525,60 @@ mod tests {
             ..one
         };
         assert!((three.variance_cells(0.5) - 3.188_775_510_204_082).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_shift_the_pose_error_explains_is_not_motion_and_a_longer_one_is() {
+        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
+        // A pole of two cells at column 7 a frame ago, at column 8 now: the pose moved it.
+        let mut history = OccupancyHistory::new(window.len());
+        history.push(&indices(&window, &[(7, 5), (7, 6)]), &[], 0.0);
+        let pole = cells(&window, &[(8, 5), (8, 6)]);
+        // Exact pose: one cell in 0.1 s, 10 cells/s.
+        let exact = Registrar::default().register(&pole, &window, &history, alone(0.1, &none), &params);
+        assert!(exact.is_some_and(|r| (r.velocity_cells_per_s.0 - 10.0).abs() < 1e-9));
+        // The pose off by σ = 0.4 cell per axis: the apparent shift of a static cluster has
+        // σ = √2 · 0.4 = 0.566 cell per axis, and the gate of 3σ = 1.697 cells takes in the
+        // one-cell shift (and a diagonal one, √2 = 1.414). Zero shift explains none of the
+        // pole: no registration.
+        let noisy = Now {
+            pose_sigma_cells: 0.4,
+            ..alone(0.1, &none)
+        };
+        assert_eq!(
+            Registrar::default().register(&pole, &window, &history, noisy, &params),
+            None
+        );
+        // The same σ from the heading alone, 0.01 rad at 40 cells from the sensor (the
+        // pole's centre (8.5, 6) lies 40 cells east of (−31.5, 6)): the same gate.
+        let turned = Now {
+            sensor_cell: (-31.5, 6.0),
+            pose_sigma_rad: 0.01,
+            ..alone(0.1, &none)
+        };
+        assert_eq!(
+            Registrar::default().register(&pole, &window, &history, turned, &params),
+            None
+        );
+        // Nearer the sensor the heading explains less: at 10 cells, σ = √2 · 0.1 = 0.141 cell,
+        // gate 0.424, and the one-cell shift is motion again.
+        let near = Now {
+            sensor_cell: (-1.5, 6.0),
+            ..turned
+        };
+        let found = Registrar::default().register(&pole, &window, &history, near, &params);
+        assert!(found.is_some_and(|r| (r.velocity_cells_per_s.0 - 10.0).abs() < 1e-9));
+        // Two cells in 0.1 s is beyond the 1.697-cell gate: motion.
+        let car = cells(&window, &[(9, 5), (9, 6)]);
+        let moved = Registrar::default().register(&car, &window, &history, noisy, &params);
+        assert!(moved.is_some_and(|r| (r.velocity_cells_per_s.0 - 20.0).abs() < 1e-9));
+        // Gate off: the one-cell shift is motion whatever the σ.
+        let off = MotionParams {
+            pose_gate_sigmas: 0.0,
+            ..MotionParams::default()
+        };
+        let ungated = Registrar::default().register(&pole, &window, &history, noisy, &off);
+        assert!(ungated.is_some_and(|r| (r.velocity_cells_per_s.0 - 10.0).abs() < 1e-9));
     }
 
     #[test]
@@ -619,6 +695,9 @@ mod tests {
             cluster: own,
             m_free: &ALL_FREE,
             clear_now: &[],
+            sensor_cell: (0.0, 0.0),
+            pose_sigma_cells: 0.0,
+            pose_sigma_rad: 0.0,
         };
         assert_eq!(
             registrar.register(&a, &window, &history, now, &params),
@@ -646,6 +725,9 @@ mod tests {
             cluster: 0,
             m_free: &no_free,
             clear_now: &[],
+            sensor_cell: (0.0, 0.0),
+            pose_sigma_cells: 0.0,
+            pose_sigma_rad: 0.0,
         };
         let found = Registrar::default().register(&now, &window, &history, now_frame, &params);
         assert!(found.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));
