@@ -942,7 +942,11 @@ mod tests {
             spread.observe(0.2, 0.0);
         }
         spread.observe(0.0, 0.0);
-        assert!((spread.sigma().0 - 0.14).abs() < 1e-12, "{:?}", spread.sigma());
+        assert!(
+            (spread.sigma().0 - 0.14).abs() < 1e-12,
+            "{:?}",
+            spread.sigma()
+        );
     }
 
     fn params() -> Params {

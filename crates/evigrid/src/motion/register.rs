@@ -208,10 +208,8 @@ impl Registrar {
         // the cluster's range.
         let range_cells = ((c0 + c1) as f64 / 2.0 + 0.5 - now.sensor_cell.0)
             .hypot((r0 + r1) as f64 / 2.0 + 0.5 - now.sensor_cell.1);
-        let pose_shift_sigma = std::f64::consts::SQRT_2
-            * now
-                .pose_sigma_cells
-                .hypot(range_cells * now.pose_sigma_rad);
+        let pose_shift_sigma =
+            std::f64::consts::SQRT_2 * now.pose_sigma_cells.hypot(range_cells * now.pose_sigma_rad);
         let pose_gate_sq = (params.pose_gate_sigmas * pose_shift_sigma).powi(2);
         let needed = (params.match_fraction * f64::from(counted)).max(1.0);
         let margin = (params.shift_margin_fraction * f64::from(counted))
@@ -535,7 +533,8 @@ mod tests {
         history.push(&indices(&window, &[(7, 5), (7, 6)]), &[], 0.0);
         let pole = cells(&window, &[(8, 5), (8, 6)]);
         // Exact pose: one cell in 0.1 s, 10 cells/s.
-        let exact = Registrar::default().register(&pole, &window, &history, alone(0.1, &none), &params);
+        let exact =
+            Registrar::default().register(&pole, &window, &history, alone(0.1, &none), &params);
         assert!(exact.is_some_and(|r| (r.velocity_cells_per_s.0 - 10.0).abs() < 1e-9));
         // The pose off by σ = 0.4 cell per axis: the apparent shift of a static cluster has
         // σ = √2 · 0.4 = 0.566 cell per axis, and the gate of 3σ = 1.697 cells takes in the
