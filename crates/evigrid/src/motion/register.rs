@@ -527,7 +527,12 @@ mod tests {
 
     #[test]
     fn a_shift_the_pose_error_explains_is_not_motion_and_a_longer_one_is() {
-        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
+        // The gate is an option (off by default): on at 3σ here.
+        let params = MotionParams {
+            pose_gate_sigmas: 3.0,
+            ..MotionParams::default()
+        };
+        let (window, none) = (window(), Clusters::new(1600));
         // A pole of two cells at column 7 a frame ago, at column 8 now: the pose moved it.
         let mut history = OccupancyHistory::new(window.len());
         history.push(&indices(&window, &[(7, 5), (7, 6)]), &[], 0.0);
@@ -571,11 +576,9 @@ mod tests {
         let car = cells(&window, &[(9, 5), (9, 6)]);
         let moved = Registrar::default().register(&car, &window, &history, noisy, &params);
         assert!(moved.is_some_and(|r| (r.velocity_cells_per_s.0 - 20.0).abs() < 1e-9));
-        // Gate off: the one-cell shift is motion whatever the σ.
-        let off = MotionParams {
-            pose_gate_sigmas: 0.0,
-            ..MotionParams::default()
-        };
+        // Gate off, the default: the one-cell shift is motion whatever the σ.
+        let off = MotionParams::default();
+        assert_eq!(off.pose_gate_sigmas, 0.0);
         let ungated = Registrar::default().register(&pole, &window, &history, noisy, &off);
         assert!(ungated.is_some_and(|r| (r.velocity_cells_per_s.0 - 10.0).abs() < 1e-9));
     }
