@@ -58,6 +58,26 @@ use tf::{TfTree, frame_key};
 /// bound on what a corrupt length can make the reader allocate.
 pub const MAX_RECORD_BYTES: usize = 1 << 30;
 
+/// How many times its compressed size a chunk's content may be: far above what zstd or LZ4 make
+/// of point clouds (2–10×), so that a file's size bounds what its lengths can make the reader
+/// allocate.
+const MAX_COMPRESSION_RATIO: usize = 256;
+
+/// The record limit of the smallest files, bytes (64 MiB): a small recording of one large cloud
+/// still opens.
+const MIN_RECORD_LIMIT: usize = 1 << 26;
+
+/// The largest record or chunk content a file of `file_len` bytes can hold: no record is longer
+/// than the file, and no chunk's content more than [`MAX_COMPRESSION_RATIO`] times it. Without
+/// this, an 18-byte file whose header record claims 800 MB made the reader allocate and zero
+/// 800 MB (issue 31, a fuzz finding).
+fn record_limit(file_len: u64) -> usize {
+    usize::try_from(file_len)
+        .unwrap_or(usize::MAX)
+        .saturating_mul(MAX_COMPRESSION_RATIO)
+        .clamp(MIN_RECORD_LIMIT, MAX_RECORD_BYTES)
+}
+
 /// Where the poses of a recording come from.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub enum PoseSource {
@@ -202,14 +222,16 @@ fn reader(path: &Path) -> Result<mcap::io::MessageReader<BufReader<File>>, BagEr
         source,
     };
     // Checked before opening: opening a FIFO with no writer blocks forever (issue 31).
-    if !std::fs::metadata(path).map_err(io)?.is_file() {
+    let metadata = std::fs::metadata(path).map_err(io)?;
+    if !metadata.is_file() {
         return Err(io(std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
             "not a regular file",
         )));
     }
     let file = File::open(path).map_err(io)?;
-    let options = LinearReaderOptions::default().with_record_length_limit(MAX_RECORD_BYTES);
+    let options =
+        LinearReaderOptions::default().with_record_length_limit(record_limit(metadata.len()));
     let mut reader = mcap::io::MessageReader::new_with_options(BufReader::new(file), options);
     reader
         .add_decompressor(lz4::Lz4Chunks::new())
@@ -779,6 +801,31 @@ mod tests {
             .map(|e| e.to_string())
             .unwrap_or_default();
         assert_eq!(err, format!("{}: not a regular file", fifo.display()));
+    }
+
+    #[test]
+    fn the_record_limit_follows_the_file_size_between_64_mib_and_1_gib() {
+        assert_eq!(record_limit(18), 1 << 26);
+        assert_eq!(record_limit(1 << 20), 1 << 28);
+        assert_eq!(record_limit(1 << 22), 1 << 30);
+        assert_eq!(record_limit(u64::MAX), 1 << 30);
+    }
+
+    #[test]
+    fn a_header_length_beyond_a_small_file_is_refused_before_it_is_read() {
+        // Issue 31 (fuzz finding): 18 bytes whose header record claims 808,464,433 bytes made
+        // the reader allocate and zero them, 0.4 s and 800 MB, before finding the file short.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("short.mcap");
+        let mut bytes = b"\x89MCAP0\r\n\x01".to_vec();
+        bytes.extend_from_slice(&808_464_433u64.to_le_bytes());
+        bytes.push(0);
+        std::fs::write(&path, &bytes).unwrap();
+        let err = BagDrive::open(&path, &BagOptions::default())
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(err.contains("exceeds limit"), "{err}");
     }
 
     #[test]
