@@ -214,8 +214,11 @@ def _run_on_ray(
         return False, True
     except KeyboardInterrupt:
         say(f"evigrid fleet: interrupted; cancelling {len(pending)} drives")
+        # Not `force=True`: killing a worker whose task is finishing at that moment makes Ray
+        # 2.60's owner abort the driver ("Tried to complete task that was not pending"). A plain
+        # cancel interrupts the task, which `evigrid.run` notices between frames.
         for ref in pending:
-            ray.cancel(ref, force=True)
+            ray.cancel(ref, force=False)
         deadline = time.monotonic() + _CANCEL_WAIT_S
         while pending and time.monotonic() < deadline:
             ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=0.5)
