@@ -6,18 +6,8 @@
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
-/// Decodes the PNG at `path` with the `png` decoder, palettes expanded to their colours:
-/// (width, height, colour type after expansion, pixels row by row from the top).
-fn read_png(path: &std::path::Path) -> (u32, u32, png::ColorType, Vec<u8>) {
-    let bytes = std::fs::read(path).unwrap();
-    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
-    decoder.set_transformations(png::Transformations::EXPAND);
-    let mut reader = decoder.read_info().unwrap();
-    let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut pixels).unwrap();
-    pixels.truncate(info.buffer_size());
-    (info.width, info.height, info.color_type, pixels)
-}
+mod common;
+use common::read_png;
 
 fn shared_map() -> Option<PathBuf> {
     geodata::testdata::shared_file("data/osm/bavarian-village.osm")

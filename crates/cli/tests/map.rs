@@ -3,16 +3,8 @@
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
-/// Decodes the PNG at `path` with the `png` decoder: (width, height, colour type).
-fn read_png(
-    path: &std::path::Path,
-) -> Result<(u32, u32, png::ColorType), Box<dyn std::error::Error>> {
-    let bytes = std::fs::read(path)?;
-    let mut reader = png::Decoder::new(std::io::Cursor::new(bytes)).read_info()?;
-    let mut pixels = vec![0; reader.output_buffer_size().ok_or("PNG too large")?];
-    let info = reader.next_frame(&mut pixels)?;
-    Ok((info.width, info.height, info.color_type))
-}
+mod common;
+use common::read_png;
 
 /// The shared data directory (same rule as `geodata::testdata::shared_dir`): `$EVIGRID_SHARED`,
 /// else `<workspace>/../shared`; skip when absent unless `EVIGRID_REQUIRE_SHARED=1`.
@@ -97,7 +89,7 @@ fn render_writes_a_png_with_the_map_size() -> Result<(), Box<dyn std::error::Err
         (summary["width_px"].as_u64(), summary["height_px"].as_u64()),
         (Some(448), Some(446))
     );
-    let (width, height, colour) = read_png(&out)?;
+    let (width, height, colour, _) = read_png(&out);
     assert_eq!((width, height, colour), (448, 446, png::ColorType::Rgb));
     // Only the final file remains: the temporary one was renamed.
     assert_eq!(std::fs::read_dir(dir.path())?.count(), 1);
