@@ -7,8 +7,10 @@
 //! U or S decided M) and a missed M (truth M decided otherwise) are counted by what the scan
 //! saw in the cell now (a return, or a ray through it), whether a truth-M cell is among its
 //! 8 neighbours (partial cover of an object), and whether the motion stage gave the cell a
-//! velocity this frame. A false M in the object outline band, which the evaluation leaves
-//! unscored, is listed as truth "void (unscored)". SEEDS is a comma-separated list (default:
+//! velocity this frame; the hits (truth M decided M) are counted too ("hit M"), so that moving
+//! IoU and dynamic accuracy can be read off. A false M in the band (cells an object covers in
+//! part, not at their centre: truth F under issue 30's centre rule, and scored so) is listed
+//! as truth "band (F)". SEEDS is a comma-separated list (default:
 //! the scenario's seed and the next, as `evigrid eval --seeds 2`).
 
 mod common;
@@ -59,6 +61,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let false_moving = decided == Label::M
                     && matches!(truth, Label::F | Label::I | Label::U | Label::S);
                 let missed = truth == Label::M && decided != Label::M;
+                if truth == Label::M && decided == Label::M {
+                    // The hits, so that moving IoU and dynamic accuracy can be read off.
+                    *counts.entry("hit M".to_owned()).or_default() += 1;
+                }
                 if !false_moving && !missed {
                     continue;
                 }
@@ -75,9 +81,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 });
                 let has_velocity = velocity.is_some_and(|v| v[idx] != 0.0)
                     || speed_north.is_some_and(|v| v[idx] != 0.0);
-                // The object outline band is truth F but scored as no class: say so.
+                // The band (an object covers the cell in part, not at its centre) is truth F,
+                // and scored so: say which F it is.
                 let truth_name = if f.outline.get(idx) == Some(&true) {
-                    "void (unscored)".to_owned()
+                    "band (F)".to_owned()
                 } else {
                     format!("{truth:?}")
                 };

@@ -851,6 +851,20 @@ pub struct MotionParams {
     /// next cell, exactly so along the grid's axes; 0.6 found more moving cells at a small
     /// cost in dynamic accuracy.
     pub return_depth_cells: f64,
+    /// How the `evigrid` method places a return that lies on the nearest surface of its
+    /// direction (`return_depth_cells` > 0): `false`, the default, moves it
+    /// `return_depth_cells` along its own ray (above); `true` draws the surface through the
+    /// nearest returns of fine sectors of 0.1° (neighbours joined when at most 2 m apart) and
+    /// occupies each cell around a return whose centre lies behind the surface its own ray
+    /// meets, at most `surface_depth_cells` from it (`docs/motion.md`, "Returns placed by the
+    /// surface"). A slanted face (a car's side) covers cell centres beside the ray of each of
+    /// its returns, which the push along the ray misses or overshoots. Returns farther than a
+    /// cell behind the nearest of their fine sector are still pushed along their ray.
+    pub placed_by_surface: bool,
+    /// With `placed_by_surface`: how far behind the surface, square to it, a cell centre is
+    /// still the object's, in cells (`(0, 8]`). By default 2 (1 m at the default cell), chosen
+    /// on the tuning drives among 0.75, 1, 1.5, 2, 3 and 4 (`docs/motion.md`).
+    pub surface_depth_cells: f64,
     /// A registered shift no longer than this many standard deviations of the apparent
     /// shift the pose's error gives a static cluster at its range (√2 · √(σ² + (r·σ_θ)²) per
     /// axis, σ and σ_θ the front end's [`FrontEnd::pose_sigma`](crate::FrontEnd::pose_sigma)
@@ -884,6 +898,8 @@ impl Default for MotionParams {
             report_held_back: false,
             building_margin_cells: 2,
             return_depth_cells: 0.6,
+            placed_by_surface: false,
+            surface_depth_cells: 2.0,
             pose_gate_sigmas: 0.0,
         }
     }
@@ -933,6 +949,8 @@ impl MotionParams {
         unit("motion.mu_moving", self.mu_moving)?;
         unit("motion.mu_static", self.mu_static)?;
         unit("motion.return_depth_cells", self.return_depth_cells)?;
+        positive("motion.surface_depth_cells", self.surface_depth_cells)?;
+        at_most_f64("motion.surface_depth_cells", self.surface_depth_cells, 8.0)?;
         // 0 turns the gate off; otherwise positive and finite.
         if self.pose_gate_sigmas != 0.0 {
             positive("motion.pose_gate_sigmas", self.pose_gate_sigmas)?;
@@ -988,6 +1006,14 @@ mod tests {
         p.validate().unwrap_or_else(|e| panic!("{e}"));
         for (text, name) in [
             ("[motion]\nhistory_frames = 9\n", "motion.history_frames"),
+            (
+                "[motion]\nsurface_depth_cells = 8.5\n",
+                "motion.surface_depth_cells",
+            ),
+            (
+                "[motion]\nsurface_depth_cells = 0\n",
+                "motion.surface_depth_cells",
+            ),
             ("[motion]\nhistory_frames = 0\n", "motion.history_frames"),
             (
                 "[motion]\nsearch_radius_cells = 0\n",

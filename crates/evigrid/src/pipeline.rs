@@ -304,6 +304,10 @@ impl FrontEnd {
         let mut sensor_model = SensorModel::new(params.sensor.clone());
         let return_depth_cells = params.motion.return_depth_cells;
         sensor_model.set_return_depth_m(return_depth_cells * params.grid.cell_size_m);
+        sensor_model.set_placed_by_surface(
+            params.motion.placed_by_surface,
+            params.motion.surface_depth_cells * params.grid.cell_size_m,
+        );
         Ok(Self {
             sensor_model,
             sensor: SensorGrid::new(w, h),

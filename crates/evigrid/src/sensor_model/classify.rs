@@ -40,6 +40,9 @@ pub(super) struct Classified {
     /// Per obstacle return, in the order of `obstacle_cells`: its placed cell, the cell of the
     /// return moved `return_depth_m` further along its ray (`None` outside the window).
     pub(super) placed_cells: Vec<Option<usize>>,
+    /// Per obstacle return, in the order of `obstacle_cells`: its levelled position (east and
+    /// north of the sensor), m.
+    pub(super) obstacle_xy: Vec<[f64; 2]>,
 }
 
 impl PointClassifier<'_> {
@@ -86,6 +89,7 @@ impl PointClassifier<'_> {
         out.ground_cells.clear();
         out.obstacle_cells.clear();
         out.placed_cells.clear();
+        out.obstacle_xy.clear();
         let (sensor_x, sensor_y) = self.sensor_xy;
         for (i, &q) in points.iter().enumerate() {
             let is_obstacle = match (labels, self.plane) {
@@ -120,6 +124,7 @@ impl PointClassifier<'_> {
                     let range_m = horizontal_range(q);
                     out.obstacle_cells.push((idx, s as u32, range_m));
                     out.placed_cells.push(self.placed_cell(q, range_m, idx));
+                    out.obstacle_xy.push([q[0], q[1]]);
                 }
                 None => out.dropped_outside_window += 1,
             }

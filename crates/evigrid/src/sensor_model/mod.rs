@@ -29,6 +29,7 @@
 mod classify;
 mod ray;
 mod stray;
+mod surface;
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -104,6 +105,17 @@ pub struct SensorModel {
     labels: Vec<ground::PointLabel>,
     /// How far along its ray [`SensorModel::build_placed`] moves a return, m (0: not at all).
     return_depth_m: f64,
+    /// Whether [`SensorModel::build_placed`] places the returns on their sector's nearest
+    /// surface by that surface ([`SensorModel::set_placed_by_surface`]).
+    placed_by_surface: bool,
+    /// How far behind the surface, square to it, a placed cell centre may lie, m.
+    surface_depth_m: f64,
+    /// Per fine sector of [`surface::SECTOR_RAD`] (with `placed_by_surface`), the range of its
+    /// nearest obstacle return (∞ if none) and that return's levelled position (east and north
+    /// of the sensor).
+    surface_range: Vec<f64>,
+    /// See `surface_range`.
+    nearest_xy: Vec<[f64; 2]>,
     /// What the last scan left for the rays' walk; `None` before a scan or after one that
     /// gave a vacuous grid.
     last: Option<LastScan>,
@@ -138,6 +150,10 @@ impl SensorModel {
             stray: StrayFilter::default(),
             plane_fitter: ground::PlaneFitter::default(),
             return_depth_m: 0.0,
+            placed_by_surface: false,
+            surface_depth_m: 0.0,
+            surface_range: Vec::new(),
+            nearest_xy: Vec::new(),
             last: None,
         }
     }
@@ -307,8 +323,20 @@ impl SensorModel {
         }
         self.obstacle_range.clear();
         self.obstacle_range.resize(sectors, f64::INFINITY);
-        let obstacles = self.classified.iter().flat_map(|c| &c.obstacle_cells);
-        for &(idx, s, range_m) in obstacles {
+        let fine_sectors = if self.placed_by_surface {
+            surface::sector_count()
+        } else {
+            0
+        };
+        self.surface_range.clear();
+        self.surface_range.resize(fine_sectors, f64::INFINITY);
+        self.nearest_xy.clear();
+        self.nearest_xy.resize(fine_sectors, [0.0; 2]);
+        let obstacles = self
+            .classified
+            .iter()
+            .flat_map(|c| c.obstacle_cells.iter().zip(&c.obstacle_xy));
+        for (&(idx, s, range_m), &xy) in obstacles {
             if self.stray.is_stray(idx) {
                 stats.stray_obstacle_points += 1;
                 continue;
@@ -316,6 +344,13 @@ impl SensorModel {
             stats.obstacle_points += 1;
             let range = &mut self.obstacle_range[s as usize];
             *range = range.min(range_m);
+            if fine_sectors > 0 {
+                let f = surface::sector_of(xy, fine_sectors);
+                if range_m < self.surface_range[f] {
+                    self.surface_range[f] = range_m;
+                    self.nearest_xy[f] = xy;
+                }
+            }
         }
 
         if note_empty {
@@ -338,6 +373,16 @@ impl SensorModel {
     /// its cell; 0 (the default) places every return in its own cell, as SPEC §3 does.
     pub(crate) fn set_return_depth_m(&mut self, depth_m: f64) {
         self.return_depth_m = depth_m;
+    }
+
+    /// Whether [`SensorModel::build_placed`] places a return that lies on its sector's nearest
+    /// surface (within a cell of the sector's nearest return) by the surface drawn through the
+    /// nearest returns of its sector and the neighbouring ones, instead of along its own ray
+    /// (`[motion] placed_by_surface`), occupying the cells whose centre lies behind that
+    /// surface by at most `depth_m`, square to it.
+    pub(crate) fn set_placed_by_surface(&mut self, on: bool, depth_m: f64) {
+        self.placed_by_surface = on;
+        self.surface_depth_m = depth_m;
     }
 
     /// Fills `out` (cleared first) from the scan of the last [`SensorModel::build`], with each
@@ -400,21 +445,52 @@ impl SensorModel {
             }
         }
         let mut occupied_cells = 0;
+        let mut occupy = |out: &mut SensorGrid, idx: usize| {
+            if out.m_occupied()[idx] != mu_occupied {
+                occupied_cells += 1;
+                free_cells -= usize::from(out.m_free()[idx] == mu_free && mu_free != 0.0);
+            }
+            out.set_free(idx, 0.0);
+            out.set_occupied(idx, mu_occupied);
+        };
+        let by_surface = self.placed_by_surface && depth_m > 0.0 && !self.surface_range.is_empty();
+        let cell_size_m = window.cell_size_m();
         for chunk in &self.classified {
-            for (&(idx, _, _), &placed) in chunk.obstacle_cells.iter().zip(&chunk.placed_cells) {
+            let returns = chunk
+                .obstacle_cells
+                .iter()
+                .zip(&chunk.placed_cells)
+                .zip(&chunk.obstacle_xy);
+            for ((&(idx, _, range_m), &placed), &xy) in returns {
                 if self.stray.is_stray(idx) {
+                    continue;
+                }
+                // A return on the nearest surface of its fine sector is placed by that surface
+                // (below).
+                if by_surface
+                    && range_m
+                        <= self.surface_range[surface::sector_of(xy, self.surface_range.len())]
+                            + cell_size_m
+                {
                     continue;
                 }
                 let Some(idx) = (if depth_m == 0.0 { Some(idx) } else { placed }) else {
                     continue;
                 };
-                if out.m_occupied()[idx] != mu_occupied {
-                    occupied_cells += 1;
-                    free_cells -= usize::from(out.m_free()[idx] == mu_free && mu_free != 0.0);
-                }
-                out.set_free(idx, 0.0);
-                out.set_occupied(idx, mu_occupied);
+                occupy(out, idx);
             }
+        }
+        if by_surface {
+            let origin_m = (last.origin.0 * cell_size_m, last.origin.1 * cell_size_m);
+            surface::for_each_cell_behind(
+                &self.surface_range,
+                &self.nearest_xy,
+                std::f64::consts::PI / sectors as f64,
+                window,
+                origin_m,
+                self.surface_depth_m,
+                |idx| occupy(out, idx),
+            );
         }
         // Sectors whose rays met nothing within the range limit: seen empty up to it, outside
         // the SensorGrid's mass (SPEC §3 leaves them vacuous).

@@ -730,3 +730,36 @@ fn without_depth_the_placed_grid_is_the_spec_grid() {
     assert_eq!(spec.m_free(), placed.m_free());
     assert_eq!(spec.m_occupied(), placed.m_occupied());
 }
+
+#[test]
+fn a_slanted_wall_occupies_the_cells_whose_centre_lies_behind_it_placed_by_surface() {
+    // A wall along y = x − 4 (world, 1 m cells) from x = 5 to 8, a return every 0.1 m of x;
+    // the sensor at (0.5, 0.5), on the side y > x − 4. Depth 0.75 m, measured square to the
+    // wall: a centre (cx, cy) lies behind it when cy < cx − 4, at (cx − 4 − cy)/√2.
+    let window = small_window();
+    let mut model = SensorModel::new(planar_params());
+    model.set_return_depth_m(0.5);
+    model.set_placed_by_surface(true, 0.75);
+    let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
+    let points: Vec<[f32; 3]> = (0..=30)
+        .map(|k| {
+            let x = 5.0 + 0.1 * f64::from(k);
+            [(x - 0.5) as f32, (x - 4.0 - 0.5) as f32, 0.0]
+        })
+        .collect();
+    let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
+    model.build(&points, &pose, &window, &mut spec);
+    model.build_placed(&window, &mut placed);
+    let occupied = |x: f64, y: f64| at(&window, placed.m_occupied(), x, y) > 0.0;
+    // (6.5, 1.5): 1 behind, 0.707 m from the wall: occupied; (6.5, 2.5) on the wall: occupied;
+    // (7.5, 2.5): 0.707 m behind: occupied.
+    for (x, y) in [(6.5, 1.5), (6.5, 2.5), (7.5, 2.5)] {
+        assert!(occupied(x, y), "({x}, {y})");
+    }
+    // (6.5, 3.5): in front of the wall; (6.5, 0.5): 1.41 m behind it; (5.5, 0.5), 0.707 m
+    // behind the line, but its ray (due east) passes before the wall's first return (5, 1),
+    // 6.3° off: seen from the sensor it is beside the wall, not behind it.
+    for (x, y) in [(6.5, 3.5), (6.5, 0.5), (5.5, 0.5)] {
+        assert!(!occupied(x, y), "({x}, {y})");
+    }
+}

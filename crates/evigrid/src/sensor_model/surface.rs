@@ -1,0 +1,230 @@
+//! Returns placed by the surface they lie on (`[motion] placed_by_surface`).
+//!
+//! A return lies on the visible surface of an object; issue 30's truth calls a cell the
+//! object's when the object covers the cell's centre. Moving a return along its own ray finds
+//! the cell behind it, which is right for a face square to the ray; a face seen at a slant (a
+//! car's side) covers cell centres beside each return's ray, and the push misses some and
+//! overshoots into others. Here the surface is drawn through the nearest returns of fine
+//! sectors of [`SECTOR_RAD`]: a ray meets the segment between the returns either side of its
+//! bearing (within [`NEIGHBOUR_SECTORS`], joined when at most [`JOIN_M`] apart), or, past the
+//! last return of a surface, a face square to it within half a ray spacing. Each cell around a
+//! return is occupied when its centre lies behind the surface its own ray meets, and at most
+//! `surface_depth_cells` from it, measured square to the surface (a cell holding a point of
+//! the surface has its centre within half a diagonal of it; deeper cells are the object's body
+//! in the shadow of its face).
+
+use crate::window::Window;
+
+/// Two neighbouring returns this close, metres, lie on one surface: a car's side seen at a
+/// slant, its returns 0.55° apart, stays one surface down to 9° from the ray at 25 m. Chosen
+/// on the tuning drives among 1, 2 and 3 m (`docs/motion.md`, "Returns placed by the
+/// surface").
+pub(super) const JOIN_M: f64 = 2.0;
+
+/// Width of the fine sectors whose nearest returns draw the surface, radians (0.1°): finer
+/// than the rays of the scanners in use, so that neighbouring rays keep their own returns.
+pub(super) const SECTOR_RAD: f64 = 0.1 * std::f64::consts::PI / 180.0;
+
+/// How many fine sectors on a neighbouring return is looked for: 1.2°, a little more than
+/// twice the planar scanner's 0.55° between rays (one ray may be lost).
+pub(super) const NEIGHBOUR_SECTORS: usize = 12;
+
+/// Number of fine sectors around the sensor.
+pub(super) fn sector_count() -> usize {
+    (std::f64::consts::TAU / SECTOR_RAD).round() as usize
+}
+
+/// Fine sector of a levelled position by its bearing, measured from −π, of `sectors`.
+#[inline]
+pub(super) fn sector_of(xy: [f64; 2], sectors: usize) -> usize {
+    let angle = super::classify::fast_atan2(xy[1], xy[0]) + std::f64::consts::PI;
+    ((angle * sectors as f64 / std::f64::consts::TAU) as usize).min(sectors.saturating_sub(1))
+}
+
+/// 2-D cross product.
+#[inline]
+fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
+    a[0] * b[1] - a[1] * b[0]
+}
+
+/// Where the ray from the sensor along the unit direction `u` meets the line through `a` and
+/// `b` (sensor-relative, metres): its range, and |u · n| for n the line's unit normal (a step
+/// Δr along the ray behind the line is Δr·|u · n| from it); `None` when the ray runs along
+/// the line or meets it behind the sensor.
+#[inline]
+fn meet_line(a: [f64; 2], b: [f64; 2], u: [f64; 2]) -> Option<(f64, f64)> {
+    let ab = [b[0] - a[0], b[1] - a[1]];
+    let den = cross(u, ab);
+    let length = ab[0].hypot(ab[1]);
+    if den.abs() <= 1e-12 || length <= 0.0 {
+        return None;
+    }
+    let range = cross(a, b) / den;
+    (range.is_finite() && range > 0.0).then(|| (range, den.abs() / length))
+}
+
+/// The surface a ray from the sensor along the unit direction `u` meets: the segment between
+/// the nearest returns of the fine sectors on either side of its bearing (within `span`
+/// sectors, `nearest_range` ∞ where a sector has none) when they are at most `join_m` apart,
+/// else, within `half_width_rad` of the nearer of them, a surface square to the ray through
+/// it. Its range along `u` and |u · n| as in [`meet_line`]; `None` where no surface is met.
+pub(super) fn surface_at(
+    u: [f64; 2],
+    nearest_range: &[f64],
+    nearest_xy: &[[f64; 2]],
+    span: usize,
+    join_m: f64,
+    half_width_rad: f64,
+) -> Option<(f64, f64)> {
+    let sectors = nearest_range.len();
+    if sectors == 0 {
+        return None;
+    }
+    let at = sector_of(u, sectors);
+    let (mut left, mut right) = (None, None);
+    for k in 0..=span.min(sectors / 2) {
+        let (l, r) = ((at + sectors - k) % sectors, (at + k) % sectors);
+        if left.is_none() && nearest_range[l].is_finite() && cross(nearest_xy[l], u) >= 0.0 {
+            left = Some(nearest_xy[l]);
+        }
+        if right.is_none() && nearest_range[r].is_finite() && cross(nearest_xy[r], u) < 0.0 {
+            right = Some(nearest_xy[r]);
+        }
+    }
+    if let (Some(a), Some(b)) = (left, right)
+        && (b[0] - a[0]).hypot(b[1] - a[1]) <= join_m
+    {
+        return meet_line(a, b, u);
+    }
+    // The end of a surface: within half a ray's spacing of its last return.
+    let max_sin = half_width_rad.sin();
+    [left, right]
+        .into_iter()
+        .flatten()
+        .filter_map(|p| {
+            let range = p[0].hypot(p[1]);
+            let cos = (p[0] * u[0] + p[1] * u[1]) / range;
+            let sin = cross(p, u).abs() / range;
+            (range > 0.0 && cos > 0.0 && sin <= max_sin).then(|| (sin, range / cos, cos))
+        })
+        .min_by(|x, y| x.0.total_cmp(&y.0))
+        .map(|(_, range, cos)| (range, cos))
+}
+
+/// Calls `visit` with the storage index of every cell around a fine sector's nearest return
+/// (its cell and the eight around it) whose centre lies behind the surface its own ray meets
+/// ([`surface_at`], the ray from `origin_m`, the sensor, world metres), at most `depth_m` from
+/// it, square to the surface. `nearest_range` is each fine sector's nearest obstacle range (∞:
+/// none), `nearest_xy` that return's position relative to the sensor; `half_width_rad` half
+/// the scanner's angle between rays. A cell may be visited more than once.
+pub(super) fn for_each_cell_behind(
+    nearest_range: &[f64],
+    nearest_xy: &[[f64; 2]],
+    half_width_rad: f64,
+    window: &Window,
+    origin_m: (f64, f64),
+    depth_m: f64,
+    mut visit: impl FnMut(usize),
+) {
+    let cell_size_m = window.cell_size_m();
+    for (&range, &a) in nearest_range.iter().zip(nearest_xy) {
+        if !range.is_finite() {
+            continue;
+        }
+        let col = ((origin_m.0 + a[0]) / cell_size_m).floor() as i64;
+        let row = ((origin_m.1 + a[1]) / cell_size_m).floor() as i64;
+        for dr in -1..=1 {
+            for dc in -1..=1 {
+                let (c, r) = (col + dc, row + dr);
+                let Some(idx) = window.storage_index(c, r) else {
+                    continue;
+                };
+                let centre = [
+                    (c as f64 + 0.5) * cell_size_m - origin_m.0,
+                    (r as f64 + 0.5) * cell_size_m - origin_m.1,
+                ];
+                let range_c = centre[0].hypot(centre[1]);
+                if range_c <= 0.0 {
+                    continue;
+                }
+                let u = [centre[0] / range_c, centre[1] / range_c];
+                let Some((range_s, square)) = surface_at(
+                    u,
+                    nearest_range,
+                    nearest_xy,
+                    NEIGHBOUR_SECTORS,
+                    JOIN_M,
+                    half_width_rad,
+                ) else {
+                    continue;
+                };
+                if range_c >= range_s && (range_c - range_s) * square <= depth_m {
+                    visit(idx);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit(deg: f64) -> [f64; 2] {
+        let (s, c) = deg.to_radians().sin_cos();
+        [c, s]
+    }
+
+    /// The fine-sector table of these returns (nearest per sector).
+    fn table(returns: &[[f64; 2]]) -> (Vec<f64>, Vec<[f64; 2]>) {
+        let n = sector_count();
+        let (mut range, mut xy) = (vec![f64::INFINITY; n], vec![[0.0; 2]; n]);
+        for &p in returns {
+            let s = sector_of(p, n);
+            let r = p[0].hypot(p[1]);
+            if r < range[s] {
+                (range[s], xy[s]) = (r, p);
+            }
+        }
+        (range, xy)
+    }
+
+    #[test]
+    fn a_ray_between_two_returns_meets_the_segment_between_them() {
+        // Returns at (10, −0.1) and (10, 0.1), 1.15° apart: the ray at 0° meets x = 10 at
+        // 10 m, square (|u · n| = 1); the ray at 0.5° at 10/cos 0.5° = 10.00038 m.
+        let (range, xy) = table(&[[10.0, -0.1], [10.0, 0.1]]);
+        let (r, square) = surface_at(unit(0.0), &range, &xy, 12, 1.0, 0.005).unwrap_or_default();
+        assert!(
+            (r - 10.0).abs() < 1e-9 && (square - 1.0).abs() < 1e-9,
+            "{r} {square}"
+        );
+        // A slanted side from (10, 0) to (10.1, 0.1), on y = x − 10, 0.57° apart: the ray at
+        // 0.3° meets it where x·tan 0.3° = x − 10, x = 10/(1 − tan 0.3°) = 10.05263, range
+        // 10.05263/cos 0.3° = 10.05277; its normal is (1, −1)/√2, |u · n| = (cos 0.3° −
+        // sin 0.3°)/√2 = 0.70340.
+        let (range, xy) = table(&[[10.0, 0.0], [10.1, 0.1]]);
+        let (r, square) = surface_at(unit(0.3), &range, &xy, 12, 1.0, 0.005).unwrap_or_default();
+        assert!((r - 10.05277).abs() < 1e-4, "{r}");
+        assert!((square - 0.70340).abs() < 1e-4, "{square}");
+        // The same two returns 1.5 m apart are not joined (join 1 m): (10, 0) and (11.06,
+        // 1.06) are 1.5 m apart and 5.2° apart: the ray at 0.3° meets no surface.
+        let (range, xy) = table(&[[10.0, 0.0], [11.06, 1.06]]);
+        assert_eq!(surface_at(unit(0.3), &range, &xy, 60, 1.0, 0.005), None);
+    }
+
+    #[test]
+    fn past_the_last_return_the_surface_reaches_half_a_ray_spacing() {
+        // A return at (10, 0) alone, half-width 0.25°: at 0.2° the surface is square to the
+        // ray, 10/cos 0.2°; at 0.3° there is none.
+        let (range, xy) = table(&[[10.0, 0.0]]);
+        let half = 0.25f64.to_radians();
+        let (r, square) = surface_at(unit(0.2), &range, &xy, 12, 1.0, half).unwrap_or_default();
+        assert!((r - 10.0 / 0.2f64.to_radians().cos()).abs() < 1e-9, "{r}");
+        assert!(
+            (square - 0.2f64.to_radians().cos()).abs() < 1e-9,
+            "{square}"
+        );
+        assert_eq!(surface_at(unit(0.3), &range, &xy, 12, 1.0, half), None);
+    }
+}
