@@ -307,6 +307,7 @@ impl FrontEnd {
         sensor_model.set_placed_by_surface(
             params.motion.placed_by_surface,
             params.motion.surface_depth_cells * params.grid.cell_size_m,
+            params.motion.surface_pose_sigmas,
         );
         Ok(Self {
             sensor_model,
@@ -398,7 +399,8 @@ impl FrontEnd {
         );
         // The same scan with returns placed by cell centre, for the `evigrid` method.
         if let Some(placed) = &mut self.placed {
-            self.sensor_model.build_placed(&self.window, placed);
+            self.sensor_model
+                .build_placed(&self.window, self.corrections.sigma(), placed);
         }
         let sensor_ms = ms(start);
 

@@ -110,6 +110,9 @@ pub struct SensorModel {
     placed_by_surface: bool,
     /// How far behind the surface, square to it, a placed cell centre may lie, m.
     surface_depth_m: f64,
+    /// How many standard deviations of the pose's error a placed cell centre may lie in front
+    /// of the surface.
+    surface_pose_sigmas: f64,
     /// Per fine sector of [`surface::SECTOR_RAD`] (with `placed_by_surface`), the range of its
     /// nearest obstacle return (∞ if none) and that return's levelled position (east and north
     /// of the sensor).
@@ -152,6 +155,7 @@ impl SensorModel {
             return_depth_m: 0.0,
             placed_by_surface: false,
             surface_depth_m: 0.0,
+            surface_pose_sigmas: 0.0,
             surface_range: Vec::new(),
             nearest_xy: Vec::new(),
             last: None,
@@ -363,7 +367,7 @@ impl SensorModel {
             ),
             note_empty,
         });
-        let (free_cells, occupied_cells) = self.fill(window, 0.0, out);
+        let (free_cells, occupied_cells) = self.fill(window, 0.0, (0.0, 0.0), out);
         stats.free_cells = free_cells;
         stats.occupied_cells = occupied_cells;
         stats
@@ -379,10 +383,12 @@ impl SensorModel {
     /// surface (within a cell of the sector's nearest return) by the surface drawn through the
     /// nearest returns of its sector and the neighbouring ones, instead of along its own ray
     /// (`[motion] placed_by_surface`), occupying the cells whose centre lies behind that
-    /// surface by at most `depth_m`, square to it.
-    pub(crate) fn set_placed_by_surface(&mut self, on: bool, depth_m: f64) {
+    /// surface by at most `depth_m`, square to it, or in front of it by at most
+    /// `pose_sigmas` standard deviations of the pose's error ([`SensorModel::build_placed`]).
+    pub(crate) fn set_placed_by_surface(&mut self, on: bool, depth_m: f64, pose_sigmas: f64) {
         self.placed_by_surface = on;
         self.surface_depth_m = depth_m;
+        self.surface_pose_sigmas = pose_sigmas;
     }
 
     /// Fills `out` (cleared first) from the scan of the last [`SensorModel::build`], with each
@@ -390,20 +396,34 @@ impl SensorModel {
     /// further along its ray, and each ray's free space extended by as much: a cell is
     /// occupied when its centre lies behind the surface the return came from, seen from the
     /// sensor, and free when the ray passes its centre in front of it (issue 30: a cell is
-    /// what covers its centre). A vacuous grid before the first scan. Returns the free and
-    /// occupied cell counts.
-    pub(crate) fn build_placed(&self, window: &Window, out: &mut SensorGrid) -> (usize, usize) {
+    /// what covers its centre). With [`SensorModel::set_placed_by_surface`], the returns on
+    /// the nearest surface of their direction are placed by that surface instead, with
+    /// `pose_sigma` (σ per axis, metres; σ of the heading, radians) the estimated error of the
+    /// pose used. A vacuous grid before the first scan. Returns the free and occupied cell
+    /// counts.
+    pub(crate) fn build_placed(
+        &self,
+        window: &Window,
+        pose_sigma: (f64, f64),
+        out: &mut SensorGrid,
+    ) -> (usize, usize) {
         out.clear();
         if out.len() != window.len() {
             return (0, 0);
         }
-        self.fill(window, self.return_depth_m, out)
+        self.fill(window, self.return_depth_m, pose_sigma, out)
     }
 
     /// Writes the free and occupied cells of the last scan into the cleared `out`, the rays'
     /// free space reaching `depth_m` beyond the nearest obstacle of their sector and each
     /// return placed in its cell moved as far (`placed_cells`; its own cell when 0).
-    fn fill(&self, window: &Window, depth_m: f64, out: &mut SensorGrid) -> (usize, usize) {
+    fn fill(
+        &self,
+        window: &Window,
+        depth_m: f64,
+        pose_sigma: (f64, f64),
+        out: &mut SensorGrid,
+    ) -> (usize, usize) {
         let Some(last) = self.last else {
             return (0, 0);
         };
@@ -488,7 +508,13 @@ impl SensorModel {
                 std::f64::consts::PI / sectors as f64,
                 window,
                 origin_m,
-                self.surface_depth_m,
+                surface::Band {
+                    depth_m: self.surface_depth_m,
+                    pose_tolerance: (
+                        self.surface_pose_sigmas * pose_sigma.0,
+                        self.surface_pose_sigmas * pose_sigma.1,
+                    ),
+                },
                 |idx| occupy(out, idx),
             );
         }

@@ -111,22 +111,39 @@ pub(super) fn surface_at(
         .map(|(_, range, cos)| (range, cos))
 }
 
+/// Where a cell centre may lie around the surface its ray meets and still be occupied.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Band {
+    /// At most this far behind the surface, square to it, metres.
+    pub(super) depth_m: f64,
+    /// At most this far in front of it: (metres, radians), the tolerance at range r being
+    /// √(m² + (r·rad)²).
+    pub(super) pose_tolerance: (f64, f64),
+}
+
 /// Calls `visit` with the storage index of every cell around a fine sector's nearest return
 /// (its cell and the eight around it) whose centre lies behind the surface its own ray meets
 /// ([`surface_at`], the ray from `origin_m`, the sensor, world metres), at most `depth_m` from
-/// it, square to the surface. `nearest_range` is each fine sector's nearest obstacle range (∞:
-/// none), `nearest_xy` that return's position relative to the sensor; `half_width_rad` half
-/// the scanner's angle between rays. A cell may be visited more than once.
+/// it, square to the surface, or in front of it by no more than the pose's error allows:
+/// `pose_tolerance` is (metres, radians), the tolerance at range r being their combination
+/// √(m² + (r·rad)²) (both in `band`). `nearest_range` is each fine sector's nearest obstacle
+/// range (∞: none), `nearest_xy` that return's position relative to the sensor;
+/// `half_width_rad` half the scanner's angle between rays. A cell may be visited more than
+/// once.
 pub(super) fn for_each_cell_behind(
     nearest_range: &[f64],
     nearest_xy: &[[f64; 2]],
     half_width_rad: f64,
     window: &Window,
     origin_m: (f64, f64),
-    depth_m: f64,
+    band: Band,
     mut visit: impl FnMut(usize),
 ) {
     let cell_size_m = window.cell_size_m();
+    let Band {
+        depth_m,
+        pose_tolerance,
+    } = band;
     for (&range, &a) in nearest_range.iter().zip(nearest_xy) {
         if !range.is_finite() {
             continue;
@@ -158,7 +175,9 @@ pub(super) fn for_each_cell_behind(
                 ) else {
                     continue;
                 };
-                if range_c >= range_s && (range_c - range_s) * square <= depth_m {
+                let tolerance_m = pose_tolerance.0.hypot(range_c * pose_tolerance.1);
+                let behind = (range_c - range_s) * square;
+                if behind >= -tolerance_m && behind <= depth_m {
                     visit(idx);
                 }
             }

@@ -680,7 +680,7 @@ fn one_return_both_ways(range_m: f32) -> (Window, SensorGrid, SensorGrid) {
     let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
     let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
     model.build(&[[range_m, 0.0, 0.0]], &pose, &window, &mut spec);
-    let counts = model.build_placed(&window, &mut placed);
+    let counts = model.build_placed(&window, (0.0, 0.0), &mut placed);
     assert_eq!(counts.1, 1, "one occupied cell");
     (window, spec, placed)
 }
@@ -725,7 +725,7 @@ fn without_depth_the_placed_grid_is_the_spec_grid() {
     let points: Vec<[f32; 3]> = (-20..=20).map(|k| [5.3, k as f32 * 0.1, 0.0]).collect();
     let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.3);
     let stats = model.build(&points, &pose, &window, &mut spec);
-    let counts = model.build_placed(&window, &mut placed);
+    let counts = model.build_placed(&window, (0.0, 0.0), &mut placed);
     assert_eq!(counts, (stats.free_cells, stats.occupied_cells));
     assert_eq!(spec.m_free(), placed.m_free());
     assert_eq!(spec.m_occupied(), placed.m_occupied());
@@ -739,7 +739,7 @@ fn a_slanted_wall_occupies_the_cells_whose_centre_lies_behind_it_placed_by_surfa
     let window = small_window();
     let mut model = SensorModel::new(planar_params());
     model.set_return_depth_m(0.5);
-    model.set_placed_by_surface(true, 0.75);
+    model.set_placed_by_surface(true, 0.75, 0.0);
     let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
     let points: Vec<[f32; 3]> = (0..=30)
         .map(|k| {
@@ -749,7 +749,7 @@ fn a_slanted_wall_occupies_the_cells_whose_centre_lies_behind_it_placed_by_surfa
         .collect();
     let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
     model.build(&points, &pose, &window, &mut spec);
-    model.build_placed(&window, &mut placed);
+    model.build_placed(&window, (0.0, 0.0), &mut placed);
     let occupied = |x: f64, y: f64| at(&window, placed.m_occupied(), x, y) > 0.0;
     // (6.5, 1.5): 1 behind, 0.707 m from the wall: occupied; (6.5, 2.5) on the wall: occupied;
     // (7.5, 2.5): 0.707 m behind: occupied.
@@ -762,4 +762,31 @@ fn a_slanted_wall_occupies_the_cells_whose_centre_lies_behind_it_placed_by_surfa
     for (x, y) in [(6.5, 3.5), (6.5, 0.5), (5.5, 0.5)] {
         assert!(!occupied(x, y), "({x}, {y})");
     }
+}
+
+#[test]
+fn a_centre_just_in_front_of_the_surface_is_occupied_within_the_pose_error() {
+    // A wall x = 5.6 (world) from y = −1 to 2, a return every 0.1 m; the sensor at (0.5, 0.5),
+    // 1 m cells. Cell (5, 0)'s centre (5.5, 0.5) lies 0.1 m in front of the wall, square to
+    // it: free of the surface without tolerance; with a pose error of σ = 0.2 m per axis and
+    // 0.25 σ of tolerance (0.05 m) still in front; with 0.75 σ (0.15 m) occupied. Cell (6, 0),
+    // 0.9 m behind, is occupied either way.
+    let window = small_window();
+    let points: Vec<[f32; 3]> = (-10..=20)
+        .map(|k| [5.1, (f64::from(k) * 0.1 - 0.5) as f32, 0.0])
+        .collect();
+    let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
+    let occupied = |sigmas: f64, x: f64| {
+        let mut model = SensorModel::new(planar_params());
+        model.set_return_depth_m(0.5);
+        model.set_placed_by_surface(true, 1.0, sigmas);
+        let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
+        model.build(&points, &pose, &window, &mut spec);
+        model.build_placed(&window, (0.2, 0.0), &mut placed);
+        at(&window, placed.m_occupied(), x, 0.5) > 0.0
+    };
+    assert!(!occupied(0.0, 5.5));
+    assert!(!occupied(0.25, 5.5));
+    assert!(occupied(0.75, 5.5));
+    assert!(occupied(0.0, 6.5) && occupied(0.75, 6.5));
 }
