@@ -1388,21 +1388,26 @@ pub struct LocalisationParams {
     /// measured on the simulated planar scanner. The drive's first scan decides which applies.
     pub planar_voxel_size_m: f64,
     /// A registration that moves the position farther than this from the given pose is refused
-    /// and the given pose kept, metres. By default 0.5, `odometry`'s; 1 (with 2°) lets through
-    /// the scans that 0.2 m / 0.5° of noise pushes beyond (one in twelve), for a cost in
-    /// dynamic accuracy (`docs/motion.md`, "Gating by the pose's own error").
+    /// and the given pose kept, metres. By default 1, `odometry`'s (chosen with the
+    /// constant-velocity start on the tuning drives; 0.5 refused one scan in twelve with 0.2 m
+    /// of noise per axis, `docs/motion.md`, "Pose refinement").
     pub max_correction_m: f64,
     /// A registration that turns the heading by more than this is refused, degrees. By default
-    /// 1, `odometry`'s.
+    /// 2, `odometry`'s.
     pub max_correction_deg: f64,
     /// Fraction of the way from the registered pose back to the given one, `[0, 1]`: keeps the
-    /// map from drifting with the first scans' error. By default 0.1.
+    /// map from drifting with the first scans' error. By default 0.2 (chosen with the
+    /// constant-velocity start on the tuning drives).
     pub prior_weight: f64,
     /// The registration stops when an update moves the pose by less than this (metres and
     /// radians as one 6-vector's norm). By default 1e-4. 1e-3 halves the iterations on KITTI
     /// 0013 (23 a scan against 44, poses within 3 cm) but turns a parked car's cell moving in
     /// the still planar scene of `tests/scenarios.rs` (`docs/benchmarks.md`).
     pub convergence_tolerance: f64,
+    /// Where the registration starts: `"prior"`, the given pose, or `"constant_velocity"`, a
+    /// prediction from the last two registered poses ([`odometry::RefineStart`]). By default
+    /// `"constant_velocity"` (`docs/motion.md`, "Pose refinement").
+    pub start: RefinementStart,
 }
 
 impl Default for LocalisationParams {
@@ -1416,6 +1421,7 @@ impl Default for LocalisationParams {
             max_correction_deg: refine.max_correction_deg,
             prior_weight: refine.prior_weight,
             convergence_tolerance: refine.convergence_tolerance,
+            start: RefinementStart::from(refine.start),
         }
     }
 }
@@ -1431,6 +1437,27 @@ pub enum PoseRefinement {
     ScanToMap,
 }
 
+/// Where the pose refinement's registration starts (`[localisation] start`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RefinementStart {
+    /// From the pose given with the scan.
+    Prior,
+    /// From a constant-velocity prediction of the poses used for the last two registered
+    /// scans.
+    #[default]
+    ConstantVelocity,
+}
+
+impl From<odometry::RefineStart> for RefinementStart {
+    fn from(start: odometry::RefineStart) -> Self {
+        match start {
+            odometry::RefineStart::ConstantVelocity => Self::ConstantVelocity,
+            _ => Self::Prior,
+        }
+    }
+}
+
 impl LocalisationParams {
     /// The refiner's parameters: these, with the sensor's ranges.
     pub fn refine_params(&self, sensor: &SensorParams) -> odometry::RefineParams {
@@ -1443,6 +1470,10 @@ impl LocalisationParams {
             max_correction_deg: self.max_correction_deg,
             prior_weight: self.prior_weight,
             convergence_tolerance: self.convergence_tolerance,
+            start: match self.start {
+                RefinementStart::Prior => odometry::RefineStart::Prior,
+                RefinementStart::ConstantVelocity => odometry::RefineStart::ConstantVelocity,
+            },
             ..odometry::RefineParams::default()
         }
     }

@@ -354,10 +354,13 @@ impl FrontEnd {
 
         // Pose refinement: registered now, added to the map once the frame is accepted.
         let start = Instant::now();
-        let refinement = self
-            .refiner
-            .as_ref()
-            .map(|refiner| refiner.refine(points_in_sensor, &with_quaternion(world_from_sensor)));
+        let refinement = self.refiner.as_ref().map(|refiner| {
+            refiner.refine(
+                points_in_sensor,
+                &with_quaternion(world_from_sensor),
+                time_s,
+            )
+        });
         let (world_from_sensor, pose_refinement) = match &refinement {
             None => (*world_from_sensor, RefinementStats::default()),
             Some(refinement) => refined_pose(world_from_sensor, refinement, ms(start)),

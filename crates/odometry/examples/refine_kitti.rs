@@ -19,7 +19,7 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
-use odometry::{PoseRefiner, RefineParams};
+use odometry::{PoseRefiner, RefineParams, RefineStart};
 
 /// A normal sample from a seeded linear congruential generator (Box–Muller): reproducible
 /// without a dependency.
@@ -84,9 +84,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let dir = args
         .next()
-        .ok_or("usage: refine_kitti <drive_sync dir> [--sigma-m M] [--sigma-deg D] [--seed N] [--write-tum FILE]")?;
+        .ok_or("usage: refine_kitti <drive_sync dir> [--sigma-m M] [--sigma-deg D] [--seed N] [--write-tum FILE] [--start prior|constant_velocity]")?;
     let (mut sigma_m, mut sigma_deg, mut seed) = (0.1_f64, 0.2_f64, 1_u64);
     let mut tum: Option<std::path::PathBuf> = None;
+    let mut params = RefineParams::default();
     while let Some(flag) = args.next() {
         let value = args.next().ok_or(format!("{flag} needs a value"))?;
         match flag.as_str() {
@@ -94,6 +95,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--sigma-deg" => sigma_deg = value.parse()?,
             "--seed" => seed = value.parse()?,
             "--write-tum" => tum = Some(value.into()),
+            "--start" => {
+                params.start = match value.as_str() {
+                    "prior" => RefineStart::Prior,
+                    "constant_velocity" => RefineStart::ConstantVelocity,
+                    other => return Err(format!("--start: unknown start {other}").into()),
+                }
+            }
             other => return Err(format!("unknown flag {other}").into()),
         }
     }
@@ -128,12 +136,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!(
             "{name:>13}, as given: RMS {m:.3} m, {deg:.3}°; scan to scan {step_m:.3} m, {step_deg:.3}°"
         );
-        let mut refiner = PoseRefiner::new(RefineParams::default())?;
+        let mut refiner = PoseRefiner::new(params.clone())?;
         let mut outcomes: BTreeMap<String, usize> = BTreeMap::new();
         let mut used = Vec::with_capacity(scans.len());
         let start = Instant::now();
-        for ((points, _time_s), prior) in scans.iter().zip(priors.iter()) {
-            let refinement = refiner.refine_and_insert(points, prior);
+        for ((points, time_s), prior) in scans.iter().zip(priors.iter()) {
+            let refinement = refiner.refine_and_insert(points, prior, *time_s);
             *outcomes
                 .entry(format!("{:?}", refinement.outcome))
                 .or_default() += 1;

@@ -59,18 +59,41 @@ pub struct RefineParams {
     /// synthetic scene, `docs/benchmarks.md`).
     pub convergence_tolerance: f64,
     /// A registration that moves the position farther than this from the prior is refused and
-    /// the prior kept (metres, default 0.5: five times a good GNSS/INS's 0.1 m).
+    /// the prior kept (metres, default 1: five times a GNSS/INS's 0.2 m; chosen with the
+    /// constant-velocity start on the tuning drives, `docs/motion.md`).
     pub max_correction_m: f64,
     /// A registration that turns the pose by more than this from the prior (about any axis) is
-    /// refused and the prior kept (degrees, default 1: five times a good INS's 0.2°).
+    /// refused and the prior kept (degrees, default 2: four times an INS's 0.5°).
     pub max_correction_deg: f64,
     /// Fraction of the way from the registered pose back to the prior, in `[0, 1]` (default
-    /// 0.1): keeps the map frame on the priors' average instead of drifting with the first
+    /// 0.2): keeps the map frame on the priors' average instead of drifting with the first
     /// scan's error. 1 keeps the prior (registration measured but not used).
     pub prior_weight: f64,
     /// A registration with fewer correspondences than this fraction of the registered points
     /// is refused (default 0.3): a scan that mostly sees what the map has not.
     pub min_overlap: f64,
+    /// Where ICP starts (default [`RefineStart::ConstantVelocity`]).
+    pub start: RefineStart,
+}
+
+/// Where the registration of a scan starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[non_exhaustive]
+pub enum RefineStart {
+    /// From the given pose: ICP starts with the prior's whole error, and the nearest-neighbour
+    /// search (the 27 voxels around a point) cannot reach the right pairs once that error
+    /// nears a voxel (0.25 m on planar scans).
+    Prior,
+    /// From a constant-velocity prediction of the poses used for the last two scans that
+    /// joined the map (world frame, the velocity scaled by the time since the last): a smooth
+    /// drive is predicted within centimetres where a noisy prior can be decimetres off. The
+    /// prior is the start for the first two scans, after a restart of the map, when the time
+    /// does not advance, and when the prediction is farther from the prior than the gate
+    /// (`max_correction_*`) accepts. The gate is still measured from the prior.
+    #[default]
+    ConstantVelocity,
 }
 
 impl Default for RefineParams {
@@ -84,10 +107,11 @@ impl Default for RefineParams {
             initial_threshold_m: 1.0,
             max_iterations: 100,
             convergence_tolerance: 1e-4,
-            max_correction_m: 0.5,
-            max_correction_deg: 1.0,
-            prior_weight: 0.1,
+            max_correction_m: 1.0,
+            max_correction_deg: 2.0,
+            prior_weight: 0.2,
             min_overlap: 0.3,
+            start: RefineStart::ConstantVelocity,
         }
     }
 }
@@ -200,6 +224,8 @@ pub struct Refinement {
     map_from_sensor: Isometry3<f64>,
     /// The scan downsampled for the map, sensor frame.
     frame: Vec<Vector3<f64>>,
+    /// The scan's time (seconds), for the constant-velocity start.
+    time_s: f64,
 }
 
 /// Refines reported poses against a local map of the previous scans. See the module docs.
@@ -215,6 +241,9 @@ pub struct PoseRefiner {
     threshold: AdaptiveThreshold,
     /// Registrations refused since the last accepted one.
     refused_in_a_row: usize,
+    /// (time, `map_from_sensor`) of the last two scans that joined the map, oldest first: the
+    /// constant-velocity start.
+    track: Vec<(f64, Isometry3<f64>)>,
 }
 
 impl PoseRefiner {
@@ -228,6 +257,7 @@ impl PoseRefiner {
             map: None,
             world_from_map: Isometry3::identity(),
             refused_in_a_row: 0,
+            track: Vec::with_capacity(2),
             // As KISS-ICP: corrections under 0.1 m (bound at the range) are sampling noise, and
             // would shrink the threshold below the map's point spacing.
             threshold: AdaptiveThreshold::new(params.initial_threshold_m, 0.1, params.max_range_m),
@@ -245,10 +275,11 @@ impl PoseRefiner {
         self.map.as_ref().map_or(0, VoxelMap::voxel_count)
     }
 
-    /// Registers `points` (sensor frame; NaN, infinite and out-of-range points are skipped)
-    /// against the map, starting from `prior` (`world_from_sensor`). Changes nothing: the map
-    /// and the threshold are updated by [`PoseRefiner::insert`].
-    pub fn refine(&self, points: &[[f32; 3]], prior: &Isometry3<f64>) -> Refinement {
+    /// Registers `points` (sensor frame; NaN, infinite and out-of-range points are skipped),
+    /// taken at `time_s` (seconds, any origin), against the map, starting from `prior`
+    /// (`world_from_sensor`) or from the prediction [`RefineParams::start`] asks for. Changes
+    /// nothing: the map and the threshold are updated by [`PoseRefiner::insert`].
+    pub fn refine(&self, points: &[[f32; 3]], prior: &Isometry3<f64>, time_s: f64) -> Refinement {
         let p = &self.params;
         let (min_sq, max_sq) = (p.min_range_m * p.min_range_m, p.max_range_m * p.max_range_m);
         let kept: Vec<Vector3<f64>> = points
@@ -281,6 +312,7 @@ impl PoseRefiner {
             iterations: 0,
             voxel_size_m,
             frame,
+            time_s,
         };
         if refinement.frame.is_empty() {
             return refinement;
@@ -294,7 +326,9 @@ impl PoseRefiner {
             p.max_iterations,
             p.convergence_tolerance,
         );
-        let outcome = icp::register(&source, map, &guess, &settings);
+        let predicted = self.predicted(time_s, prior);
+        let start = predicted.map_or(guess, |predicted| self.world_from_map.inverse() * predicted);
+        let outcome = icp::register(&source, map, &start, &settings);
         refinement.correspondences = outcome.correspondences;
         refinement.iterations = outcome.iterations;
         let correction = guess.inverse() * outcome.world_from_sensor;
@@ -328,6 +362,29 @@ impl PoseRefiner {
         refinement
     }
 
+    /// The constant-velocity prediction of the pose at `time_s` in the map's frame, when
+    /// [`RefineStart::ConstantVelocity`] is chosen, two scans have joined the map since it
+    /// started, the time advances, and the prediction is within the gate of `prior_in_map`.
+    fn predicted(&self, time_s: f64, prior: &Isometry3<f64>) -> Option<Isometry3<f64>> {
+        let p = &self.params;
+        if p.start != RefineStart::ConstantVelocity {
+            return None;
+        }
+        let [(older_s, older), (last_s, last)] = self.track.as_slice() else {
+            return None;
+        };
+        let (span_s, ahead_s) = (last_s - older_s, time_s - last_s);
+        if !(span_s > 0.0 && ahead_s > 0.0 && ahead_s.is_finite()) {
+            return None;
+        }
+        let velocity = lie::log(&(older.inverse() * last)) / span_s;
+        let predicted = last * lie::exp(&(velocity * ahead_s));
+        let off = prior.inverse() * predicted;
+        let within = off.translation.vector.norm() <= p.max_correction_m
+            && off.rotation.angle() <= p.max_correction_deg.to_radians();
+        (within && predicted.translation.vector.iter().all(|v| v.is_finite())).then_some(predicted)
+    }
+
     /// Adds the scan of `refinement` to the map at its pose, moves the map's frame by the pull
     /// towards the prior, feeds the adaptive threshold with the correction and forgets the map
     /// beyond the range. A scan whose registration was refused is left out of the map (its only
@@ -348,6 +405,7 @@ impl PoseRefiner {
                 self.map = None;
                 self.world_from_map = Isometry3::identity();
                 self.refused_in_a_row = 0;
+                self.track.clear();
             }
         }
         // Nothing to add; and the map's voxels are chosen by the first scan with points.
@@ -367,6 +425,11 @@ impl PoseRefiner {
             .get_or_insert_with(|| VoxelMap::new(refinement.voxel_size_m, max_points));
         map.add(&refinement.frame, pose);
         map.remove_far(&pose.translation.vector, self.params.max_range_m);
+        if self.track.len() == 2 {
+            self.track.remove(0);
+        }
+        self.track
+            .push((refinement.time_s, refinement.world_from_sensor));
         // The pose used is `world_from_map · map_from_sensor`; for a kept prior this leaves the
         // frame where it was.
         let mut world_from_map = refinement.world_from_sensor * pose.inverse();
@@ -377,8 +440,13 @@ impl PoseRefiner {
     }
 
     /// [`PoseRefiner::refine`] then [`PoseRefiner::insert`]: the pose to use for this scan.
-    pub fn refine_and_insert(&mut self, points: &[[f32; 3]], prior: &Isometry3<f64>) -> Refinement {
-        let refinement = self.refine(points, prior);
+    pub fn refine_and_insert(
+        &mut self,
+        points: &[[f32; 3]],
+        prior: &Isometry3<f64>,
+        time_s: f64,
+    ) -> Refinement {
+        let refinement = self.refine(points, prior, time_s);
         self.insert(&refinement);
         refinement
     }
@@ -489,12 +557,12 @@ mod tests {
         // Two scans at their true poses build the map.
         for x in [0.0, 0.8] {
             let truth = level(x, 0.0, 0.0);
-            let first = refiner.refine_and_insert(&planar_scan((x, 0.0, 0.0)), &truth);
+            let first = refiner.refine_and_insert(&planar_scan((x, 0.0, 0.0)), &truth, 0.0);
             assert_ne!(first.outcome, RefineOutcome::KeptPrior(KeptReason::TooFar));
         }
         let truth = (1.6, 0.0, 0.0);
         let prior = level(1.6 + 0.15, -0.12, 0.3_f64.to_radians());
-        let refinement = refiner.refine(&planar_scan(truth), &prior);
+        let refinement = refiner.refine(&planar_scan(truth), &prior, 0.0);
         assert_eq!(refinement.voxel_size_m, 0.25);
         assert_eq!(refinement.outcome, RefineOutcome::Refined);
         let truth = level(truth.0, truth.1, truth.2);
@@ -510,6 +578,67 @@ mod tests {
         assert!(roll.abs() < 1e-9 && pitch.abs() < 1e-9);
     }
 
+    /// A refiner whose map holds the scans from (0, 0) and (0.8, 0) at t = 0 and 0.1 s, taken
+    /// at their true poses: the vehicle drives 8 m/s along x.
+    fn driving(start: RefineStart) -> PoseRefiner {
+        let mut refiner = PoseRefiner::new(RefineParams {
+            start,
+            prior_weight: 0.0,
+            ..RefineParams::default()
+        })
+        .expect("valid");
+        for (k, x) in [0.0, 0.8].into_iter().enumerate() {
+            refiner.refine_and_insert(
+                &planar_scan((x, 0.0, 0.0)),
+                &level(x, 0.0, 0.0),
+                0.1 * k as f64,
+            );
+        }
+        refiner
+    }
+
+    #[test]
+    fn the_constant_velocity_start_converges_where_the_prior_start_does_not() {
+        // The third scan, truly at (1.6, 0) at t = 0.2 s; its prior is 0.7 m ahead, 0.4 m
+        // aside and turned 1.8° (0.63 m at 20 m): beyond the 27 voxels' reach of the true pairs
+        // (0.25–0.5 m), within the 1 m / 2° gate (0.81 m). The prediction, (0.8, 0) + 0.1 s ×
+        // 8 m/s, is the truth.
+        let truth = level(1.6, 0.0, 0.0);
+        let prior = level(1.6 + 0.7, 0.4, 1.8_f64.to_radians());
+        let scan = planar_scan((1.6, 0.0, 0.0));
+        let from_prior = driving(RefineStart::Prior).refine(&scan, &prior, 0.2);
+        let predicted = driving(RefineStart::ConstantVelocity).refine(&scan, &prior, 0.2);
+        assert_eq!(predicted.outcome, RefineOutcome::Refined);
+        let (m, rad) = errors(&predicted.world_from_sensor, &truth);
+        assert!(m < 0.02 && rad < 0.05_f64.to_radians(), "{m} m, {rad} rad");
+        // The gate is measured from the prior: the whole 0.81 m is the correction.
+        assert!((predicted.correction.translation.vector.norm() - 0.7_f64.hypot(0.4)).abs() < 0.03);
+        // From the prior, ICP settles on the wrong pairs, 0.69 m from the truth, and passes the
+        // gate.
+        let (m, _) = errors(&from_prior.world_from_sensor, &truth);
+        assert_eq!(from_prior.outcome, RefineOutcome::Refined);
+        assert!(m > 0.5, "{m} m from the prior start");
+    }
+
+    #[test]
+    fn the_prediction_is_not_used_without_time_or_beyond_the_gate() {
+        let scan = planar_scan((1.6, 0.0, 0.0));
+        let same_start = |prior: &Isometry3<f64>, time_s: f64| {
+            let from_prior = driving(RefineStart::Prior).refine(&scan, prior, time_s);
+            let predicted = driving(RefineStart::ConstantVelocity).refine(&scan, prior, time_s);
+            from_prior.world_from_sensor == predicted.world_from_sensor
+                && from_prior.iterations == predicted.iterations
+        };
+        let near = level(1.7, 0.1, 0.0);
+        // From the prior when the time does not advance past the last scan's (0.1 s)...
+        assert!(same_start(&near, 0.1));
+        assert!(same_start(&near, f64::NAN));
+        // ... or when the prediction, (1.6, 0), is beyond the 1 m gate from the prior.
+        assert!(same_start(&level(2.7, 0.0, 0.0), 0.2));
+        // Otherwise from the prediction: another start, another path.
+        assert!(!same_start(&near, 0.2));
+    }
+
     #[test]
     fn the_prior_weight_pulls_back_towards_the_prior() {
         let build = |prior_weight| {
@@ -518,14 +647,14 @@ mod tests {
                 ..RefineParams::default()
             })
             .expect("valid");
-            refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0));
+            refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0), 0.0);
             refiner
         };
         let prior = level(0.2, 0.0, 0.0);
         let scan = planar_scan((0.0, 0.0, 0.0));
-        let free = build(0.0).refine(&scan, &prior);
-        let half = build(0.5).refine(&scan, &prior);
-        let kept = build(1.0).refine(&scan, &prior);
+        let free = build(0.0).refine(&scan, &prior, 0.0);
+        let half = build(0.5).refine(&scan, &prior, 0.0);
+        let kept = build(1.0).refine(&scan, &prior, 0.0);
         assert_eq!(half.outcome, RefineOutcome::Refined);
         let x = |r: &Refinement| r.world_from_sensor.translation.x;
         assert!(x(&free).abs() < 0.02, "{}", x(&free));
@@ -544,10 +673,10 @@ mod tests {
             ..RefineParams::default()
         })
         .expect("valid");
-        refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0));
+        refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0), 0.0);
         // The truth is 0.3 m from the prior: ICP finds it, the gate refuses it.
         let prior = level(0.3, 0.0, 0.0);
-        let refinement = refiner.refine(&planar_scan((0.0, 0.0, 0.0)), &prior);
+        let refinement = refiner.refine(&planar_scan((0.0, 0.0, 0.0)), &prior, 0.0);
         assert_eq!(
             refinement.outcome,
             RefineOutcome::KeptPrior(KeptReason::TooFar)
@@ -564,12 +693,12 @@ mod tests {
         })
         .expect("valid");
         let scan = planar_scan((0.0, 0.0, 0.0));
-        refiner.refine_and_insert(&scan, &level(0.0, 0.0, 0.0));
+        refiner.refine_and_insert(&scan, &level(0.0, 0.0, 0.0), 0.0);
         let voxels = refiner.map_voxels();
         // The given pose jumps 0.3 m for good (a relocalised GNSS): refused, left out.
         let jumped = level(0.3, 0.0, 0.0);
         for _ in 1..REFUSALS_TO_RESTART {
-            let refinement = refiner.refine_and_insert(&scan, &jumped);
+            let refinement = refiner.refine_and_insert(&scan, &jumped, 0.0);
             assert_eq!(
                 refinement.outcome,
                 RefineOutcome::KeptPrior(KeptReason::TooFar)
@@ -577,8 +706,8 @@ mod tests {
             assert_eq!(refiner.map_voxels(), voxels);
         }
         // The last refusal in a row restarts the map from the given pose, which then holds.
-        refiner.refine_and_insert(&scan, &jumped);
-        let next = refiner.refine(&scan, &jumped);
+        refiner.refine_and_insert(&scan, &jumped, 0.0);
+        let next = refiner.refine(&scan, &jumped, 0.0);
         assert_eq!(next.outcome, RefineOutcome::Refined);
         assert!(next.correction.translation.vector.norm() < 0.02);
         assert!((next.world_from_sensor.translation.x - 0.3).abs() < 0.02);
@@ -590,27 +719,27 @@ mod tests {
         let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
         // Two 3-D points at one height: not enough to call the drive planar.
         let few = [[5.0_f32, 0.0, 1.0], [0.0, 6.0, 1.0]];
-        let first = refiner.refine_and_insert(&few, &level(0.0, 0.0, 0.0));
+        let first = refiner.refine_and_insert(&few, &level(0.0, 0.0, 0.0), 0.0);
         assert_eq!(first.outcome, RefineOutcome::KeptPrior(KeptReason::NoData));
         assert_eq!(refiner.map_voxels(), 0);
-        let next = refiner.refine_and_insert(&solid_scan(&planar), &level(0.0, 0.0, 0.0));
+        let next = refiner.refine_and_insert(&solid_scan(&planar), &level(0.0, 0.0, 0.0), 0.0);
         assert_eq!(next.voxel_size_m, RefineParams::default().voxel_size_m);
     }
 
     #[test]
     fn a_scan_with_nothing_to_match_keeps_the_prior() {
         let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
-        refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0));
+        refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0), 0.0);
         // A scan of a place 1 km away: no correspondence.
         let prior = level(1000.0, 0.0, 0.1);
-        let refinement = refiner.refine(&planar_scan((0.0, 0.0, 0.0)), &prior);
+        let refinement = refiner.refine(&planar_scan((0.0, 0.0, 0.0)), &prior, 0.0);
         assert_eq!(
             refinement.outcome,
             RefineOutcome::KeptPrior(KeptReason::Failed)
         );
         assert_eq!(refinement.world_from_sensor, prior);
         // No point at all, or only unusable ones.
-        let empty = refiner.refine(&[[f32::NAN, 0.0, 0.0], [0.5, 0.0, 0.0]], &prior);
+        let empty = refiner.refine(&[[f32::NAN, 0.0, 0.0], [0.5, 0.0, 0.0]], &prior, 0.0);
         assert_eq!(empty.outcome, RefineOutcome::KeptPrior(KeptReason::NoData));
         assert_eq!(empty.world_from_sensor, prior);
     }
@@ -621,19 +750,19 @@ mod tests {
         let solid = solid_scan(&planar);
         let params = RefineParams::default();
         let mut refiner = PoseRefiner::new(params.clone()).expect("valid");
-        let first = refiner.refine_and_insert(&solid, &level(0.0, 0.0, 0.0));
+        let first = refiner.refine_and_insert(&solid, &level(0.0, 0.0, 0.0), 0.0);
         assert_eq!(first.voxel_size_m, params.voxel_size_m);
         // The map's voxels stay what the first scan chose.
-        let next = refiner.refine(&planar, &level(0.0, 0.0, 0.0));
+        let next = refiner.refine(&planar, &level(0.0, 0.0, 0.0), 0.0);
         assert_eq!(next.voxel_size_m, params.voxel_size_m);
         // A first scan without points decides nothing.
         let mut late = PoseRefiner::new(params.clone()).expect("valid");
-        late.refine_and_insert(&[], &level(0.0, 0.0, 0.0));
+        late.refine_and_insert(&[], &level(0.0, 0.0, 0.0), 0.0);
         assert_eq!(late.map_voxels(), 0);
-        let first = late.refine_and_insert(&solid, &level(0.0, 0.0, 0.0));
+        let first = late.refine_and_insert(&solid, &level(0.0, 0.0, 0.0), 0.0);
         assert_eq!(first.voxel_size_m, params.voxel_size_m);
         let mut flat = PoseRefiner::new(params.clone()).expect("valid");
-        let first = flat.refine_and_insert(&planar, &level(0.0, 0.0, 0.0));
+        let first = flat.refine_and_insert(&planar, &level(0.0, 0.0, 0.0), 0.0);
         assert_eq!(first.voxel_size_m, params.planar_voxel_size_m);
         assert!(flat.map_voxels() > refiner.map_voxels());
     }
@@ -658,7 +787,8 @@ mod tests {
             let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
             for k in 0..3 {
                 let prior = level(x + f64::from(k) * 0.5, y, heading);
-                let refinement = refiner.refine_and_insert(&raw, &prior);
+                // Times 0.1 s apart: the third scan starts from the prediction.
+                let refinement = refiner.refine_and_insert(&raw, &prior, 0.1 * f64::from(k));
                 let pose = refinement.world_from_sensor;
                 proptest::prop_assert!(pose.translation.vector.iter().all(|v| v.is_finite()));
                 proptest::prop_assert!(pose.rotation.coords.iter().all(|v| v.is_finite()));
@@ -669,13 +799,14 @@ mod tests {
     #[test]
     fn the_map_stays_local() {
         let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
-        refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0));
+        refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0), 0.0);
         assert!(refiner.map_voxels() > 0);
         // Far away: the old map is forgotten, only the new scan remains.
-        let far = refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(500.0, 0.0, 0.0));
+        let far =
+            refiner.refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(500.0, 0.0, 0.0), 0.0);
         let alone = PoseRefiner::new(RefineParams::default())
             .expect("valid")
-            .refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(500.0, 0.0, 0.0));
+            .refine_and_insert(&planar_scan((0.0, 0.0, 0.0)), &level(500.0, 0.0, 0.0), 0.0);
         assert_eq!(far.frame.len(), alone.frame.len());
         let mut fresh = PoseRefiner::new(RefineParams::default()).expect("valid");
         fresh.insert(&alone);
