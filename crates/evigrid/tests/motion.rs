@@ -260,6 +260,12 @@ fn a_car_crossing_open_space_is_seen_to_leave_its_cells() {
         (params.window.width_cells, params.window.height_cells) = (120, 120);
         params.sensor.ground_model = GroundModel::None;
         params.sensor.empty_without_return = empty_without_return;
+        // The pose refinement started from the given (exact) pose, as when this test was
+        // written: here the car is the only thing that holds the registration along the street,
+        // it drags it, and a constant-velocity start (the default since) carries the drag into
+        // the next scan, so that frame 4 misses the car (docs/motion.md, "What the refinement
+        // leaves"). This test is about the empty rays, not the refinement.
+        params.localisation.start = evigrid::RefinementStart::Prior;
         let mut front_end = FrontEnd::new(&params, None).unwrap();
         let mut evigrid = Fusion::with_method(params, Prior::Map, Method::Evigrid).unwrap();
         let mut decided_moving = Vec::new();
