@@ -1,11 +1,12 @@
 //! Pose refinement: a reported pose (GNSS/INS, a noisy localisation) corrected by registering
 //! the scan against a local map of the previous scans.
 //!
-//! Unlike [`crate::Odometry`], the prior is the pose given with each scan, not a
-//! constant-velocity prediction: ICP starts from it, its correction is gated (a failed or
-//! unconverged registration, or one that moves the pose farther from the prior than the prior
-//! can be wrong, keeps the prior), and the accepted pose is pulled a fraction of the way back to
-//! the prior. Without that pull the refined poses would be consistent with each other but the
+//! Unlike [`crate::Odometry`], the prior is the pose given with each scan. ICP starts from a
+//! constant-velocity prediction of the poses used for the last two scans (by default,
+//! [`RefineStart`]; or from the prior), its correction is measured from the prior and gated (a
+//! failed or unconverged registration, or one that moves the pose farther from the prior than
+//! the prior can be wrong, keeps the prior), and the accepted pose is pulled a fraction of the
+//! way back to the prior. Without that pull the refined poses would be consistent with each other but the
 //! whole map would keep the error of the first scan's prior and drift from there; with it the
 //! map frame follows the average of the priors.
 //!
