@@ -103,8 +103,9 @@ pub const TARGETS: &[Target] = &[
     },
     Target {
         name: "odometry",
-        about: "lidar odometry on a mutated scan (PCD or KITTI .bin) registered three times, its \
-                poses written as TUM and KITTI odometry and read back",
+        about: "lidar odometry and the pose refinement on a mutated scan (PCD or KITTI .bin) \
+                registered three times, the odometry's poses written as TUM and KITTI odometry \
+                and read back",
         run: run_odometry,
         seeds: seeds_odometry,
         shared_seeds: &[],
@@ -343,6 +344,7 @@ fn run_odometry(bytes: &[u8], scratch: &Scratch) -> bool {
             times.push(time);
         }
     }
+    refine_three_scans(&[&scan.points_in_sensor, &scan.points_in_sensor, &shifted]);
     let Ok(track) = poses::PoseTrack::new(times, odometry.poses().to_vec()) else {
         return false;
     };
@@ -359,6 +361,26 @@ fn run_odometry(bytes: &[u8], scratch: &Scratch) -> bool {
         let _ = poses::read_kitti_odometry(&path, track.times(), &nalgebra::Isometry3::identity());
     }
     written
+}
+
+/// The pose refinement over the same scans, with given poses that follow the shift: the third
+/// scan starts ICP from the constant-velocity prediction of the first two. Whatever the scans,
+/// the pose it returns is finite (a NaN pose would poison every grid after it).
+fn refine_three_scans(scans: &[&Vec<[f32; 3]>]) {
+    let Ok(mut refiner) = odometry::PoseRefiner::new(odometry::RefineParams::default()) else {
+        return;
+    };
+    for (k, points) in scans.iter().enumerate() {
+        let time = 0.1 * k as f64;
+        let prior = nalgebra::Isometry3::translation(0.25 * k as f64, 0.0, 0.0);
+        let refined = refiner.refine_and_insert(points, &prior, time);
+        let pose = refined.world_from_sensor;
+        assert!(
+            pose.translation.vector.iter().all(|v| v.is_finite())
+                && pose.rotation.coords.iter().all(|v| v.is_finite()),
+            "the refinement returned a non-finite pose for scan {k}"
+        );
+    }
 }
 
 fn seeds_odometry() -> Vec<Vec<u8>> {
