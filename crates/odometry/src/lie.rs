@@ -35,6 +35,13 @@ pub(crate) fn exp(twist: &Vector6<f64>) -> Isometry3<f64> {
     )
 }
 
+/// The constant twist per second (body frame, as [`exp`] takes it) that carries `from` to `to`
+/// in `seconds`: the velocity a constant-velocity prediction extrapolates with
+/// `to · exp(velocity · Δt)`.
+pub(crate) fn velocity(from: &Isometry3<f64>, to: &Isometry3<f64>, seconds: f64) -> Vector6<f64> {
+    log(&(from.inverse() * to)) / seconds
+}
+
 /// `log` of a rigid motion, the inverse of [`exp`] for rotations below π.
 pub(crate) fn log(motion: &Isometry3<f64>) -> Vector6<f64> {
     let omega = motion.rotation.scaled_axis();

@@ -282,7 +282,7 @@ impl Odometry {
         self.map.add(&frame, &pose);
         if let Some(previous) = last_pose {
             let first_velocity = self.velocity.is_none();
-            let twist = lie::log(&(previous.inverse() * pose)) / elapsed_s;
+            let twist = lie::velocity(&previous, &pose, elapsed_s);
             self.velocity = Some(twist);
             if first_velocity && !self.undeskewed.is_empty() {
                 self.rebuild_map_deskewed(&twist, pose);

@@ -378,7 +378,7 @@ impl PoseRefiner {
         if !(span_s > 0.0 && ahead_s > 0.0 && ahead_s.is_finite()) {
             return None;
         }
-        let velocity = lie::log(&(older.inverse() * last)) / span_s;
+        let velocity = lie::velocity(older, last, span_s);
         let predicted = last * lie::exp(&(velocity * ahead_s));
         let off = prior.inverse() * predicted;
         let within = off.translation.vector.norm() <= p.max_correction_m
