@@ -872,6 +872,14 @@ pub struct MotionParams {
     /// 0.25, chosen on the tuning drives among 0, 0.25, 0.5, 0.75, 1, 2 and 3 (the largest
     /// moving IoU whose dynamic accuracy stays within 0.02 of the push along the ray's).
     pub surface_pose_sigmas: f64,
+    /// With `placed_by_surface`: the motion stage registers each cluster on the cells of the
+    /// returns themselves (the SPEC §3 grid: the faces the scanner saw, one cell deep) and
+    /// remembers those in its history, while the cells placed by the surface take the
+    /// evidence. `true`, the default: the surface's cells, up to `surface_depth_cells` deep,
+    /// overlap their own shifted copy over most of a slow car's move, so that its shift
+    /// reads zero (`docs/motion.md`, "Registering on the returns"). `false`: registered on
+    /// the placed cells.
+    pub surface_register_on_returns: bool,
     /// A registered shift no longer than this many standard deviations of the apparent
     /// shift the pose's error gives a static cluster at its range (√2 · √(σ² + (r·σ_θ)²) per
     /// axis, σ and σ_θ the front end's [`FrontEnd::pose_sigma`](crate::FrontEnd::pose_sigma)
@@ -908,6 +916,7 @@ impl Default for MotionParams {
             placed_by_surface: false,
             surface_depth_cells: 2.0,
             surface_pose_sigmas: 0.25,
+            surface_register_on_returns: true,
             pose_gate_sigmas: 0.0,
         }
     }

@@ -704,9 +704,19 @@ impl Fusion {
             let position = front_end.world_from_sensor().translation;
             let (sigma_m, sigma_rad) = front_end.pose_sigma();
             motion.set_pose(position.x, position.y, sigma_m, sigma_rad);
-            Some(motion.update(
+            // With the surface placement, registered on the returns' own cells (the SPEC §3
+            // grid), the placed cells taking the evidence.
+            let returns = if self.params.motion.placed_by_surface
+                && self.params.motion.surface_register_on_returns
+            {
+                front_end.sensor_grid()
+            } else {
+                sensor_grid
+            };
+            Some(motion.update_registering(
                 window,
                 sensor_grid,
+                returns,
                 front_end.time_s()?,
                 front_end.dt_s(),
                 &mut self.perception,

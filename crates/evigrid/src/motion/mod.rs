@@ -164,6 +164,9 @@ pub struct MotionStage {
     tracks: Tracks,
     observations: Vec<Observation>,
     occupied: Vec<u32>,
+    /// The occupied cells of the grid registered on, when it is not the grid labelled
+    /// ([`MotionStage::update_registering`]); empty otherwise.
+    registered_on: Vec<u32>,
     /// The scan's cells crossed by a ray without a return, and the cells it saw empty without
     /// a return within range ([`SensorGrid::clear_cells`]).
     free: Vec<u32>,
@@ -209,6 +212,7 @@ impl MotionStage {
             tracks: Tracks::default(),
             observations: Vec::new(),
             occupied: Vec::new(),
+            registered_on: Vec::new(),
             free: Vec::new(),
             clear_now: vec![false; len],
             clear_list: Vec::new(),
@@ -324,14 +328,42 @@ impl MotionStage {
         perception: &mut PerceptionGrid,
         decisions: &mut [Label],
     ) -> MotionStats {
+        self.update_registering(window, sensor, sensor, time_s, dt_s, perception, decisions)
+    }
+
+    /// As [`MotionStage::update`], but the clusters are registered on the occupied cells of
+    /// `returns` (and those, with its free cells, are what the history keeps), while the
+    /// occupied cells of `sensor` take the evidence (`[motion] surface_register_on_returns`:
+    /// `returns` the SPEC §3 grid of the returns themselves, `sensor` the grid placed by the
+    /// surface). A cluster is an 8-connected group of the cells occupied in either grid; its
+    /// velocity comes from its cells occupied in `returns`, its centroid too, and only its
+    /// cells occupied in `sensor` are given evidence and reported. With `returns` the same
+    /// grid as `sensor`, this is [`MotionStage::update`].
+    ///
+    /// # Panics
+    /// As [`MotionStage::update`], and if `returns` holds fewer cells than `window`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn update_registering(
+        &mut self,
+        window: &Window,
+        sensor: &SensorGrid,
+        returns: &SensorGrid,
+        time_s: f64,
+        dt_s: f64,
+        perception: &mut PerceptionGrid,
+        decisions: &mut [Label],
+    ) -> MotionStats {
         let start = Instant::now();
         let cell_size_m = window.cell_size_m();
+        let split = !std::ptr::eq(sensor, returns);
 
-        // 1. The scan's occupied and free cells, only in the blocks the sensor model wrote.
+        // 1. The scan's occupied and free cells, only in the blocks the sensor model wrote:
+        // the free ones, and with `split` the occupied ones too, from the grid registered on.
         self.occupied.clear();
+        self.registered_on.clear();
         self.free.clear();
-        let (m_free, m_occupied) = (sensor.m_free(), sensor.m_occupied());
-        for (block, _) in sensor
+        let (m_free, m_occupied) = (returns.m_free(), returns.m_occupied());
+        for (block, _) in returns
             .may_hold_mass()
             .iter()
             .enumerate()
@@ -341,12 +373,34 @@ impl MotionStage {
             let end = (first + CELLS_PER_BLOCK).min(m_occupied.len());
             for idx in first..end {
                 if m_occupied[idx] > 0.0 {
-                    self.occupied.push(idx as u32);
+                    if split {
+                        self.registered_on.push(idx as u32);
+                    } else {
+                        self.occupied.push(idx as u32);
+                    }
                 } else if m_free[idx] > 0.0 {
                     self.free.push(idx as u32);
                 }
             }
         }
+        let labelled = sensor.m_occupied();
+        if split {
+            for (block, _) in sensor
+                .may_hold_mass()
+                .iter()
+                .enumerate()
+                .filter(|(_, may)| **may)
+            {
+                let first = block * CELLS_PER_BLOCK;
+                let end = (first + CELLS_PER_BLOCK).min(labelled.len());
+                self.occupied
+                    .extend((first..end).filter(|&idx| labelled[idx] > 0.0).map(|i| i as u32));
+            }
+        }
+        // Whether a cluster cell is registered on (occupied in `returns`), and whether it is
+        // given evidence (occupied in `sensor`): both, unless `split`.
+        let registers = |c: &clusters::Cell| !split || m_occupied[c.idx as usize] > 0.0;
+        let labels = |c: &clusters::Cell| !split || labelled[c.idx as usize] > 0.0;
         for &idx in &self.clear_list {
             if let Some(c) = self.clear_now.get_mut(idx as usize) {
                 *c = false;
@@ -354,7 +408,7 @@ impl MotionStage {
         }
         self.clear_list.clear();
         // They hold no mass (the sensor model lists them after the masses); a cell may repeat.
-        for &idx in sensor.clear_cells() {
+        for &idx in returns.clear_cells() {
             if let Some(c) = self.clear_now.get_mut(idx as usize)
                 && !*c
             {
@@ -367,7 +421,13 @@ impl MotionStage {
         // 2-3. Clusters, each registered against the past frames: independent searches, run
         // in parallel over a few contiguous runs of clusters of about equal cell counts, each
         // with its own scratch, writing its own part of the outputs.
-        self.clusters.label(window, &self.occupied);
+        if split {
+            // Both lists, a cell possibly in each: the labelling takes a cell once.
+            self.registered_on.extend_from_slice(&self.occupied);
+            self.clusters.label(window, &self.registered_on);
+        } else {
+            self.clusters.label(window, &self.occupied);
+        }
         let n_clusters = self.clusters.len();
         let total_cells: usize = (0..n_clusters)
             .map(|k| self.clusters.cluster(k).len())
@@ -382,7 +442,6 @@ impl MotionStage {
         }
         {
             let (clusters, history, params) = (&self.clusters, &self.history, &self.params);
-            let m_free = sensor.m_free();
             let clear_now = &self.clear_now[..];
             let sensor_cell = (
                 self.sensor_xy_m[0] / cell_size_m,
@@ -426,7 +485,16 @@ impl MotionStage {
                             pose_sigma_cells,
                             pose_sigma_rad,
                         };
-                        *slot = registrar.register(cells, window, history, now, params);
+                        *slot = if split {
+                            let mut own = std::mem::take(&mut registrar.own_cells);
+                            own.clear();
+                            own.extend(cells.iter().filter(|c| registers(c)));
+                            let registration = registrar.register(&own, window, history, now, params);
+                            registrar.own_cells = own;
+                            registration
+                        } else {
+                            registrar.register(cells, window, history, now, params)
+                        };
                         for (flag, c) in run_moved[first..first + cells.len()].iter_mut().zip(cells)
                         {
                             *flag = slot.is_none() || registrar.moved(c);
@@ -440,12 +508,13 @@ impl MotionStage {
         let mut registered = 0;
         for k in 0..n_clusters {
             let cells = self.clusters.cluster(k);
-            let (mut sx, mut sy) = (0.0, 0.0);
-            for c in cells {
+            let (mut sx, mut sy, mut n) = (0.0, 0.0, 0usize);
+            for c in cells.iter().filter(|c| registers(c)) {
                 sx += c.col as f64 + 0.5;
                 sy += c.row as f64 + 0.5;
+                n += 1;
             }
-            let n = cells.len().max(1) as f64;
+            let n = n.max(1) as f64;
             let registration = self.registrations[k];
             self.cluster_frames
                 .push(registration.map_or(0, |r| r.frames as u32));
@@ -512,11 +581,12 @@ impl MotionStage {
             // comes out of occlusion, or into the field of view, entered no cell seen free;
             // a static one occupies its cells in every frame.
             if mass == MotionMass::Vacuous && recent != 0 {
-                let entered = cells
-                    .iter()
-                    .filter(|c| self.history.free_bits(c.idx as usize) & recent != 0)
-                    .count();
-                let share = entered as f64 / cells.len().max(1) as f64;
+                let (mut entered, mut counted) = (0usize, 0usize);
+                for c in cells.iter().filter(|c| registers(c)) {
+                    counted += 1;
+                    entered += usize::from(self.history.free_bits(c.idx as usize) & recent != 0);
+                }
+                let share = entered as f64 / counted.max(1) as f64;
                 mass = evidence::entered_seen_free(mass, share, &self.params);
                 if mass != MotionMass::Vacuous {
                     state = CellMotion::EnteredSeenFree;
@@ -534,7 +604,11 @@ impl MotionStage {
             let [vx, vy] = track.velocity.map(|v| v.mean_mps as f32);
             let sigma_mps = (track.velocity[0].variance + track.velocity[1].variance).sqrt() as f32;
             if let MotionMass::Moving(_) = mass {
-                let cells_moving = moved.iter().filter(|&&m| m).count() as u32;
+                let cells_moving = cells
+                    .iter()
+                    .zip(moved)
+                    .filter(|&(c, &m)| m && labels(c))
+                    .count() as u32;
                 let object = MovingObject {
                     id: track.id,
                     position_m: self.observations[k].centroid_m,
@@ -555,7 +629,12 @@ impl MotionStage {
                     self.moving_objects.push(object);
                 }
             }
+            let labelled_cells = cells.iter().filter(|c| labels(c)).count() as u32;
             for (c, &moved) in cells.iter().zip(moved) {
+                // A cell only of the grid registered on takes no evidence.
+                if !labels(c) {
+                    continue;
+                }
                 let idx = c.idx as usize;
                 self.cell_states.push(CellReport {
                     idx: c.idx,
@@ -563,7 +642,7 @@ impl MotionStage {
                         MotionMass::Moving(_) if !moved => CellMotion::StaticPart,
                         _ => state,
                     },
-                    cluster_cells: cells.len() as u32,
+                    cluster_cells: labelled_cells,
                     frames: self.cluster_frames.get(k).copied().unwrap_or(0),
                     speed_mps: vx.hypot(vy),
                     sigma_mps,
@@ -609,7 +688,15 @@ impl MotionStage {
         merge_pieces(&mut self.moving_objects, self.params.gate_m);
 
         // 6. This frame joins the history.
-        self.history.push(&self.occupied, &self.free, time_s);
+        let registered_on = if split {
+            // The list was extended with the labelled cells for the clusters; the grid's own
+            // occupied cells are the ones it held before.
+            let own = self.registered_on.len() - self.occupied.len();
+            &self.registered_on[..own]
+        } else {
+            &self.occupied[..]
+        };
+        self.history.push(registered_on, &self.free, time_s);
         MotionStats {
             occupied_cells: self.occupied.len(),
             clusters: self.clusters.len(),

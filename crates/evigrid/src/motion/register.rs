@@ -89,6 +89,9 @@ pub(crate) struct Registrar {
     /// Patch geometry of the last cluster: width, first column and row (radius included).
     patch_origin: (usize, i64, i64),
     last: LastShift,
+    /// The cells of a cluster it registers on, when not all of them
+    /// (`MotionStage::update_registering`).
+    pub(crate) own_cells: Vec<Cell>,
 }
 
 /// `SPREAD[b]` has byte `j` equal to bit `j` of `b`.
