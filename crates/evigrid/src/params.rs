@@ -852,8 +852,8 @@ pub struct MotionParams {
     /// cost in dynamic accuracy.
     pub return_depth_cells: f64,
     /// How the `evigrid` method places a return that lies on the nearest surface of its
-    /// direction (`return_depth_cells` > 0): `false`, the default, moves it
-    /// `return_depth_cells` along its own ray (above); `true` draws the surface through the
+    /// direction (`return_depth_cells` > 0): `false` moves it `return_depth_cells` along its
+    /// own ray (above); `true`, the default since issue 30, draws the surface through the
     /// nearest returns of fine sectors of 0.1° (neighbours joined when at most 2 m apart) and
     /// occupies each cell around a return whose centre lies behind the surface its own ray
     /// meets, at most `surface_depth_cells` from it (`docs/motion.md`, "Returns placed by the
@@ -913,7 +913,7 @@ impl Default for MotionParams {
             report_held_back: false,
             building_margin_cells: 2,
             return_depth_cells: 0.6,
-            placed_by_surface: false,
+            placed_by_surface: true,
             surface_depth_cells: 2.0,
             surface_pose_sigmas: 0.25,
             surface_register_on_returns: true,

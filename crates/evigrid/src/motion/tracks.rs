@@ -6,6 +6,7 @@
 //! up to `max_coast_s`, so that an object coming out of occlusion, whose cells have no history
 //! to register against, still carries its speed.
 
+use super::REPORT_MIN_EXISTENCE;
 use super::kalman::VelocityFilter;
 use crate::params::MotionParams;
 
@@ -122,7 +123,11 @@ impl Tracks {
             }
         }
 
-        // Nearest pairs first, each track and observation used once.
+        // Confirmed tracks first (existence probability at least `REPORT_MIN_EXISTENCE`: two
+        // hits without a miss), nearest pairs first within each tier, each track and
+        // observation used once. A tentative track (a stray cluster seen once, coasting) must
+        // not take the cluster of an object tracked for a while because it happens to sit
+        // nearer its centroid than that track's prediction.
         self.pairs.clear();
         let gate_sq = params.gate_m * params.gate_m;
         for (ti, t) in self.tracks.iter().enumerate() {
@@ -135,7 +140,17 @@ impl Tracks {
                 }
             }
         }
-        self.pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        let tracks = &self.tracks;
+        let tentative = |ti: u32| {
+            tracks
+                .get(ti as usize)
+                .is_none_or(|t| (t.existence_probability() as f32) < REPORT_MIN_EXISTENCE)
+        };
+        self.pairs.sort_unstable_by(|a, b| {
+            tentative(a.1)
+                .cmp(&tentative(b.1))
+                .then(a.0.total_cmp(&b.0))
+        });
         self.taken.clear();
         self.taken.resize(self.tracks.len(), false);
         self.assigned.clear();
