@@ -354,4 +354,21 @@ mod tests {
             .map_or(1.0, |t| t.velocity[0].mean_mps);
         assert_eq!(v, 0.0);
     }
+    #[test]
+    fn a_confirmed_track_keeps_its_object_against_a_nearer_tentative_one() {
+        let params = MotionParams::default();
+        let mut tracks = Tracks::default();
+        // Track 1 from x = 0, then at 1.0 m moving at 10 m/s (variance 1): two hits, existence
+        // 0.9, confirmed. A stray cluster at 3.0 m starts track 2 (3 m from track 1's
+        // prediction, beyond the 2 m gate): one hit, existence 0.75, tentative.
+        tracks.update(&[seen(0.0, None)], 0.0, 0.1, &params);
+        tracks.update(&[seen(1.0, Some(10.0)), seen(3.0, None)], 0.1, 0.1, &params);
+        assert_eq!(tracks.of_observation(1).map(|t| t.id), Some(2));
+        // Track 1 predicts 1.0 + 0.1 · 9.98 = 2.0 m; the car is seen at 2.9 m, 0.9 m from it
+        // and 0.1 m from the stray track. Nearest first would hand the car to track 2; the
+        // confirmed track is matched first.
+        tracks.update(&[seen(2.9, Some(10.0))], 0.2, 0.1, &params);
+        let t = tracks.of_observation(0);
+        assert_eq!(t.map(|t| (t.id, t.hits, t.measurements)), Some((1, 3, 2)));
+    }
 }
