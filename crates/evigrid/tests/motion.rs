@@ -255,8 +255,9 @@ fn a_car_crossing_open_space_is_seen_to_leave_its_cells() {
     // its ends, and no ray returned from behind it to show them empty (the open end of the
     // street). The beams that returned nothing show them empty: moving.
     const WALLS: [Aabb; 2] = [[-18.7, 18.2, 40.0, 18.7], [-18.7, -18.7, 40.0, -18.2]];
-    let run = |empty_without_return: bool| {
+    let run = |empty_without_return: bool, placed_by_surface: bool| {
         let mut params = Params::default();
+        params.motion.placed_by_surface = placed_by_surface;
         (params.window.width_cells, params.window.height_cells) = (120, 120);
         params.sensor.ground_model = GroundModel::None;
         params.sensor.empty_without_return = empty_without_return;
@@ -291,9 +292,14 @@ fn a_car_crossing_open_space_is_seen_to_leave_its_cells() {
         }
         decided_moving
     };
-    let seen = run(true);
-    assert!(seen[4..].iter().all(|&m| m), "{seen:?}");
-    // Without: the move is never seen, and the car is never decided moving.
-    let unseen = run(false);
+    for placed_by_surface in [true, false] {
+        let seen = run(true, placed_by_surface);
+        assert!(seen[4..].iter().all(|&m| m), "{placed_by_surface}: {seen:?}");
+    }
+    // Without, and the returns pushed along their rays (one cell deep): the move is never seen,
+    // and the car is never decided moving. (Placed by the surface, the cells behind the side
+    // enter cells that the rays passing its front end saw free: frame 2 is decided moving, and
+    // no other, as measured when the surface placement became the default.)
+    let unseen = run(false, false);
     assert!(unseen.iter().all(|&m| !m), "{unseen:?}");
 }
