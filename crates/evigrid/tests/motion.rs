@@ -294,7 +294,10 @@ fn a_car_crossing_open_space_is_seen_to_leave_its_cells() {
     };
     for placed_by_surface in [true, false] {
         let seen = run(true, placed_by_surface);
-        assert!(seen[4..].iter().all(|&m| m), "{placed_by_surface}: {seen:?}");
+        assert!(
+            seen[4..].iter().all(|&m| m),
+            "{placed_by_surface}: {seen:?}"
+        );
     }
     // Without, and the returns pushed along their rays (one cell deep): the move is never seen,
     // and the car is never decided moving. (Placed by the surface, the cells behind the side
