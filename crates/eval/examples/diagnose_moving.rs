@@ -12,6 +12,10 @@
 //! part, not at their centre: truth F under issue 30's centre rule, and scored so) is listed
 //! as truth "band (F)". SEEDS is a comma-separated list (default:
 //! the scenario's seed and the next, as `evigrid eval --seeds 2`).
+//! With `DIAGNOSE_GEOMETRY` set, each count is split further by where the cell lies: whether
+//! the grid placed by the surface holds it, where the truth-M cells among its neighbours lie
+//! seen along its own ray (behind it, in front of it, beside it), and how many cells nearer on
+//! its ray the first return lies.
 
 mod common;
 
@@ -28,6 +32,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         config,
     } = common::inputs("diagnose_moving")?;
     let detail = std::env::var_os("DIAGNOSE_DETAIL").is_some();
+    let geometry = std::env::var_os("DIAGNOSE_GEOMETRY").is_some();
     let mut counts: BTreeMap<String, u64> = BTreeMap::new();
     evaluate_observed(
         &map,
@@ -43,6 +48,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let velocity = f.fusion.motion().map(|m| m.velocity_east());
             let speed_north = f.fusion.motion().map(|m| m.velocity_north());
             let (m_free, m_occupied) = (sensor.m_free(), sensor.m_occupied());
+            let placed = f.front_end.placed_sensor_grid().m_occupied();
+            let cell_m = window.cell_size_m();
             let states: std::collections::HashMap<u32, evigrid::motion::CellReport> = f
                 .fusion
                 .motion()
@@ -128,6 +135,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             })
                     )
                 };
+                let key = if geometry {
+                    let centre = [
+                        (cell.col as f64 + 0.5) * cell_m,
+                        (cell.row as f64 + 0.5) * cell_m,
+                    ];
+                    format!(
+                        "{} || {}",
+                        key,
+                        where_on_its_ray(
+                            &|c, r| window.storage_index(c, r),
+                            f.truth,
+                            m_occupied,
+                            placed,
+                            idx,
+                            centre,
+                            f.ego_position,
+                            cell_m,
+                        )
+                    )
+                } else {
+                    key
+                };
                 *counts.entry(key).or_default() += 1;
             }
         },
@@ -136,4 +165,79 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!("{n:>7}  {key}");
     }
     Ok(())
+}
+
+/// Where a cell lies against the object beside it and the returns on its own ray
+/// (`DIAGNOSE_GEOMETRY`): whether the placed grid holds it, the direction of the truth-M cells
+/// among its 8 neighbours seen along the ray (they lie behind it: the cell is in front of the
+/// object; in front of it: behind the object; else beside it), and how far behind the nearest
+/// return of its own ray (the SPEC §3 grid's first occupied cell walking back to the sensor)
+/// its centre lies, in cells.
+#[allow(clippy::too_many_arguments)]
+fn where_on_its_ray(
+    index: &dyn Fn(i64, i64) -> Option<usize>,
+    truth: &[Label],
+    returns: &[f32],
+    placed: &[f32],
+    idx: usize,
+    centre: [f64; 2],
+    sensor: [f64; 2],
+    cell_m: f64,
+) -> String {
+    let (dx, dy) = (centre[0] - sensor[0], centre[1] - sensor[1]);
+    let range = dx.hypot(dy).max(1e-9);
+    let u = [dx / range, dy / range];
+    let (col, row) = (
+        (centre[0] / cell_m).floor() as i64,
+        (centre[1] / cell_m).floor() as i64,
+    );
+    let (mut mx, mut my, mut n) = (0.0, 0.0, 0);
+    for dr in -1..=1 {
+        for dc in -1..=1 {
+            if (dr, dc) != (0, 0)
+                && index(col + dc, row + dr).is_some_and(|k| truth.get(k) == Some(&Label::M))
+            {
+                mx += dc as f64;
+                my += dr as f64;
+                n += 1;
+            }
+        }
+    }
+    let side = if n == 0 {
+        "no M beside"
+    } else {
+        let norm = mx.hypot(my);
+        if norm < 1e-9 {
+            "M around"
+        } else {
+            let along = (mx * u[0] + my * u[1]) / norm;
+            if along > 0.7 {
+                "M behind it"
+            } else if along < -0.7 {
+                "M in front of it"
+            } else {
+                "M beside it"
+            }
+        }
+    };
+    // Walk back along the ray in quarter cells, up to 6 cells.
+    let mut depth = "no return within 6 cells nearer".to_owned();
+    for step in 0..=24 {
+        let back = step as f64 * 0.25 * cell_m;
+        let (x, y) = (centre[0] - u[0] * back, centre[1] - u[1] * back);
+        if let Some(k) = index((x / cell_m).floor() as i64, (y / cell_m).floor() as i64)
+            && returns.get(k).is_some_and(|m| *m > 0.0)
+        {
+            depth = format!("return {:.0} cells nearer", (back / cell_m).ceil());
+            break;
+        }
+    }
+    format!(
+        "{} | {side} | {depth}",
+        if placed.get(idx).is_some_and(|m| *m > 0.0) {
+            "placed"
+        } else {
+            "not placed"
+        }
+    )
 }
