@@ -872,6 +872,13 @@ pub struct MotionParams {
     /// 0.25, chosen on the tuning drives among 0, 0.25, 0.5, 0.75, 1, 2 and 3 (the largest
     /// moving IoU whose dynamic accuracy stays within 0.02 of the push along the ray's).
     pub surface_pose_sigmas: f64,
+    /// With `placed_by_surface`: past the last return of a silhouette (the ray's neighbour on
+    /// the other side farther, or none: that ray went past the object), a face square to the
+    /// ray within half a ray spacing, as before issue 30's object work. `false`, the
+    /// default: no surface there, so the cells radially behind a silhouette's last return are
+    /// not occupied; a surface's end behind a nearer return (an occluded end) keeps its face.
+    /// Chosen on the validation drives (`docs/motion.md`, "The silhouette's end").
+    pub surface_silhouette_faces: bool,
     /// With `placed_by_surface`: the motion stage registers each cluster on the cells of the
     /// returns themselves (the SPEC §3 grid: the faces the scanner saw, one cell deep) and
     /// remembers those in its history, while the cells placed by the surface take the
@@ -916,6 +923,7 @@ impl Default for MotionParams {
             placed_by_surface: true,
             surface_depth_cells: 2.0,
             surface_pose_sigmas: 0.25,
+            surface_silhouette_faces: false,
             surface_register_on_returns: true,
             pose_gate_sigmas: 0.0,
         }

@@ -308,6 +308,7 @@ impl FrontEnd {
             params.motion.placed_by_surface,
             params.motion.surface_depth_cells * params.grid.cell_size_m,
             params.motion.surface_pose_sigmas,
+            params.motion.surface_silhouette_faces,
         );
         Ok(Self {
             sensor_model,

@@ -113,6 +113,8 @@ pub struct SensorModel {
     /// How many standard deviations of the pose's error a placed cell centre may lie in front
     /// of the surface.
     surface_pose_sigmas: f64,
+    /// Whether the surface reaches past a silhouette's last return, square to the ray.
+    surface_silhouette_faces: bool,
     /// Per fine sector of [`surface::SECTOR_RAD`] (with `placed_by_surface`), the range of its
     /// nearest obstacle return (∞ if none) and that return's levelled position (east and north
     /// of the sensor).
@@ -156,6 +158,7 @@ impl SensorModel {
             placed_by_surface: false,
             surface_depth_m: 0.0,
             surface_pose_sigmas: 0.0,
+            surface_silhouette_faces: false,
             surface_range: Vec::new(),
             nearest_xy: Vec::new(),
             last: None,
@@ -384,11 +387,20 @@ impl SensorModel {
     /// nearest returns of its sector and the neighbouring ones, instead of along its own ray
     /// (`[motion] placed_by_surface`), occupying the cells whose centre lies behind that
     /// surface by at most `depth_m`, square to it, or in front of it by at most
-    /// `pose_sigmas` standard deviations of the pose's error ([`SensorModel::build_placed`]).
-    pub(crate) fn set_placed_by_surface(&mut self, on: bool, depth_m: f64, pose_sigmas: f64) {
+    /// `pose_sigmas` standard deviations of the pose's error ([`SensorModel::build_placed`]);
+    /// past a silhouette's last return, a face square to the ray only with
+    /// `silhouette_faces`.
+    pub(crate) fn set_placed_by_surface(
+        &mut self,
+        on: bool,
+        depth_m: f64,
+        pose_sigmas: f64,
+        silhouette_faces: bool,
+    ) {
         self.placed_by_surface = on;
         self.surface_depth_m = depth_m;
         self.surface_pose_sigmas = pose_sigmas;
+        self.surface_silhouette_faces = silhouette_faces;
     }
 
     /// Fills `out` (cleared first) from the scan of the last [`SensorModel::build`], with each
@@ -514,6 +526,7 @@ impl SensorModel {
                         self.surface_pose_sigmas * pose_sigma.0,
                         self.surface_pose_sigmas * pose_sigma.1,
                     ),
+                    silhouette_faces: self.surface_silhouette_faces,
                 },
                 |idx| occupy(out, idx),
             );

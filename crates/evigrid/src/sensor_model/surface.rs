@@ -67,7 +67,12 @@ fn meet_line(a: [f64; 2], b: [f64; 2], u: [f64; 2]) -> Option<(f64, f64)> {
 /// the nearest returns of the fine sectors on either side of its bearing (within `span`
 /// sectors, `nearest_range` ∞ where a sector has none) when they are at most `join_m` apart,
 /// else, within `half_width_rad` of the nearer of them, a surface square to the ray through
-/// it. Its range along `u` and |u · n| as in [`meet_line`]; `None` where no surface is met.
+/// it, where that return's surface goes on behind something nearer: the return on the ray's
+/// other side is nearer than it. At a silhouette (the return on the other side farther, or
+/// none) the neighbouring ray went past the object, so nothing says the object reaches
+/// behind its last return along this ray: no surface there, unless `silhouette_faces` (the
+/// rule before issue 30's object work). Its range along `u` and |u · n| as in
+/// [`meet_line`]; `None` where no surface is met.
 pub(super) fn surface_at(
     u: [f64; 2],
     nearest_range: &[f64],
@@ -75,6 +80,7 @@ pub(super) fn surface_at(
     span: usize,
     join_m: f64,
     half_width_rad: f64,
+    silhouette_faces: bool,
 ) -> Option<(f64, f64)> {
     let sectors = nearest_range.len();
     if sectors == 0 {
@@ -96,11 +102,15 @@ pub(super) fn surface_at(
     {
         return meet_line(a, b, u);
     }
-    // The end of a surface: within half a ray's spacing of its last return.
+    // The end of a surface: within half a ray's spacing of its last return, where the
+    // surface goes on behind a nearer return on the ray's other side.
     let max_sin = half_width_rad.sin();
-    [left, right]
+    let range_of = |p: Option<[f64; 2]>| p.map_or(f64::INFINITY, |p| p[0].hypot(p[1]));
+    [(left, range_of(right)), (right, range_of(left))]
         .into_iter()
-        .flatten()
+        .filter_map(|(p, other_range)| {
+            p.filter(|p| silhouette_faces || other_range < p[0].hypot(p[1]))
+        })
         .filter_map(|p| {
             let range = p[0].hypot(p[1]);
             let cos = (p[0] * u[0] + p[1] * u[1]) / range;
@@ -119,6 +129,8 @@ pub(super) struct Band {
     /// At most this far in front of it: (metres, radians), the tolerance at range r being
     /// √(m² + (r·rad)²).
     pub(super) pose_tolerance: (f64, f64),
+    /// Past a silhouette's last return, a face square to the ray too ([`surface_at`]).
+    pub(super) silhouette_faces: bool,
 }
 
 /// Calls `visit` with the storage index of every cell around a fine sector's nearest return
@@ -143,6 +155,7 @@ pub(super) fn for_each_cell_behind(
     let Band {
         depth_m,
         pose_tolerance,
+        silhouette_faces,
     } = band;
     for (&range, &a) in nearest_range.iter().zip(nearest_xy) {
         if !range.is_finite() {
@@ -172,6 +185,7 @@ pub(super) fn for_each_cell_behind(
                     NEIGHBOUR_SECTORS,
                     JOIN_M,
                     half_width_rad,
+                    silhouette_faces,
                 ) else {
                     continue;
                 };
@@ -213,7 +227,8 @@ mod tests {
         // Returns at (10, −0.1) and (10, 0.1), 1.15° apart: the ray at 0° meets x = 10 at
         // 10 m, square (|u · n| = 1); the ray at 0.5° at 10/cos 0.5° = 10.00038 m.
         let (range, xy) = table(&[[10.0, -0.1], [10.0, 0.1]]);
-        let (r, square) = surface_at(unit(0.0), &range, &xy, 12, 1.0, 0.005).unwrap_or_default();
+        let (r, square) =
+            surface_at(unit(0.0), &range, &xy, 12, 1.0, 0.005, true).unwrap_or_default();
         assert!(
             (r - 10.0).abs() < 1e-9 && (square - 1.0).abs() < 1e-9,
             "{r} {square}"
@@ -223,13 +238,17 @@ mod tests {
         // 10.05263/cos 0.3° = 10.05277; its normal is (1, −1)/√2, |u · n| = (cos 0.3° −
         // sin 0.3°)/√2 = 0.70340.
         let (range, xy) = table(&[[10.0, 0.0], [10.1, 0.1]]);
-        let (r, square) = surface_at(unit(0.3), &range, &xy, 12, 1.0, 0.005).unwrap_or_default();
+        let (r, square) =
+            surface_at(unit(0.3), &range, &xy, 12, 1.0, 0.005, true).unwrap_or_default();
         assert!((r - 10.05277).abs() < 1e-4, "{r}");
         assert!((square - 0.70340).abs() < 1e-4, "{square}");
         // The same two returns 1.5 m apart are not joined (join 1 m): (10, 0) and (11.06,
         // 1.06) are 1.5 m apart and 5.2° apart: the ray at 0.3° meets no surface.
         let (range, xy) = table(&[[10.0, 0.0], [11.06, 1.06]]);
-        assert_eq!(surface_at(unit(0.3), &range, &xy, 60, 1.0, 0.005), None);
+        assert_eq!(
+            surface_at(unit(0.3), &range, &xy, 60, 1.0, 0.005, true),
+            None
+        );
     }
 
     #[test]
@@ -238,12 +257,55 @@ mod tests {
         // ray, 10/cos 0.2°; at 0.3° there is none.
         let (range, xy) = table(&[[10.0, 0.0]]);
         let half = 0.25f64.to_radians();
-        let (r, square) = surface_at(unit(0.2), &range, &xy, 12, 1.0, half).unwrap_or_default();
+        let (r, square) =
+            surface_at(unit(0.2), &range, &xy, 12, 1.0, half, true).unwrap_or_default();
         assert!((r - 10.0 / 0.2f64.to_radians().cos()).abs() < 1e-9, "{r}");
         assert!(
             (square - 0.2f64.to_radians().cos()).abs() < 1e-9,
             "{square}"
         );
-        assert_eq!(surface_at(unit(0.3), &range, &xy, 12, 1.0, half), None);
+        assert_eq!(
+            surface_at(unit(0.3), &range, &xy, 12, 1.0, half, true),
+            None
+        );
+    }
+
+    #[test]
+    fn past_a_silhouette_no_surface_past_an_occluded_end_a_face() {
+        // The last return of a surface at (10, 0); the ray at 0.2°, within the 0.25°
+        // half-width. Beyond it, at 0.6°, a return at 15 m: the ray there went past the
+        // surface (a silhouette): no surface at 0.2°, unless `silhouette_faces`, which gives
+        // the face square to the ray, 10/cos 0.2°. With that return at 5 m instead, nearer,
+        // the surface goes on behind it: the face either way (the 5 m return is 0.4° off,
+        // outside the half-width, and more than 1 m from (10, 0): not joined).
+        let half = 0.25f64.to_radians();
+        let face = 10.0 / 0.2f64.to_radians().cos();
+        let beyond = |r: f64| {
+            let (s, c) = 0.6f64.to_radians().sin_cos();
+            [r * c, r * s]
+        };
+        let (range, xy) = table(&[[10.0, 0.0], beyond(15.0)]);
+        assert_eq!(
+            surface_at(unit(0.2), &range, &xy, 12, 1.0, half, false),
+            None
+        );
+        let (r, _) = surface_at(unit(0.2), &range, &xy, 12, 1.0, half, true).unwrap_or_default();
+        assert!((r - face).abs() < 1e-9, "{r}");
+        // Nothing beyond it at all: a silhouette too.
+        let (range, xy) = table(&[[10.0, 0.0]]);
+        assert_eq!(
+            surface_at(unit(0.2), &range, &xy, 12, 1.0, half, false),
+            None
+        );
+        let (range, xy) = table(&[[10.0, 0.0], beyond(5.0)]);
+        for silhouette_faces in [false, true] {
+            let (r, square) = surface_at(unit(0.2), &range, &xy, 12, 1.0, half, silhouette_faces)
+                .unwrap_or_default();
+            assert!((r - face).abs() < 1e-9, "{r}");
+            assert!(
+                (square - 0.2f64.to_radians().cos()).abs() < 1e-9,
+                "{square}"
+            );
+        }
     }
 }

@@ -739,7 +739,7 @@ fn a_slanted_wall_occupies_the_cells_whose_centre_lies_behind_it_placed_by_surfa
     let window = small_window();
     let mut model = SensorModel::new(planar_params());
     model.set_return_depth_m(0.5);
-    model.set_placed_by_surface(true, 0.75, 0.0);
+    model.set_placed_by_surface(true, 0.75, 0.0, false);
     let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
     let points: Vec<[f32; 3]> = (0..=30)
         .map(|k| {
@@ -779,7 +779,7 @@ fn a_centre_just_in_front_of_the_surface_is_occupied_within_the_pose_error() {
     let occupied = |sigmas: f64, x: f64| {
         let mut model = SensorModel::new(planar_params());
         model.set_return_depth_m(0.5);
-        model.set_placed_by_surface(true, 1.0, sigmas);
+        model.set_placed_by_surface(true, 1.0, sigmas, false);
         let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
         model.build(&points, &pose, &window, &mut spec);
         model.build_placed(&window, (0.2, 0.0), &mut placed);
@@ -789,4 +789,35 @@ fn a_centre_just_in_front_of_the_surface_is_occupied_within_the_pose_error() {
     assert!(!occupied(0.25, 5.5));
     assert!(occupied(0.75, 5.5));
     assert!(occupied(0.0, 6.5) && occupied(0.75, 6.5));
+}
+
+#[test]
+fn a_cell_radially_behind_a_silhouettes_last_return_is_not_occupied_placed_by_surface() {
+    // A face x = 5.6 (world) from y = −1.0 to 0.47, a return every 0.1 m and the last at
+    // 0.47; the sensor at (0.5, 0.5), 1 m cells, depth 1 m, no pose tolerance. Cell (6, 0)'s
+    // centre (6.5, 0.5) lies due east, 0.34° (atan(0.03 / 5.1)) past the last return, within
+    // half the 1° ray spacing, and 6.0 − 5.1001 = 0.90 m behind a face square to its ray
+    // through that return: occupied by that face, but the ray just north of the return met
+    // nothing (a silhouette), so by default it is not. Cell (6, −1), centre (6.5, −0.5), lies
+    // behind the face's middle, 0.9 m from it: occupied either way; cell (5, 0), centre 0.1 m
+    // in front of the face: neither.
+    let window = small_window();
+    let mut points: Vec<[f32; 3]> = (0..=14)
+        .map(|k| [5.1, (f64::from(k) * 0.1 - 1.5) as f32, 0.0])
+        .collect();
+    points.push([5.1, -0.03, 0.0]);
+    let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
+    let occupied = |silhouette_faces: bool, x: f64, y: f64| {
+        let mut model = SensorModel::new(planar_params());
+        model.set_return_depth_m(0.5);
+        model.set_placed_by_surface(true, 1.0, 0.0, silhouette_faces);
+        let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
+        model.build(&points, &pose, &window, &mut spec);
+        model.build_placed(&window, (0.0, 0.0), &mut placed);
+        at(&window, placed.m_occupied(), x, y) > 0.0
+    };
+    assert!(occupied(true, 6.5, 0.5));
+    assert!(!occupied(false, 6.5, 0.5));
+    assert!(occupied(true, 6.5, -0.5) && occupied(false, 6.5, -0.5));
+    assert!(!occupied(true, 5.5, 0.5) && !occupied(false, 5.5, 0.5));
 }
