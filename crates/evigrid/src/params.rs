@@ -862,22 +862,26 @@ pub struct MotionParams {
     /// cell behind the nearest of their fine sector are still pushed along their ray.
     pub placed_by_surface: bool,
     /// With `placed_by_surface`: how far behind the surface, square to it, a cell centre is
-    /// still the object's, in cells (`(0, 8]`). By default 2 (1 m at the default cell), chosen
-    /// on the tuning drives among 0.75, 1, 1.5, 2, 3 and 4 (`docs/motion.md`).
+    /// still the object's, in cells (`(0, 8]`). By default 3 (1.5 m at the default cell),
+    /// chosen on the tuning drives with `surface_pose_sigmas` once the silhouette's end had
+    /// lost its face (`surface_silhouette_faces`; 2 before, `docs/motion.md`, "The
+    /// silhouette's end").
     pub surface_depth_cells: f64,
     /// With `placed_by_surface`: a cell centre up to this many standard deviations of the
     /// pose's estimated error ([`FrontEnd::pose_sigma`](crate::FrontEnd::pose_sigma), at the
     /// cell's range: √(σ² + (r·σ_θ)²)) in front of the surface is still occupied, since the
     /// truth lies in the world's frame and the scan is placed with the pose used. By default
-    /// 0.25, chosen on the tuning drives among 0, 0.25, 0.5, 0.75, 1, 2 and 3 (the largest
-    /// moving IoU whose dynamic accuracy stays within 0.02 of the push along the ray's).
+    /// 0.375, chosen on the tuning drives with `surface_depth_cells` (the largest moving IoU
+    /// whose dynamic accuracy is not lower than the previous default's; 0.25 before, chosen
+    /// among 0, 0.25, 0.5, 0.75, 1, 2 and 3).
     pub surface_pose_sigmas: f64,
     /// With `placed_by_surface`: past the last return of a silhouette (the ray's neighbour on
     /// the other side farther, or none: that ray went past the object), a face square to the
     /// ray within half a ray spacing, as before issue 30's object work. `false`, the
     /// default: no surface there, so the cells radially behind a silhouette's last return are
     /// not occupied; a surface's end behind a nearer return (an occluded end) keeps its face.
-    /// Chosen on the validation drives (`docs/motion.md`, "The silhouette's end").
+    /// Chosen on the validation drives with the two parameters above (`docs/motion.md`,
+    /// "The silhouette's end").
     pub surface_silhouette_faces: bool,
     /// With `placed_by_surface`: the motion stage registers each cluster on the cells of the
     /// returns themselves (the SPEC §3 grid: the faces the scanner saw, one cell deep) and
@@ -921,8 +925,8 @@ impl Default for MotionParams {
             building_margin_cells: 2,
             return_depth_cells: 0.6,
             placed_by_surface: true,
-            surface_depth_cells: 2.0,
-            surface_pose_sigmas: 0.25,
+            surface_depth_cells: 3.0,
+            surface_pose_sigmas: 0.375,
             surface_silhouette_faces: false,
             surface_register_on_returns: true,
             pose_gate_sigmas: 0.0,
