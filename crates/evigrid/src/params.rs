@@ -1429,6 +1429,43 @@ pub struct LocalisationParams {
     /// prediction from the last two registered poses ([`odometry::RefineStart`]). By default
     /// `"constant_velocity"` (`docs/motion.md`, "Pose refinement").
     pub start: RefinementStart,
+    /// How the registered pose and the given one are combined: `"fixed"`, `prior_weight` of the
+    /// way back in every direction, or `"information"`, a filter that pulls less in the
+    /// directions the scan constrains than along a corridor ([`odometry::RefineBlend`]). By
+    /// default `"fixed"` (`docs/motion.md`, "Pose refinement").
+    pub blend: RefinementBlend,
+    /// `blend = "information"`: σ of the given position per axis, metres. By default 0.1,
+    /// `odometry`'s.
+    pub prior_sigma_m: f64,
+    /// `blend = "information"`: σ of the given rotation, degrees. By default 0.2, `odometry`'s.
+    pub prior_sigma_deg: f64,
+    /// `blend = "information"`: σ of the registration in a direction every pair constrains,
+    /// metres. By default 0.02, `odometry`'s.
+    pub registration_sigma_m: f64,
+    /// `blend = "information"`: σ of the registration's start per axis, metres (what it is
+    /// off by in a direction the scan does not constrain). By default 0.05, `odometry`'s.
+    pub prediction_sigma_m: f64,
+}
+
+/// How the pose refinement combines the registered and the given pose (`[localisation]
+/// blend`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RefinementBlend {
+    /// `prior_weight` of the way back to the given pose.
+    #[default]
+    Fixed,
+    /// Weighted by what the scan constrains and how wrong the given pose can be.
+    Information,
+}
+
+impl From<odometry::RefineBlend> for RefinementBlend {
+    fn from(blend: odometry::RefineBlend) -> Self {
+        match blend {
+            odometry::RefineBlend::Information => Self::Information,
+            _ => Self::Fixed,
+        }
+    }
 }
 
 impl Default for LocalisationParams {
@@ -1443,6 +1480,11 @@ impl Default for LocalisationParams {
             prior_weight: refine.prior_weight,
             convergence_tolerance: refine.convergence_tolerance,
             start: RefinementStart::from(refine.start),
+            blend: RefinementBlend::from(refine.blend),
+            prior_sigma_m: refine.prior_sigma_m,
+            prior_sigma_deg: refine.prior_sigma_deg,
+            registration_sigma_m: refine.registration_sigma_m,
+            prediction_sigma_m: refine.prediction_sigma_m,
         }
     }
 }
@@ -1495,6 +1537,14 @@ impl LocalisationParams {
                 RefinementStart::Prior => odometry::RefineStart::Prior,
                 RefinementStart::ConstantVelocity => odometry::RefineStart::ConstantVelocity,
             },
+            blend: match self.blend {
+                RefinementBlend::Fixed => odometry::RefineBlend::Fixed,
+                RefinementBlend::Information => odometry::RefineBlend::Information,
+            },
+            prior_sigma_m: self.prior_sigma_m,
+            prior_sigma_deg: self.prior_sigma_deg,
+            registration_sigma_m: self.registration_sigma_m,
+            prediction_sigma_m: self.prediction_sigma_m,
             ..odometry::RefineParams::default()
         }
     }
@@ -1530,6 +1580,17 @@ impl LocalisationParams {
             "localisation.convergence_tolerance",
             self.convergence_tolerance,
         )?;
+        for (name, sigma) in [
+            ("localisation.prior_sigma_m", self.prior_sigma_m),
+            ("localisation.prior_sigma_deg", self.prior_sigma_deg),
+            (
+                "localisation.registration_sigma_m",
+                self.registration_sigma_m,
+            ),
+            ("localisation.prediction_sigma_m", self.prediction_sigma_m),
+        ] {
+            positive(name, sigma)?;
+        }
         Ok(())
     }
 }

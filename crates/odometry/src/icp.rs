@@ -208,6 +208,95 @@ pub(crate) fn register(
     outcome
 }
 
+/// Spread (σ along a direction, as a fraction of the voxel edge) above which the map points of
+/// a voxel extend along that direction: a pair there says nothing about it. Points spread
+/// evenly over a voxel have σ ≈ 0.29 of the edge along the surface, and a few hundredths
+/// across it.
+const SPREAD_FRACTION: f64 = 0.15;
+
+/// The information of a registration about a twist right-multiplied on `map_from_sensor`
+/// (the scan's own frame), per unit weight of the pairs: each source point paired, as the last
+/// iteration pairs it, with its nearest map point, but only across the surface that the map's
+/// points in that voxel sample (`Σ w Jᵀ P J / Σ w`, `P` the projector on the directions the
+/// voxel's points do not spread along: the normal of a façade, the two normals of a pole or of a
+/// planar scan's wall). Unlike point-to-point normal equations, whose translation block is the
+/// same in every direction, it shows a corridor: little information along it. Zero without
+/// pairs.
+pub(crate) fn surface_information(
+    source: &[Vector3<f64>],
+    map: &VoxelMap,
+    map_from_sensor: &Isometry3<f64>,
+    settings: &IcpSettings,
+) -> Matrix6<f64> {
+    let max_sq = settings.max_correspondence_m * settings.max_correspondence_m;
+    let scale_sq = settings.kernel_scale_m * settings.kernel_scale_m;
+    let spread_sq = (SPREAD_FRACTION * map.voxel_size()).powi(2);
+    let rotation = map_from_sensor.rotation.to_rotation_matrix().into_inner();
+    let partial: Vec<(Matrix6<f64>, f64)> = source
+        .par_chunks(CHUNK)
+        .map(|chunk| {
+            let mut information = Matrix6::zeros();
+            let mut weight_sum = 0.0;
+            for point in chunk {
+                let moved = (map_from_sensor * Point3::from(*point)).coords;
+                let Some((nearest, distance_sq)) = map.nearest(&moved, max_sq) else {
+                    continue;
+                };
+                let weight = geman_mcclure_weight(distance_sq, scale_sq);
+                let across = across_surface(map.voxel_points(&nearest), spread_sq);
+                let mut jacobian = nalgebra::Matrix3x6::zeros();
+                jacobian
+                    .fixed_view_mut::<3, 3>(0, 0)
+                    .copy_from(&Matrix3::identity());
+                let p = point;
+                let cross = Matrix3::new(0.0, -p.z, p.y, p.z, 0.0, -p.x, -p.y, p.x, 0.0);
+                jacobian.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-cross));
+                // The residual `R p + t − q` moves by `R J ξ` for a twist ξ of the scan's frame.
+                let across = rotation.transpose() * across * rotation;
+                information += jacobian.transpose() * across * jacobian * weight;
+                weight_sum += weight;
+            }
+            (information, weight_sum)
+        })
+        .collect();
+    let (information, weight_sum) = partial.iter().fold(
+        (Matrix6::zeros(), 0.0),
+        |(information, weight_sum), (part, weight)| (information + part, weight_sum + weight),
+    );
+    if weight_sum > 0.0 {
+        information / weight_sum
+    } else {
+        Matrix6::zeros()
+    }
+}
+
+/// The projector on the directions along which `points` do not spread by more than
+/// `sqrt(spread_sq)` (σ about their mean); the identity for fewer than two points.
+fn across_surface(points: &[Vector3<f64>], spread_sq: f64) -> Matrix3<f64> {
+    if points.len() < 2 {
+        return Matrix3::identity();
+    }
+    let n = points.len() as f64;
+    let mean = points.iter().sum::<Vector3<f64>>() / n;
+    let scatter = points
+        .iter()
+        .map(|p| (p - mean) * (p - mean).transpose())
+        .sum::<Matrix3<f64>>()
+        / n;
+    let eigen = scatter.symmetric_eigen();
+    let mut across = Matrix3::identity();
+    for (value, vector) in eigen
+        .eigenvalues
+        .iter()
+        .zip(eigen.eigenvectors.column_iter())
+    {
+        if *value > spread_sq {
+            across -= vector * vector.transpose();
+        }
+    }
+    across
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,7 +3,7 @@
 //! ICP updates and the constant-velocity model live in the tangent space: a screw motion can be
 //! scaled (a velocity over a different time, a fraction of a sweep) and then mapped back.
 
-use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix3, Matrix6, Translation3, UnitQuaternion, Vector3, Vector6};
 
 /// Below this rotation angle (radians) the series forms are used: the closed forms divide by
 /// powers of the angle.
@@ -40,6 +40,20 @@ pub(crate) fn exp(twist: &Vector6<f64>) -> Isometry3<f64> {
 /// `to · exp(velocity · Δt)`.
 pub(crate) fn velocity(from: &Isometry3<f64>, to: &Isometry3<f64>, seconds: f64) -> Vector6<f64> {
     log(&(from.inverse() * to)) / seconds
+}
+
+/// The adjoint of a rigid motion `(R, t)` on twists ordered (translation, rotation),
+/// `[[R, [t]× R], [0, R]]`: `motion · exp(ξ) · motion⁻¹ = exp(adjoint(motion) · ξ)`, which carries
+/// a twist from the frame the motion leads to into the frame it starts from.
+pub(crate) fn adjoint(motion: &Isometry3<f64>) -> Matrix6<f64> {
+    let rotation = motion.rotation.to_rotation_matrix().into_inner();
+    let mut adjoint = Matrix6::zeros();
+    adjoint.fixed_view_mut::<3, 3>(0, 0).copy_from(&rotation);
+    adjoint
+        .fixed_view_mut::<3, 3>(0, 3)
+        .copy_from(&(skew(&motion.translation.vector) * rotation));
+    adjoint.fixed_view_mut::<3, 3>(3, 3).copy_from(&rotation);
+    adjoint
 }
 
 /// `log` of a rigid motion, the inverse of [`exp`] for rotations below π.
@@ -103,6 +117,24 @@ mod tests {
             let twist = Vector6::new(rho[0], rho[1], rho[2], k * omega[0], k * omega[1], k * omega[2]);
             let back = log(&exp(&twist));
             prop_assert!((back - twist).norm() < 1e-9, "{twist} -> {back}");
+        }
+
+        #[test]
+        fn the_adjoint_moves_a_twist_between_frames(
+            rho in prop::array::uniform3(-5.0f64..5.0),
+            omega in prop::array::uniform3(-1.0f64..1.0),
+            motion_rho in prop::array::uniform3(-50.0f64..50.0),
+            motion_omega in prop::array::uniform3(-1.5f64..1.5),
+        ) {
+            let twist = Vector6::new(rho[0], rho[1], rho[2], omega[0], omega[1], omega[2]);
+            let motion = exp(&Vector6::new(
+                motion_rho[0], motion_rho[1], motion_rho[2],
+                motion_omega[0], motion_omega[1], motion_omega[2],
+            ));
+            let conjugated = motion * exp(&twist) * motion.inverse();
+            let moved = exp(&(adjoint(&motion) * twist));
+            prop_assert!((conjugated.translation.vector - moved.translation.vector).norm() < 1e-9);
+            prop_assert!(conjugated.rotation.angle_to(&moved.rotation) < 1e-9);
         }
 
         #[test]

@@ -21,7 +21,7 @@
 //! and its in-plane structure the rest; they get finer voxels (`planar_voxel_size_m`) than a
 //! 3-D scan's.
 
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Matrix6, Vector3, Vector6};
 
 use crate::OdometryError;
 use crate::icp::{self, IcpSettings};
@@ -75,7 +75,45 @@ pub struct RefineParams {
     pub min_overlap: f64,
     /// Where ICP starts (default [`RefineStart::ConstantVelocity`]).
     pub start: RefineStart,
+    /// How the registered pose and the prior are combined (default [`RefineBlend::Fixed`]).
+    pub blend: RefineBlend,
+    /// [`RefineBlend::Information`]: σ of the prior's position per axis (metres, default 0.1,
+    /// a good GNSS/INS).
+    pub prior_sigma_m: f64,
+    /// [`RefineBlend::Information`]: σ of the prior's rotation about each axis (degrees,
+    /// default 0.2).
+    pub prior_sigma_deg: f64,
+    /// [`RefineBlend::Information`]: σ of the registration's error in a direction that every
+    /// pair constrains (metres, default 0.02); a direction constrained by a fraction `f` of
+    /// the pairs' weight gets `σ / √f`, and the rotations follow from the points' lever arms.
+    pub registration_sigma_m: f64,
+    /// [`RefineBlend::Information`]: σ of the start's error per axis in a direction the scan
+    /// does not constrain, where the registration stays where it started (metres, default
+    /// 0.05; the rotations get this over [`PREDICTION_LEVER_M`]).
+    pub prediction_sigma_m: f64,
 }
+
+/// How [`PoseRefiner`] combines the registered pose with the prior.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[non_exhaustive]
+pub enum RefineBlend {
+    /// `prior_weight` of the way back to the prior, in every direction alike.
+    #[default]
+    Fixed,
+    /// A Kalman filter on the offset between the map's frame and the world (`world_from_map`),
+    /// observed by each prior with covariance `prior_sigma_*`, and drifting by the
+    /// registration's error: the registration's normal equations (their information per
+    /// unit weight over `registration_sigma_m²`) plus the start's (`prediction_sigma_m`) give
+    /// the covariance the scan adds, so the pull is weak in the directions the scan
+    /// constrains and strong in those it does not (along a corridor).
+    Information,
+}
+
+/// The rotation σ of the start in [`RefineBlend::Information`] is `prediction_sigma_m` over
+/// this lever arm (metres): a turn that moves a point this far away by the position's σ.
+pub const PREDICTION_LEVER_M: f64 = 20.0;
 
 /// Where the registration of a scan starts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -113,6 +151,11 @@ impl Default for RefineParams {
             prior_weight: 0.2,
             min_overlap: 0.3,
             start: RefineStart::ConstantVelocity,
+            blend: RefineBlend::Fixed,
+            prior_sigma_m: 0.1,
+            prior_sigma_deg: 0.2,
+            registration_sigma_m: 0.02,
+            prediction_sigma_m: 0.05,
         }
     }
 }
@@ -158,6 +201,10 @@ impl RefineParams {
         }
         unit("prior_weight", self.prior_weight)?;
         unit("min_overlap", self.min_overlap)?;
+        positive("prior_sigma_m", self.prior_sigma_m)?;
+        positive("prior_sigma_deg", self.prior_sigma_deg)?;
+        positive("registration_sigma_m", self.registration_sigma_m)?;
+        positive("prediction_sigma_m", self.prediction_sigma_m)?;
         Ok(())
     }
 }
@@ -227,6 +274,9 @@ pub struct Refinement {
     frame: Vec<Vector3<f64>>,
     /// The scan's time (seconds), for the constant-velocity start.
     time_s: f64,
+    /// [`RefineBlend::Information`]: the map frame's covariance after this scan, in the frame
+    /// of `world_from_sensor` (twists right-multiplied on it).
+    frame_covariance: Option<Matrix6<f64>>,
 }
 
 /// Refines reported poses against a local map of the previous scans. See the module docs.
@@ -245,6 +295,10 @@ pub struct PoseRefiner {
     /// (time, `map_from_sensor`) of the last two scans that joined the map, oldest first: the
     /// constant-velocity start.
     track: Vec<(f64, Isometry3<f64>)>,
+    /// [`RefineBlend::Information`]: the covariance of `world_from_map`'s error as seen from
+    /// the last refined scan (twists right-multiplied on its pose, the pose); `None` until a
+    /// scan was refined since the map started, when it is the prior's.
+    frame_covariance: Option<(Isometry3<f64>, Matrix6<f64>)>,
 }
 
 impl PoseRefiner {
@@ -259,6 +313,7 @@ impl PoseRefiner {
             world_from_map: Isometry3::identity(),
             refused_in_a_row: 0,
             track: Vec::with_capacity(2),
+            frame_covariance: None,
             // As KISS-ICP: corrections under 0.1 m (bound at the range) are sampling noise, and
             // would shrink the threshold below the map's point spacing.
             threshold: AdaptiveThreshold::new(params.initial_threshold_m, 0.1, params.max_range_m),
@@ -314,6 +369,7 @@ impl PoseRefiner {
             voxel_size_m,
             frame,
             time_s,
+            frame_covariance: None,
         };
         if refinement.frame.is_empty() {
             return refinement;
@@ -351,16 +407,72 @@ impl PoseRefiner {
             refinement.outcome = RefineOutcome::KeptPrior(reason);
             return refinement;
         }
-        // registered · exp(w · log(registered⁻¹ · prior)) in the world: w of the way back to
-        // the prior. The scan joins the map at its registered pose, and the pull moves the
-        // map's frame (`insert`), so that it accumulates over the scans instead of being undone
-        // by the next registration against a map that kept the first scans' error.
+        // registered · exp(K · log(registered⁻¹ · prior)) in the world: K of the way back to
+        // the prior (K = w I, or the filter's gain). The scan joins the map at its registered
+        // pose, and the pull moves the map's frame (`insert`), so that it accumulates over the
+        // scans instead of being undone by the next registration against a map that kept the
+        // first scans' error.
         let registered = self.world_from_map * outcome.world_from_sensor;
-        let back = lie::log(&(registered.inverse() * prior)) * p.prior_weight;
+        let back = lie::log(&(registered.inverse() * prior));
+        let back = match p.blend {
+            RefineBlend::Information => {
+                let information =
+                    icp::surface_information(&source, map, &outcome.world_from_sensor, &settings);
+                let (gain, covariance) = self.filter_gain(&registered, &information);
+                refinement.frame_covariance = Some(covariance);
+                gain * back
+            }
+            RefineBlend::Fixed => back * p.prior_weight,
+        };
         refinement.world_from_sensor = registered * lie::exp(&back);
         refinement.map_from_sensor = outcome.world_from_sensor;
         refinement.outcome = RefineOutcome::Refined;
         refinement
+    }
+
+    /// The gain of [`RefineBlend::Information`] for a scan registered at `registered` (world)
+    /// with `information` per unit weight (its frame), and the map frame's covariance after
+    /// the update (the same frame).
+    ///
+    /// The map frame's covariance `V` is carried from the last refined scan's frame into this
+    /// one, grows by what this registration can be off (`Q`, the inverse of the registration's
+    /// information plus the start's), and the prior, of covariance `P`, observes it:
+    /// `K = (V + Q)(V + Q + P)⁻¹`, and `(I − K)(V + Q)` after.
+    fn filter_gain(
+        &self,
+        registered: &Isometry3<f64>,
+        information: &Matrix6<f64>,
+    ) -> (Matrix6<f64>, Matrix6<f64>) {
+        let p = &self.params;
+        let diagonal =
+            |m: f64, rad: f64| Matrix6::from_diagonal(&Vector6::new(m, m, m, rad, rad, rad));
+        let prior = diagonal(
+            p.prior_sigma_m.powi(2),
+            p.prior_sigma_deg.to_radians().powi(2),
+        );
+        let start = diagonal(
+            p.prediction_sigma_m.powi(-2),
+            (p.prediction_sigma_m / PREDICTION_LEVER_M).powi(-2),
+        );
+        let registration = information / p.registration_sigma_m.powi(2);
+        let drift = symmetric_inverse(&(registration + start)).unwrap_or_else(|| {
+            // Not expected (the start's information alone is positive definite): no drift.
+            Matrix6::zeros()
+        });
+        let carried = match &self.frame_covariance {
+            Some((last, covariance)) => {
+                let to_here = lie::adjoint(&(registered.inverse() * last));
+                to_here * covariance * to_here.transpose()
+            }
+            None => prior,
+        };
+        let predicted = carried + drift;
+        let Some(innovation) = symmetric_inverse(&(predicted + prior)) else {
+            return (Matrix6::zeros(), carried);
+        };
+        let gain = predicted * innovation;
+        let after = (Matrix6::identity() - gain) * predicted;
+        (gain, 0.5 * (after + after.transpose()))
     }
 
     /// The constant-velocity prediction of the pose at `time_s` in the map's frame, when
@@ -396,6 +508,9 @@ impl PoseRefiner {
             RefineOutcome::Refined => {
                 self.threshold.observe(&refinement.correction);
                 self.refused_in_a_row = 0;
+                if let Some(covariance) = refinement.frame_covariance {
+                    self.frame_covariance = Some((refinement.world_from_sensor, covariance));
+                }
             }
             RefineOutcome::KeptPrior(KeptReason::NoData) | RefineOutcome::First => {}
             RefineOutcome::KeptPrior(_) => {
@@ -407,6 +522,7 @@ impl PoseRefiner {
                 self.world_from_map = Isometry3::identity();
                 self.refused_in_a_row = 0;
                 self.track.clear();
+                self.frame_covariance = None;
             }
         }
         // Nothing to add; and the map's voxels are chosen by the first scan with points.
@@ -451,6 +567,13 @@ impl PoseRefiner {
         self.insert(&refinement);
         refinement
     }
+}
+
+/// The inverse of a symmetric positive definite matrix, `None` when it is not one or the result
+/// is not finite.
+fn symmetric_inverse(matrix: &Matrix6<f64>) -> Option<Matrix6<f64>> {
+    let inverse = matrix.cholesky()?.inverse();
+    inverse.iter().all(|v| v.is_finite()).then_some(inverse)
 }
 
 /// All points within [`PLANAR_SPREAD_M`] of one height.

@@ -253,9 +253,17 @@ impl VoxelMap {
         self.reindex();
     }
 
+    /// The points of the voxel that holds `point` (empty when the map has none there).
+    pub(crate) fn voxel_points(&self, point: &Vector3<f64>) -> &[Vector3<f64>] {
+        self.ranges
+            .get(&voxel_of(point, self.inverse_size))
+            .map_or(&[], |&(start, count)| {
+                &self.flat[start as usize..(start + count) as usize]
+            })
+    }
+
     /// The nearest map point to `query` within the 27 voxels around it, if closer than
     /// `sqrt(max_distance_sq)`; with its squared distance.
-    #[cfg(test)]
     pub(crate) fn nearest(
         &self,
         query: &Vector3<f64>,
