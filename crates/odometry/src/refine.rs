@@ -100,7 +100,6 @@ pub struct RefineParams {
 #[non_exhaustive]
 pub enum RefineBlend {
     /// `prior_weight` of the way back to the prior, in every direction alike.
-    #[default]
     Fixed,
     /// A Kalman filter on the offset between the map's frame and the world (`world_from_map`),
     /// observed by each prior with covariance `prior_sigma_*`, and drifting by the
@@ -108,6 +107,7 @@ pub enum RefineBlend {
     /// unit weight over `registration_sigma_m²`) plus the start's (`prediction_sigma_m`) give
     /// the covariance the scan adds, so the pull is weak in the directions the scan
     /// constrains and strong in those it does not (along a corridor).
+    #[default]
     Information,
 }
 
@@ -151,11 +151,11 @@ impl Default for RefineParams {
             prior_weight: 0.2,
             min_overlap: 0.3,
             start: RefineStart::ConstantVelocity,
-            blend: RefineBlend::Fixed,
+            blend: RefineBlend::Information,
             prior_sigma_m: 0.1,
             prior_sigma_deg: 0.2,
-            registration_sigma_m: 0.02,
-            prediction_sigma_m: 0.05,
+            registration_sigma_m: 0.01,
+            prediction_sigma_m: 0.2,
         }
     }
 }
