@@ -208,16 +208,16 @@ pub(crate) fn register(
     outcome
 }
 
-/// Spread (σ along a direction, as a fraction of the voxel edge) above which the map points of
-/// a voxel extend along that direction: a pair there says nothing about it. Points spread
-/// evenly over a voxel have σ ≈ 0.29 of the edge along the surface, and a few hundredths
-/// across it.
+/// Spread (σ along a direction, as a fraction of the voxel edge) above which the map points
+/// within a voxel edge of a pair's map point extend along that direction: the pair says
+/// nothing about it. Points spread evenly along a surface through the ball have σ ≈ 0.45 of
+/// the edge along it (0.58 along a line), and a few hundredths across it.
 const SPREAD_FRACTION: f64 = 0.15;
 
 /// The information of a registration about a twist right-multiplied on `map_from_sensor`
 /// (the scan's own frame), per unit weight of the pairs: each source point paired, as the last
 /// iteration pairs it, with its nearest map point, but only across the surface that the map's
-/// points in that voxel sample (`Σ w Jᵀ P J / Σ w`, `P` the projector on the directions the
+/// points within a voxel edge of it sample (`Σ w Jᵀ P J / Σ w`, `P` the projector on the directions the
 /// voxel's points do not spread along: the normal of a façade, the two normals of a pole or of a
 /// planar scan's wall). Unlike point-to-point normal equations, whose translation block is the
 /// same in every direction, it shows a corridor: little information along it. Zero without
@@ -243,7 +243,15 @@ pub(crate) fn surface_information(
                     continue;
                 };
                 let weight = geman_mcclure_weight(distance_sq, scale_sq);
-                let across = across_surface(map.voxel_points(&nearest), spread_sq);
+                weight_sum += weight;
+                let near = map.points_near(&nearest, map.voxel_size());
+                // Too few map points to see a surface (the sparse far end of a façade): the pair
+                // counts in the weight but claims no information, which its sampling alone would
+                // fake along the surface.
+                if near.len() < MIN_SURFACE_POINTS {
+                    continue;
+                }
+                let across = across_surface(&near, spread_sq);
                 let mut jacobian = nalgebra::Matrix3x6::zeros();
                 jacobian
                     .fixed_view_mut::<3, 3>(0, 0)
@@ -254,7 +262,6 @@ pub(crate) fn surface_information(
                 // The residual `R p + t − q` moves by `R J ξ` for a twist ξ of the scan's frame.
                 let across = rotation.transpose() * across * rotation;
                 information += jacobian.transpose() * across * jacobian * weight;
-                weight_sum += weight;
             }
             (information, weight_sum)
         })
@@ -270,12 +277,13 @@ pub(crate) fn surface_information(
     }
 }
 
+/// A pair's map point needs this many map points within a voxel edge (itself included) for
+/// [`surface_information`] to read a surface there.
+const MIN_SURFACE_POINTS: usize = 3;
+
 /// The projector on the directions along which `points` do not spread by more than
-/// `sqrt(spread_sq)` (σ about their mean); the identity for fewer than two points.
+/// `sqrt(spread_sq)` (σ about their mean).
 fn across_surface(points: &[Vector3<f64>], spread_sq: f64) -> Matrix3<f64> {
-    if points.len() < 2 {
-        return Matrix3::identity();
-    }
     let n = points.len() as f64;
     let mean = points.iter().sum::<Vector3<f64>>() / n;
     let scatter = points

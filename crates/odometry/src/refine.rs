@@ -631,13 +631,17 @@ mod tests {
 
     /// A 360° planar scan from `pose` (x, y, heading): the first wall hit per ray, every 0.25°.
     fn planar_scan(pose: (f64, f64, f64)) -> Vec<[f32; 3]> {
-        let segments = world_segments();
+        planar_scan_of(&world_segments(), pose)
+    }
+
+    /// [`planar_scan`] of a world of `segments`.
+    fn planar_scan_of(segments: &[([f64; 2], [f64; 2])], pose: (f64, f64, f64)) -> Vec<[f32; 3]> {
         let mut points = Vec::new();
         for k in 0..1440 {
             let bearing = f64::from(k) * 0.25_f64.to_radians();
             let (sin, cos) = (pose.2 + bearing).sin_cos();
             let mut best = f64::INFINITY;
-            for (a, b) in &segments {
+            for (a, b) in segments {
                 // Ray origin + t·d against segment a + s·(b − a).
                 let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
                 let denom = cos * ey - sin * ex;
@@ -674,6 +678,7 @@ mod tests {
     #[test]
     fn a_noisy_planar_pose_is_pulled_back_to_the_truth() {
         let params = RefineParams {
+            blend: RefineBlend::Fixed,
             prior_weight: 0.0,
             ..RefineParams::default()
         };
@@ -707,6 +712,7 @@ mod tests {
     fn driving(start: RefineStart) -> PoseRefiner {
         let mut refiner = PoseRefiner::new(RefineParams {
             start,
+            blend: RefineBlend::Fixed,
             prior_weight: 0.0,
             ..RefineParams::default()
         })
@@ -767,6 +773,7 @@ mod tests {
     fn the_prior_weight_pulls_back_towards_the_prior() {
         let build = |prior_weight| {
             let mut refiner = PoseRefiner::new(RefineParams {
+                blend: RefineBlend::Fixed,
                 prior_weight,
                 ..RefineParams::default()
             })
@@ -889,6 +896,148 @@ mod tests {
         let first = flat.refine_and_insert(&planar, &level(0.0, 0.0, 0.0), 0.0);
         assert_eq!(first.voxel_size_m, params.planar_voxel_size_m);
         assert!(flat.map_voxels() > refiner.map_voxels());
+    }
+
+    /// A street without poles or corners: two façades along x, 8 m either side, 200 m long.
+    fn corridor_scan(pose: (f64, f64, f64)) -> Vec<[f32; 3]> {
+        planar_scan_of(
+            &[
+                ([-100.0, 8.0], [100.0, 8.0]),
+                ([-100.0, -8.0], [100.0, -8.0]),
+            ],
+            pose,
+        )
+    }
+
+    #[test]
+    fn the_gain_follows_what_the_scan_constrains() {
+        // Defaults: prior σ 0.1 m and 0.2°, registration σ 0.01 m, start σ 0.2 m (rotation
+        // 0.2 / 20 = 0.01 rad). A scan that says nothing along x, everything across y and z
+        // (information 1 per unit weight) and turns with a 20 m lever arm (400), with a map
+        // frame known exactly so far (carried covariance 0): K = Q (Q + P)⁻¹ per axis, with
+        // Q = 1 / (information / 0.01² + 1 / σ_start²).
+        let registered = level(5.0, 2.0, 0.3);
+        let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
+        refiner.frame_covariance = Some((registered, Matrix6::zeros()));
+        let information = Matrix6::from_diagonal(&Vector6::new(0.0, 1.0, 1.0, 400.0, 400.0, 400.0));
+        let (gain, after) = refiner.filter_gain(&registered, &information);
+        // Along x: Q = 1 / 25 = 0.04, K = 0.04 / 0.05 = 0.8: the prior mostly wins.
+        assert!((gain[(0, 0)] - 0.8).abs() < 1e-9, "{}", gain[(0, 0)]);
+        // Across: Q = 1 / 10025, K = Q / (Q + 0.01) = 0.009877: the scan wins.
+        let q = 1.0 / 10_025.0;
+        assert!((gain[(1, 1)] - q / (q + 0.01)).abs() < 1e-9);
+        assert!((gain[(1, 1)] - 0.009877).abs() < 1e-6);
+        // Rotations: Q = 1 / (4e6 + 1e4), P = (0.2°)², K = 0.02006.
+        let (q, p) = (1.0 / 4.01e6, 0.2_f64.to_radians().powi(2));
+        assert!((gain[(5, 5)] - q / (q + p)).abs() < 1e-9);
+        assert!((gain[(5, 5)] - 0.02006).abs() < 1e-5);
+        // Diagonal in, diagonal out; after the update the covariance is (1 − K) Q.
+        assert!((gain - Matrix6::from_diagonal(&gain.diagonal())).amax() < 1e-12);
+        assert!((after[(0, 0)] - 0.2 * 0.04).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_corridor_scan_has_no_information_along_the_street() {
+        let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
+        refiner.refine_and_insert(&corridor_scan((0.0, 0.0, 0.0)), &level(0.0, 0.0, 0.0), 0.0);
+        let map = refiner.map.as_ref().expect("a map");
+        let source: Vec<Vector3<f64>> = corridor_scan((0.4, 0.0, 0.0))
+            .iter()
+            .map(|p| Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
+            .collect();
+        let source = downsampled(&source, 1.5 * map.voxel_size());
+        let settings = IcpSettings::adaptive(0.3, 10, 1e-4);
+        let information = icp::surface_information(&source, map, &level(0.4, 0.0, 0.0), &settings);
+        // Across the street and in height every pair with a line around its map point counts
+        // (the far ends of the façades, sampled sparsely, have none: about half the pairs);
+        // along the street none does.
+        let (along, across, height) = (
+            information[(0, 0)],
+            information[(1, 1)],
+            information[(2, 2)],
+        );
+        assert!(
+            across > 0.3 && (height - across).abs() < 1e-9,
+            "{information}"
+        );
+        assert!(along < 1e-3 * across, "{information}");
+    }
+
+    #[test]
+    fn in_a_corridor_the_along_street_error_comes_from_the_likelier_source() {
+        // Two scans at their true poses, 8 m/s along x; the third, truly at (1.6, 0), is given
+        // 0.3 m ahead and 0.15 m aside. The start (constant velocity) is the truth; the walls
+        // correct the 0.15 m across the street, nothing corrects along it.
+        let run = |prediction_sigma_m| {
+            let mut refiner = PoseRefiner::new(RefineParams {
+                prediction_sigma_m,
+                ..RefineParams::default()
+            })
+            .expect("valid");
+            for (k, x) in [0.0, 0.8].into_iter().enumerate() {
+                refiner.refine_and_insert(
+                    &corridor_scan((x, 0.0, 0.0)),
+                    &level(x, 0.0, 0.0),
+                    0.1 * k as f64,
+                );
+            }
+            // The map frame known exactly (after many scans it is the average of many priors;
+            // here, after two, it would still be half as uncertain as one).
+            refiner.frame_covariance = Some((level(0.8, 0.0, 0.0), Matrix6::zeros()));
+            let prior = level(1.9, 0.15, 0.0);
+            let refinement = refiner.refine(&corridor_scan((1.6, 0.0, 0.0)), &prior, 0.2);
+            assert_eq!(refinement.outcome, RefineOutcome::Refined);
+            let pose = refinement.world_from_sensor.translation;
+            (pose.x - 1.6, pose.y)
+        };
+        // A start that can be 1 m off: along the street the prior (σ 0.1 m) wins, K = 1 / 1.01
+        // of the 0.3 m; across it the walls do, K ≈ 0.01 of the 0.15 m (registration σ 0.01 m
+        // against the prior's 0.1 m).
+        let (along, across) = run(1.0);
+        assert!((along - 0.3).abs() < 0.01, "{along} m along");
+        assert!(across.abs() < 0.01, "{across} m across");
+        // A start good to 1 cm: it wins along the street too, K = 0.01² / (0.01² + 0.1²) ≈ 0.01
+        // (what is left is the registration's own 2 cm along the façades' samples).
+        let (along, across) = run(0.01);
+        assert!(along.abs() < 0.03, "{along} m along");
+        assert!(across.abs() < 0.01, "{across} m across");
+    }
+
+    proptest::proptest! {
+        /// Whatever the scan's information and the map frame's covariance, the gain is finite
+        /// and moves the pose towards the prior, never past it: in the prior's metric
+        /// (`P⁻¹`), neither the step nor what is left of the way is longer than the way.
+        #[test]
+        fn the_information_gain_stays_between_the_registration_and_the_prior(
+            factor in proptest::array::uniform6(proptest::array::uniform6(-30.0_f64..30.0)),
+            carried in proptest::array::uniform6(0.0_f64..1.0),
+            way in proptest::array::uniform6(-0.02_f64..0.02),
+            scale in proptest::prop_oneof![
+                proptest::strategy::Just(0.0),
+                1e-9_f64..1.0,
+                1.0_f64..1e9,
+            ],
+        ) {
+            let factor = Matrix6::from_fn(|r, c| factor[r][c]);
+            let information = factor.transpose() * factor * scale;
+            let registered = level(3.0, -1.0, 0.2);
+            let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
+            let carried = Matrix6::from_diagonal(&Vector6::from_column_slice(&carried)) * 0.01;
+            refiner.frame_covariance = Some((level(2.2, -1.0, 0.2), carried));
+            let (gain, after) = refiner.filter_gain(&registered, &information);
+            proptest::prop_assert!(gain.iter().chain(after.iter()).all(|v| v.is_finite()));
+            let p = &refiner.params;
+            let metric = Vector6::new(
+                p.prior_sigma_m, p.prior_sigma_m, p.prior_sigma_m,
+                p.prior_sigma_deg.to_radians(), p.prior_sigma_deg.to_radians(),
+                p.prior_sigma_deg.to_radians(),
+            );
+            let norm = |v: Vector6<f64>| v.component_div(&metric).norm();
+            let way = Vector6::from_column_slice(&way);
+            let step = gain * way;
+            proptest::prop_assert!(norm(step) <= norm(way) * (1.0 + 1e-9) + 1e-12);
+            proptest::prop_assert!(norm(way - step) <= norm(way) * (1.0 + 1e-9) + 1e-12);
+        }
     }
 
     proptest::proptest! {

@@ -253,13 +253,24 @@ impl VoxelMap {
         self.reindex();
     }
 
-    /// The points of the voxel that holds `point` (empty when the map has none there).
-    pub(crate) fn voxel_points(&self, point: &Vector3<f64>) -> &[Vector3<f64>] {
-        self.ranges
-            .get(&voxel_of(point, self.inverse_size))
-            .map_or(&[], |&(start, count)| {
-                &self.flat[start as usize..(start + count) as usize]
+    /// The map points within `radius` (at most a voxel edge) of `point`, from the 27 voxels
+    /// around it.
+    pub(crate) fn points_near(&self, point: &Vector3<f64>, radius: f64) -> Vec<Vector3<f64>> {
+        let centre = voxel_of(point, self.inverse_size);
+        let radius_sq = radius * radius;
+        NEIGHBOURS
+            .iter()
+            .filter_map(|offset| {
+                self.ranges.get(&[
+                    centre[0].saturating_add(offset[0]),
+                    centre[1].saturating_add(offset[1]),
+                    centre[2].saturating_add(offset[2]),
+                ])
             })
+            .flat_map(|&(start, count)| &self.flat[start as usize..(start + count) as usize])
+            .filter(|p| (*p - point).norm_squared() <= radius_sq)
+            .copied()
+            .collect()
     }
 
     /// The nearest map point to `query` within the 27 voxels around it, if closer than
