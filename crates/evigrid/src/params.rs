@@ -1416,8 +1416,8 @@ pub struct LocalisationParams {
     /// A registration that turns the heading by more than this is refused, degrees. By default
     /// 2, `odometry`'s.
     pub max_correction_deg: f64,
-    /// Fraction of the way from the registered pose back to the given one, `[0, 1]`: keeps the
-    /// map from drifting with the first scans' error. By default 0.2 (chosen with the
+    /// `blend = "fixed"`: fraction of the way from the registered pose back to the given one,
+    /// `[0, 1]`: keeps the map from drifting with the first scans' error. By default 0.2 (chosen with the
     /// constant-velocity start on the tuning drives).
     pub prior_weight: f64,
     /// The registration stops when an update moves the pose by less than this (metres and
@@ -1429,21 +1429,23 @@ pub struct LocalisationParams {
     /// prediction from the last two registered poses ([`odometry::RefineStart`]). By default
     /// `"constant_velocity"` (`docs/motion.md`, "Pose refinement").
     pub start: RefinementStart,
-    /// How the registered pose and the given one are combined: `"fixed"`, `prior_weight` of the
-    /// way back in every direction, or `"information"`, a filter that pulls less in the
-    /// directions the scan constrains than along a corridor ([`odometry::RefineBlend`]). By
-    /// default `"fixed"` (`docs/motion.md`, "Pose refinement").
+    /// How the registered pose and the given one are combined: `"information"`, a filter on
+    /// the map frame's offset that pulls towards the given pose in the directions the scan does
+    /// not constrain (along a corridor) and hardly in those it does, or `"fixed"`,
+    /// `prior_weight` of the way back in every direction ([`odometry::RefineBlend`]). By
+    /// default `"information"` (chosen on the validation drives, `docs/motion.md`, "Pose
+    /// refinement").
     pub blend: RefinementBlend,
-    /// `blend = "information"`: σ of the given position per axis, metres. By default 0.1,
-    /// `odometry`'s.
+    /// `blend = "information"`: σ of the given position per axis, metres. By default 0.2
+    /// (chosen with the next three on the tuning drives).
     pub prior_sigma_m: f64,
-    /// `blend = "information"`: σ of the given rotation, degrees. By default 0.2, `odometry`'s.
+    /// `blend = "information"`: σ of the given rotation, degrees. By default 0.5.
     pub prior_sigma_deg: f64,
     /// `blend = "information"`: σ of the registration in a direction every pair constrains,
-    /// metres. By default 0.02, `odometry`'s.
+    /// metres. By default 0.0025.
     pub registration_sigma_m: f64,
     /// `blend = "information"`: σ of the registration's start per axis, metres (what it is
-    /// off by in a direction the scan does not constrain). By default 0.05, `odometry`'s.
+    /// off by in a direction the scan does not constrain). By default 0.5.
     pub prediction_sigma_m: f64,
 }
 
@@ -1453,9 +1455,9 @@ pub struct LocalisationParams {
 #[serde(rename_all = "snake_case")]
 pub enum RefinementBlend {
     /// `prior_weight` of the way back to the given pose.
-    #[default]
     Fixed,
     /// Weighted by what the scan constrains and how wrong the given pose can be.
+    #[default]
     Information,
 }
 

@@ -66,8 +66,8 @@ pub struct RefineParams {
     /// A registration that turns the pose by more than this from the prior (about any axis) is
     /// refused and the prior kept (degrees, default 2: four times an INS's 0.5°).
     pub max_correction_deg: f64,
-    /// Fraction of the way from the registered pose back to the prior, in `[0, 1]` (default
-    /// 0.2): keeps the map frame on the priors' average instead of drifting with the first
+    /// [`RefineBlend::Fixed`]: fraction of the way from the registered pose back to the prior,
+    /// in `[0, 1]` (default 0.2): keeps the map frame on the priors' average instead of drifting with the first
     /// scan's error. 1 keeps the prior (registration measured but not used).
     pub prior_weight: f64,
     /// A registration with fewer correspondences than this fraction of the registered points
@@ -75,21 +75,22 @@ pub struct RefineParams {
     pub min_overlap: f64,
     /// Where ICP starts (default [`RefineStart::ConstantVelocity`]).
     pub start: RefineStart,
-    /// How the registered pose and the prior are combined (default [`RefineBlend::Fixed`]).
+    /// How the registered pose and the prior are combined (default
+    /// [`RefineBlend::Information`], chosen on the validation drives, `docs/motion.md`).
     pub blend: RefineBlend,
-    /// [`RefineBlend::Information`]: σ of the prior's position per axis (metres, default 0.1,
-    /// a good GNSS/INS).
+    /// [`RefineBlend::Information`]: σ of the prior's position per axis (metres, default 0.2,
+    /// a GNSS/INS's; with the next three chosen on the tuning drives).
     pub prior_sigma_m: f64,
     /// [`RefineBlend::Information`]: σ of the prior's rotation about each axis (degrees,
-    /// default 0.2).
+    /// default 0.5).
     pub prior_sigma_deg: f64,
     /// [`RefineBlend::Information`]: σ of the registration's error in a direction that every
-    /// pair constrains (metres, default 0.02); a direction constrained by a fraction `f` of
+    /// pair constrains (metres, default 0.0025); a direction constrained by a fraction `f` of
     /// the pairs' weight gets `σ / √f`, and the rotations follow from the points' lever arms.
     pub registration_sigma_m: f64,
     /// [`RefineBlend::Information`]: σ of the start's error per axis in a direction the scan
     /// does not constrain, where the registration stays where it started (metres, default
-    /// 0.05; the rotations get this over [`PREDICTION_LEVER_M`]).
+    /// 0.5; the rotations get this over [`PREDICTION_LEVER_M`]).
     pub prediction_sigma_m: f64,
 }
 
@@ -152,10 +153,10 @@ impl Default for RefineParams {
             min_overlap: 0.3,
             start: RefineStart::ConstantVelocity,
             blend: RefineBlend::Information,
-            prior_sigma_m: 0.1,
-            prior_sigma_deg: 0.2,
-            registration_sigma_m: 0.01,
-            prediction_sigma_m: 0.2,
+            prior_sigma_m: 0.2,
+            prior_sigma_deg: 0.5,
+            registration_sigma_m: 0.0025,
+            prediction_sigma_m: 0.5,
         }
     }
 }
@@ -909,15 +910,28 @@ mod tests {
         )
     }
 
+    /// The information blend with round numbers: prior σ 0.1 m and 0.2°, registration σ
+    /// 0.01 m, start σ 0.2 m.
+    fn round() -> RefineParams {
+        RefineParams {
+            blend: RefineBlend::Information,
+            prior_sigma_m: 0.1,
+            prior_sigma_deg: 0.2,
+            registration_sigma_m: 0.01,
+            prediction_sigma_m: 0.2,
+            ..RefineParams::default()
+        }
+    }
+
     #[test]
     fn the_gain_follows_what_the_scan_constrains() {
-        // Defaults: prior σ 0.1 m and 0.2°, registration σ 0.01 m, start σ 0.2 m (rotation
+        // Prior σ 0.1 m and 0.2°, registration σ 0.01 m, start σ 0.2 m (rotation
         // 0.2 / 20 = 0.01 rad). A scan that says nothing along x, everything across y and z
         // (information 1 per unit weight) and turns with a 20 m lever arm (400), with a map
         // frame known exactly so far (carried covariance 0): K = Q (Q + P)⁻¹ per axis, with
         // Q = 1 / (information / 0.01² + 1 / σ_start²).
         let registered = level(5.0, 2.0, 0.3);
-        let mut refiner = PoseRefiner::new(RefineParams::default()).expect("valid");
+        let mut refiner = PoseRefiner::new(round()).expect("valid");
         refiner.frame_covariance = Some((registered, Matrix6::zeros()));
         let information = Matrix6::from_diagonal(&Vector6::new(0.0, 1.0, 1.0, 400.0, 400.0, 400.0));
         let (gain, after) = refiner.filter_gain(&registered, &information);
@@ -971,7 +985,7 @@ mod tests {
         let run = |prediction_sigma_m| {
             let mut refiner = PoseRefiner::new(RefineParams {
                 prediction_sigma_m,
-                ..RefineParams::default()
+                ..round()
             })
             .expect("valid");
             for (k, x) in [0.0, 0.8].into_iter().enumerate() {
