@@ -1442,10 +1442,10 @@ pub struct LocalisationParams {
     /// `blend = "information"`: σ of the given rotation, degrees. By default 0.5.
     pub prior_sigma_deg: f64,
     /// `blend = "information"`: σ of the registration in a direction every pair constrains,
-    /// metres. By default 0.0025.
+    /// metres. By default 0.01.
     pub registration_sigma_m: f64,
     /// `blend = "information"`: σ of the registration's start per axis, metres (what it is
-    /// off by in a direction the scan does not constrain). By default 0.5.
+    /// off by in a direction the scan does not constrain). By default 0.2.
     pub prediction_sigma_m: f64,
 }
 

@@ -85,12 +85,12 @@ pub struct RefineParams {
     /// default 0.5).
     pub prior_sigma_deg: f64,
     /// [`RefineBlend::Information`]: σ of the registration's error in a direction that every
-    /// pair constrains (metres, default 0.0025); a direction constrained by a fraction `f` of
+    /// pair constrains (metres, default 0.01); a direction constrained by a fraction `f` of
     /// the pairs' weight gets `σ / √f`, and the rotations follow from the points' lever arms.
     pub registration_sigma_m: f64,
     /// [`RefineBlend::Information`]: σ of the start's error per axis in a direction the scan
     /// does not constrain, where the registration stays where it started (metres, default
-    /// 0.5; the rotations get this over [`PREDICTION_LEVER_M`]).
+    /// 0.2; the rotations get this over [`PREDICTION_LEVER_M`]).
     pub prediction_sigma_m: f64,
 }
 
@@ -155,8 +155,8 @@ impl Default for RefineParams {
             blend: RefineBlend::Information,
             prior_sigma_m: 0.2,
             prior_sigma_deg: 0.5,
-            registration_sigma_m: 0.0025,
-            prediction_sigma_m: 0.5,
+            registration_sigma_m: 0.01,
+            prediction_sigma_m: 0.2,
         }
     }
 }
