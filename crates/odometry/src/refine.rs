@@ -5,8 +5,10 @@
 //! constant-velocity prediction of the poses used for the last two scans (by default,
 //! [`RefineStart`]; or from the prior), its correction is measured from the prior and gated (a
 //! failed or unconverged registration, or one that moves the pose farther from the prior than
-//! the prior can be wrong, keeps the prior), and the accepted pose is pulled a fraction of the
-//! way back to the prior. Without that pull the refined poses would be consistent with each other but the
+//! the prior can be wrong, keeps the prior), and the accepted pose is pulled back towards the
+//! prior: by the gain of a Kalman filter on the map frame's offset, strong in the directions the
+//! scan does not constrain (along a corridor) and weak in those it does ([`RefineBlend`]), or by
+//! a fixed fraction. Without that pull the refined poses would be consistent with each other but the
 //! whole map would keep the error of the first scan's prior and drift from there; with it the
 //! map frame follows the average of the priors.
 //!
