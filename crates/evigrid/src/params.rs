@@ -883,6 +883,12 @@ pub struct MotionParams {
     /// Chosen on the validation drives with the two parameters above (`docs/motion.md`,
     /// "The silhouette's end").
     pub surface_silhouette_faces: bool,
+    /// With `placed_by_surface`: where the two returns either side of a ray lie on two faces
+    /// that meet in a convex corner in front of the segment between them (each face drawn
+    /// through its return and the next one beyond it, the corner at most half the segment's
+    /// length in front of it), the ray meets those faces up to the corner instead of the
+    /// segment, which cuts a car's corner off (`docs/motion.md`, "A car's corner").
+    pub surface_convex_corners: bool,
     /// With `placed_by_surface`: the motion stage registers each cluster on the cells of the
     /// returns themselves (the SPEC §3 grid: the faces the scanner saw, one cell deep) and
     /// remembers those in its history, while the cells placed by the surface take the
@@ -928,6 +934,7 @@ impl Default for MotionParams {
             surface_depth_cells: 3.0,
             surface_pose_sigmas: 0.375,
             surface_silhouette_faces: false,
+            surface_convex_corners: false,
             surface_register_on_returns: true,
             pose_gate_sigmas: 0.0,
         }

@@ -309,6 +309,7 @@ impl FrontEnd {
             params.motion.surface_depth_cells * params.grid.cell_size_m,
             params.motion.surface_pose_sigmas,
             params.motion.surface_silhouette_faces,
+            params.motion.surface_convex_corners,
         );
         Ok(Self {
             sensor_model,

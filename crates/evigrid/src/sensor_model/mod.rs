@@ -115,6 +115,9 @@ pub struct SensorModel {
     surface_pose_sigmas: f64,
     /// Whether the surface reaches past a silhouette's last return, square to the ray.
     surface_silhouette_faces: bool,
+    /// Whether the surface between two returns on the faces of a convex corner follows the
+    /// faces up to the corner.
+    surface_convex_corners: bool,
     /// Per fine sector of [`surface::SECTOR_RAD`] (with `placed_by_surface`), the range of its
     /// nearest obstacle return (∞ if none) and that return's levelled position (east and north
     /// of the sensor).
@@ -159,6 +162,7 @@ impl SensorModel {
             surface_depth_m: 0.0,
             surface_pose_sigmas: 0.0,
             surface_silhouette_faces: false,
+            surface_convex_corners: false,
             surface_range: Vec::new(),
             nearest_xy: Vec::new(),
             last: None,
@@ -389,14 +393,17 @@ impl SensorModel {
     /// surface by at most `depth_m`, square to it, or in front of it by at most
     /// `pose_sigmas` standard deviations of the pose's error ([`SensorModel::build_placed`]);
     /// past a silhouette's last return, a face square to the ray only with
-    /// `silhouette_faces`.
+    /// `silhouette_faces`; between two returns on two faces of a convex corner, the faces up
+    /// to the corner with `convex_corners`.
     pub(crate) fn set_placed_by_surface(
         &mut self,
         on: bool,
         depth_m: f64,
         pose_sigmas: f64,
         silhouette_faces: bool,
+        convex_corners: bool,
     ) {
+        self.surface_convex_corners = convex_corners;
         self.placed_by_surface = on;
         self.surface_depth_m = depth_m;
         self.surface_pose_sigmas = pose_sigmas;
@@ -527,6 +534,7 @@ impl SensorModel {
                         self.surface_pose_sigmas * pose_sigma.1,
                     ),
                     silhouette_faces: self.surface_silhouette_faces,
+                    convex_corners: self.surface_convex_corners,
                 },
                 |idx| occupy(out, idx),
             );

@@ -47,6 +47,32 @@ fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
     a[0] * b[1] - a[1] * b[0]
 }
 
+/// The corner where the face through `a2` and `a` meets the face through `b` and `b2`
+/// (sensor-relative, metres; `a` and `b` neighbouring returns, `a2` and `b2` the next ones
+/// beyond them), when it is convex as seen from the sensor: it lies between the rays of `a`
+/// and `b`, on the sensor's side of the segment between them and at most half that segment's
+/// length from it (a right-angled corner seen square to its diagonal, the most a rectangle's
+/// corner stands out). `None` otherwise: the faces run on in line, or meet behind the segment
+/// (a concave corner, where the segment is in front of the true surface anyway).
+fn convex_corner(a2: [f64; 2], a: [f64; 2], b: [f64; 2], b2: [f64; 2]) -> Option<[f64; 2]> {
+    let (da, db) = ([a[0] - a2[0], a[1] - a2[1]], [b2[0] - b[0], b2[1] - b[1]]);
+    let den = cross(da, db);
+    if den.abs() <= 1e-12 {
+        return None;
+    }
+    let ab = [b[0] - a[0], b[1] - a[1]];
+    // a + t·da = b + s·db → t = cross(b − a, db) / cross(da, db).
+    let t = cross(ab, db) / den;
+    let c = [a[0] + t * da[0], a[1] + t * da[1]];
+    let length = ab[0].hypot(ab[1]);
+    let turn = cross(a, b);
+    let between = cross(a, c) * turn > 0.0 && cross(c, b) * turn > 0.0;
+    // Signed distance from the segment, positive on the sensor's side.
+    let side = cross(ab, [-a[0], -a[1]]).signum();
+    let standing_out = cross(ab, [c[0] - a[0], c[1] - a[1]]) * side / length.max(1e-12);
+    (t.is_finite() && between && standing_out > 0.0 && standing_out <= 0.5 * length).then_some(c)
+}
+
 /// Where the ray from the sensor along the unit direction `u` meets the line through `a` and
 /// `b` (sensor-relative, metres): its range, and |u · n| for n the line's unit normal (a step
 /// Δr along the ray behind the line is Δr·|u · n| from it); `None` when the ray runs along
@@ -71,8 +97,11 @@ fn meet_line(a: [f64; 2], b: [f64; 2], u: [f64; 2]) -> Option<(f64, f64)> {
 /// other side is nearer than it. At a silhouette (the return on the other side farther, or
 /// none) the neighbouring ray went past the object, so nothing says the object reaches
 /// behind its last return along this ray: no surface there, unless `silhouette_faces` (the
-/// rule before issue 30's object work). Its range along `u` and |u · n| as in
-/// [`meet_line`]; `None` where no surface is met.
+/// rule before issue 30's object work). With `convex_corners`, where the returns beyond the
+/// two either side (within `span` sectors and `join_m`) draw two faces that meet in a convex
+/// corner in front of the segment ([`convex_corner`]), the surface between the two returns is
+/// those two faces up to the corner, not the segment that cuts it. Its range along `u` and
+/// |u · n| as in [`meet_line`]; `None` where no surface is met.
 pub(super) fn surface_at(
     u: [f64; 2],
     nearest_range: &[f64],
@@ -80,30 +109,63 @@ pub(super) fn surface_at(
     span: usize,
     join_m: f64,
     half_width_rad: f64,
-    silhouette_faces: bool,
+    rules: Rules,
 ) -> Option<(f64, f64)> {
+    let Rules {
+        silhouette_faces,
+        convex_corners,
+    } = rules;
     let sectors = nearest_range.len();
     if sectors == 0 {
         return None;
     }
     let at = sector_of(u, sectors);
+    let reach = span.min(sectors / 2);
     let (mut left, mut right) = (None, None);
-    for k in 0..=span.min(sectors / 2) {
+    for k in 0..=reach {
         let (l, r) = ((at + sectors - k) % sectors, (at + k) % sectors);
         if left.is_none() && nearest_range[l].is_finite() && cross(nearest_xy[l], u) >= 0.0 {
-            left = Some(nearest_xy[l]);
+            left = Some((nearest_xy[l], k));
         }
         if right.is_none() && nearest_range[r].is_finite() && cross(nearest_xy[r], u) < 0.0 {
-            right = Some(nearest_xy[r]);
+            right = Some((nearest_xy[r], k));
         }
     }
-    if let (Some(a), Some(b)) = (left, right)
+    if let (Some((a, ka)), Some((b, kb))) = (left, right)
         && (b[0] - a[0]).hypot(b[1] - a[1]) <= join_m
     {
+        if convex_corners {
+            // The next return beyond each of the two, within `span` sectors of it and
+            // `join_m` of it: the faces `a` and `b` lie on.
+            let beyond = |from: usize, step_left: bool, p: [f64; 2]| {
+                (1..=reach).find_map(|k| {
+                    let s = if step_left {
+                        (from + 2 * sectors - k) % sectors
+                    } else {
+                        (from + k) % sectors
+                    };
+                    let q = nearest_xy[s];
+                    (nearest_range[s].is_finite() && (q[0] - p[0]).hypot(q[1] - p[1]) <= join_m)
+                        .then_some(q)
+                })
+            };
+            let (sa, sb) = ((at + sectors - ka) % sectors, (at + kb) % sectors);
+            if let (Some(a2), Some(b2)) = (beyond(sa, true, a), beyond(sb, false, b))
+                && let Some(c) = convex_corner(a2, a, b, b2)
+            {
+                // The ray meets the face of the side of the corner it passes on.
+                return if cross(c, u) >= 0.0 {
+                    meet_line(c, b, u)
+                } else {
+                    meet_line(a, c, u)
+                };
+            }
+        }
         return meet_line(a, b, u);
     }
     // The end of a surface: within half a ray's spacing of its last return, where the
     // surface goes on behind a nearer return on the ray's other side.
+    let (left, right) = (left.map(|(p, _)| p), right.map(|(p, _)| p));
     let max_sin = half_width_rad.sin();
     let range_of = |p: Option<[f64; 2]>| p.map_or(f64::INFINITY, |p| p[0].hypot(p[1]));
     [(left, range_of(right)), (right, range_of(left))]
@@ -121,6 +183,15 @@ pub(super) fn surface_at(
         .map(|(_, range, cos)| (range, cos))
 }
 
+/// Which of the optional rules [`surface_at`] follows.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Rules {
+    /// Past a silhouette's last return, a face square to the ray.
+    pub(super) silhouette_faces: bool,
+    /// Between two returns on two faces of a convex corner, the faces up to the corner.
+    pub(super) convex_corners: bool,
+}
+
 /// Where a cell centre may lie around the surface its ray meets and still be occupied.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Band {
@@ -131,6 +202,9 @@ pub(super) struct Band {
     pub(super) pose_tolerance: (f64, f64),
     /// Past a silhouette's last return, a face square to the ray too ([`surface_at`]).
     pub(super) silhouette_faces: bool,
+    /// Between two returns on two faces of a convex corner, the faces up to the corner
+    /// ([`surface_at`]).
+    pub(super) convex_corners: bool,
 }
 
 /// Calls `visit` with the storage index of every cell around a fine sector's nearest return
@@ -156,6 +230,7 @@ pub(super) fn for_each_cell_behind(
         depth_m,
         pose_tolerance,
         silhouette_faces,
+        convex_corners,
     } = band;
     for (&range, &a) in nearest_range.iter().zip(nearest_xy) {
         if !range.is_finite() {
@@ -185,7 +260,10 @@ pub(super) fn for_each_cell_behind(
                     NEIGHBOUR_SECTORS,
                     JOIN_M,
                     half_width_rad,
-                    silhouette_faces,
+                    Rules {
+                        silhouette_faces,
+                        convex_corners,
+                    },
                 ) else {
                     continue;
                 };
@@ -202,6 +280,13 @@ pub(super) fn for_each_cell_behind(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn faces(silhouette_faces: bool) -> Rules {
+        Rules {
+            silhouette_faces,
+            convex_corners: false,
+        }
+    }
 
     fn unit(deg: f64) -> [f64; 2] {
         let (s, c) = deg.to_radians().sin_cos();
@@ -228,7 +313,7 @@ mod tests {
         // 10 m, square (|u · n| = 1); the ray at 0.5° at 10/cos 0.5° = 10.00038 m.
         let (range, xy) = table(&[[10.0, -0.1], [10.0, 0.1]]);
         let (r, square) =
-            surface_at(unit(0.0), &range, &xy, 12, 1.0, 0.005, true).unwrap_or_default();
+            surface_at(unit(0.0), &range, &xy, 12, 1.0, 0.005, faces(true)).unwrap_or_default();
         assert!(
             (r - 10.0).abs() < 1e-9 && (square - 1.0).abs() < 1e-9,
             "{r} {square}"
@@ -239,14 +324,14 @@ mod tests {
         // sin 0.3°)/√2 = 0.70340.
         let (range, xy) = table(&[[10.0, 0.0], [10.1, 0.1]]);
         let (r, square) =
-            surface_at(unit(0.3), &range, &xy, 12, 1.0, 0.005, true).unwrap_or_default();
+            surface_at(unit(0.3), &range, &xy, 12, 1.0, 0.005, faces(true)).unwrap_or_default();
         assert!((r - 10.05277).abs() < 1e-4, "{r}");
         assert!((square - 0.70340).abs() < 1e-4, "{square}");
         // The same two returns 1.5 m apart are not joined (join 1 m): (10, 0) and (11.06,
         // 1.06) are 1.5 m apart and 5.2° apart: the ray at 0.3° meets no surface.
         let (range, xy) = table(&[[10.0, 0.0], [11.06, 1.06]]);
         assert_eq!(
-            surface_at(unit(0.3), &range, &xy, 60, 1.0, 0.005, true),
+            surface_at(unit(0.3), &range, &xy, 60, 1.0, 0.005, faces(true)),
             None
         );
     }
@@ -258,14 +343,14 @@ mod tests {
         let (range, xy) = table(&[[10.0, 0.0]]);
         let half = 0.25f64.to_radians();
         let (r, square) =
-            surface_at(unit(0.2), &range, &xy, 12, 1.0, half, true).unwrap_or_default();
+            surface_at(unit(0.2), &range, &xy, 12, 1.0, half, faces(true)).unwrap_or_default();
         assert!((r - 10.0 / 0.2f64.to_radians().cos()).abs() < 1e-9, "{r}");
         assert!(
             (square - 0.2f64.to_radians().cos()).abs() < 1e-9,
             "{square}"
         );
         assert_eq!(
-            surface_at(unit(0.3), &range, &xy, 12, 1.0, half, true),
+            surface_at(unit(0.3), &range, &xy, 12, 1.0, half, faces(true)),
             None
         );
     }
@@ -286,26 +371,82 @@ mod tests {
         };
         let (range, xy) = table(&[[10.0, 0.0], beyond(15.0)]);
         assert_eq!(
-            surface_at(unit(0.2), &range, &xy, 12, 1.0, half, false),
+            surface_at(unit(0.2), &range, &xy, 12, 1.0, half, faces(false)),
             None
         );
-        let (r, _) = surface_at(unit(0.2), &range, &xy, 12, 1.0, half, true).unwrap_or_default();
+        let (r, _) =
+            surface_at(unit(0.2), &range, &xy, 12, 1.0, half, faces(true)).unwrap_or_default();
         assert!((r - face).abs() < 1e-9, "{r}");
         // Nothing beyond it at all: a silhouette too.
         let (range, xy) = table(&[[10.0, 0.0]]);
         assert_eq!(
-            surface_at(unit(0.2), &range, &xy, 12, 1.0, half, false),
+            surface_at(unit(0.2), &range, &xy, 12, 1.0, half, faces(false)),
             None
         );
         let (range, xy) = table(&[[10.0, 0.0], beyond(5.0)]);
         for silhouette_faces in [false, true] {
-            let (r, square) = surface_at(unit(0.2), &range, &xy, 12, 1.0, half, silhouette_faces)
-                .unwrap_or_default();
+            let (r, square) = surface_at(
+                unit(0.2),
+                &range,
+                &xy,
+                12,
+                1.0,
+                half,
+                faces(silhouette_faces),
+            )
+            .unwrap_or_default();
             assert!((r - face).abs() < 1e-9, "{r}");
             assert!(
                 (square - 0.2f64.to_radians().cos()).abs() < 1e-9,
                 "{square}"
             );
         }
+    }
+    #[test]
+    fn a_convex_corner_between_two_returns_is_met_at_its_faces() {
+        // A car's corner at (10, 0) pointing at the sensor: returns (10.2, −0.4), (10.1, −0.2)
+        // on one face, (10.1, 0.2), (10.2, 0.4) on the other (x = 10 + 0.5|y|). The segment
+        // between (10.1, ∓0.2) is x = 10.1 and cuts the corner off; the faces meet at (10, 0),
+        // 0.1 m in front of it (at most half the segment's 0.4 m).
+        let corners = Rules {
+            silhouette_faces: false,
+            convex_corners: true,
+        };
+        let (range, xy) = table(&[[10.2, -0.4], [10.1, -0.2], [10.1, 0.2], [10.2, 0.4]]);
+        // The ray at 0° meets the corner at 10 m, the face's normal (2, ±1)/√5: |u · n| =
+        // 2/√5 = 0.894427; without the rule, the segment at 10.1 m, square.
+        let (r, square) =
+            surface_at(unit(0.0), &range, &xy, 60, 1.0, 0.005, corners).unwrap_or_default();
+        assert!((r - 10.0).abs() < 1e-9, "{r}");
+        assert!((square - 0.894427).abs() < 1e-6, "{square}");
+        let (r, square) =
+            surface_at(unit(0.0), &range, &xy, 60, 1.0, 0.005, faces(false)).unwrap_or_default();
+        assert!(
+            (r - 10.1).abs() < 1e-9 && (square - 1.0).abs() < 1e-9,
+            "{r}"
+        );
+        // The ray at 0.5° meets the face x = 10 + 0.5 y where x = 10/(1 − 0.5 tan 0.5°) =
+        // 10.043824, range 10.043824/cos 0.5° = 10.044208, |u · n| = (0.2 cos 0.5° − 0.1
+        // sin 0.5°)/√0.05 = 0.890491 (the segment: 10.1/cos 0.5° = 10.100385).
+        let (r, square) =
+            surface_at(unit(0.5), &range, &xy, 60, 1.0, 0.005, corners).unwrap_or_default();
+        assert!((r - 10.044208).abs() < 1e-6, "{r}");
+        assert!((square - 0.890491).abs() < 1e-6, "{square}");
+        // A straight face (the returns beyond in line, x = 10.1) and a concave corner (beyond
+        // them at x = 10.0, the faces meeting behind the segment): the segment.
+        for beyond_x in [10.1, 10.0] {
+            let (range, xy) =
+                table(&[[beyond_x, -0.4], [10.1, -0.2], [10.1, 0.2], [beyond_x, 0.4]]);
+            let (r, _) =
+                surface_at(unit(0.0), &range, &xy, 60, 1.0, 0.005, corners).unwrap_or_default();
+            assert!((r - 10.1).abs() < 1e-9, "{beyond_x}: {r}");
+        }
+        // A corner standing out more than half the segment: faces x = 9.6 + 2.5|y| through
+        // (10.1, ±0.2) and (10.6, ±0.4) meet 0.5 m in front of it, more than a right angle
+        // allows (0.2 m): the segment.
+        let (range, xy) = table(&[[10.6, -0.4], [10.1, -0.2], [10.1, 0.2], [10.6, 0.4]]);
+        let (r, _) =
+            surface_at(unit(0.0), &range, &xy, 60, 1.0, 0.005, corners).unwrap_or_default();
+        assert!((r - 10.1).abs() < 1e-9, "{r}");
     }
 }

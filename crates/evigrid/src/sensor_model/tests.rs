@@ -739,7 +739,7 @@ fn a_slanted_wall_occupies_the_cells_whose_centre_lies_behind_it_placed_by_surfa
     let window = small_window();
     let mut model = SensorModel::new(planar_params());
     model.set_return_depth_m(0.5);
-    model.set_placed_by_surface(true, 0.75, 0.0, false);
+    model.set_placed_by_surface(true, 0.75, 0.0, false, false);
     let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
     let points: Vec<[f32; 3]> = (0..=30)
         .map(|k| {
@@ -779,7 +779,7 @@ fn a_centre_just_in_front_of_the_surface_is_occupied_within_the_pose_error() {
     let occupied = |sigmas: f64, x: f64| {
         let mut model = SensorModel::new(planar_params());
         model.set_return_depth_m(0.5);
-        model.set_placed_by_surface(true, 1.0, sigmas, false);
+        model.set_placed_by_surface(true, 1.0, sigmas, false, false);
         let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
         model.build(&points, &pose, &window, &mut spec);
         model.build_placed(&window, (0.2, 0.0), &mut placed);
@@ -810,7 +810,7 @@ fn a_cell_radially_behind_a_silhouettes_last_return_is_not_occupied_placed_by_su
     let occupied = |silhouette_faces: bool, x: f64, y: f64| {
         let mut model = SensorModel::new(planar_params());
         model.set_return_depth_m(0.5);
-        model.set_placed_by_surface(true, 1.0, 0.0, silhouette_faces);
+        model.set_placed_by_surface(true, 1.0, 0.0, silhouette_faces, false);
         let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
         model.build(&points, &pose, &window, &mut spec);
         model.build_placed(&window, (0.0, 0.0), &mut placed);
