@@ -887,7 +887,8 @@ pub struct MotionParams {
     /// that meet in a convex corner in front of the segment between them (each face drawn
     /// through its return and the next one beyond it, the corner at most half the segment's
     /// length in front of it), the ray meets those faces up to the corner instead of the
-    /// segment, which cuts a car's corner off (`docs/motion.md`, "A car's corner").
+    /// segment, which cuts a car's corner off. Measured on the tuning drives and not kept
+    /// (`docs/motion.md`, "A car's corner, and the margin of a crawl").
     pub surface_convex_corners: bool,
     /// With `placed_by_surface`: the motion stage registers each cluster on the cells of the
     /// returns themselves (the SPEC §3 grid: the faces the scanner saw, one cell deep) and
