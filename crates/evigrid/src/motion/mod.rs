@@ -808,11 +808,13 @@ mod tests {
     #[test]
     fn a_cluster_registered_on_its_returns_moves_where_its_placed_cells_read_zero() {
         let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
-        let params = crate::Params::default();
+        // The margin before "A car's corner, and the margin of a crawl" (0.25; 0.15 now).
+        let mut params = crate::Params::default();
+        params.motion.shift_margin_fraction = 0.25;
         let (w, h) = (window.width(), window.height());
         let at = |col: i64, row: i64| window.storage_index(col, row).unwrap_or(0);
-        let run = |on_returns: bool| {
-            let mut stage = MotionStage::new(&params, w, h);
+        let run_with = |params: &crate::Params, on_returns: bool| {
+            let mut stage = MotionStage::new(params, w, h);
             let mut perception = PerceptionGrid::new(w, h);
             let mut decisions = vec![Label::Unknown; w * h];
             for t in 0..2 {
@@ -830,6 +832,7 @@ mod tests {
             }
             stage
         };
+        let run = |on_returns: bool| run_with(&params, on_returns);
 
         // On the placed cells (columns 11-15 now, 10-14 before): zero shift explains 16 of
         // the 20 cells, one cell east all 20, not the 25 % (5 cells) more a move needs. The
@@ -861,6 +864,14 @@ mod tests {
             assert!((returns.velocity_east()[r.idx as usize] - 4.9505).abs() < 1e-3);
         }
         assert_eq!(returns.velocity_east()[at(10, 10)], 0.0);
+        // With the default margin, 15 % (⌈3⌉ = 3 cells), the placed cells move too: one cell
+        // east explains 20, zero 16, and 20 ≥ 16 + 3; the same 4.9505 m/s.
+        let placed_default = run_with(&crate::Params::default(), false);
+        assert_eq!(placed_default.cell_states().len(), 20);
+        for r in placed_default.cell_states() {
+            assert_eq!(r.state, CellMotion::Moving, "{r:?}");
+            assert!((r.speed_mps - 4.9505).abs() < 1e-3, "{r:?}");
+        }
         assert!(
             returns
                 .cell_states()
