@@ -521,6 +521,20 @@ impl SensorGrid {
         &self.may_hold_mass
     }
 
+    /// The storage cells of the blocks that may hold sensor mass, a range per block (the
+    /// other cells are vacuous).
+    pub(crate) fn written_cells(&self) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+        let len = self.m_occupied.len();
+        self.may_hold_mass
+            .iter()
+            .enumerate()
+            .filter(|(_, may)| **may)
+            .map(move |(block, _)| {
+                let first = block * CELLS_PER_BLOCK;
+                first..(first + CELLS_PER_BLOCK).min(len)
+            })
+    }
+
     /// Makes every cell vacuous, ready for the next scan.
     pub fn clear(&mut self) {
         use rayon::prelude::*;

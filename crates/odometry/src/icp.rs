@@ -260,9 +260,9 @@ pub(crate) fn surface_information(
                 jacobian
                     .fixed_view_mut::<3, 3>(0, 0)
                     .copy_from(&Matrix3::identity());
-                let p = point;
-                let cross = Matrix3::new(0.0, -p.z, p.y, p.z, 0.0, -p.x, -p.y, p.x, 0.0);
-                jacobian.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-cross));
+                jacobian
+                    .fixed_view_mut::<3, 3>(0, 3)
+                    .copy_from(&(-crate::lie::skew(point)));
                 // The residual `R p + t − q` moves by `R J ξ` for a twist ξ of the scan's frame.
                 let across = rotation.transpose() * across * rotation;
                 information += jacobian.transpose() * across * jacobian * weight;

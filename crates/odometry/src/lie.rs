@@ -9,7 +9,8 @@ use nalgebra::{Isometry3, Matrix3, Matrix6, Translation3, UnitQuaternion, Vector
 /// powers of the angle.
 const SMALL_ANGLE: f64 = 1e-5;
 
-fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+/// The cross-product matrix: `skew(v) · u = v × u`.
+pub(crate) fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
 }
 

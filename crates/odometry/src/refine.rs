@@ -712,6 +712,13 @@ mod tests {
 
     /// A refiner whose map holds the scans from (0, 0) and (0.8, 0) at t = 0 and 0.1 s, taken
     /// at their true poses: the vehicle drives 8 m/s along x.
+    /// Inserts the scans of two true poses, 8 m/s along x (0.8 m in 0.1 s).
+    fn drive_two_scans(refiner: &mut PoseRefiner, scan: fn((f64, f64, f64)) -> Vec<[f32; 3]>) {
+        for (k, x) in [0.0, 0.8].into_iter().enumerate() {
+            refiner.refine_and_insert(&scan((x, 0.0, 0.0)), &level(x, 0.0, 0.0), 0.1 * k as f64);
+        }
+    }
+
     fn driving(start: RefineStart) -> PoseRefiner {
         let mut refiner = PoseRefiner::new(RefineParams {
             start,
@@ -720,13 +727,7 @@ mod tests {
             ..RefineParams::default()
         })
         .expect("valid");
-        for (k, x) in [0.0, 0.8].into_iter().enumerate() {
-            refiner.refine_and_insert(
-                &planar_scan((x, 0.0, 0.0)),
-                &level(x, 0.0, 0.0),
-                0.1 * k as f64,
-            );
-        }
+        drive_two_scans(&mut refiner, planar_scan);
         refiner
     }
 
@@ -990,13 +991,7 @@ mod tests {
                 ..round()
             })
             .expect("valid");
-            for (k, x) in [0.0, 0.8].into_iter().enumerate() {
-                refiner.refine_and_insert(
-                    &corridor_scan((x, 0.0, 0.0)),
-                    &level(x, 0.0, 0.0),
-                    0.1 * k as f64,
-                );
-            }
+            drive_two_scans(&mut refiner, corridor_scan);
             // The map frame known exactly (after many scans it is the average of many priors;
             // here, after two, it would still be half as uncertain as one).
             refiner.frame_covariance = Some((level(0.8, 0.0, 0.0), Matrix6::zeros()));

@@ -358,26 +358,21 @@ impl MotionStage {
         let split = !std::ptr::eq(sensor, returns);
 
         // 1. The scan's occupied and free cells, only in the blocks the sensor model wrote:
-        // the free ones, and with `split` the occupied ones too, from the grid registered on.
+        // the occupied cells of `returns` (registered on) and of `sensor` (labelled), one list
+        // unless `split`, and the free cells of `returns`.
         self.occupied.clear();
         self.registered_on.clear();
         self.free.clear();
         let (m_free, m_occupied) = (returns.m_free(), returns.m_occupied());
-        for (block, _) in returns
-            .may_hold_mass()
-            .iter()
-            .enumerate()
-            .filter(|(_, may)| **may)
-        {
-            let first = block * CELLS_PER_BLOCK;
-            let end = (first + CELLS_PER_BLOCK).min(m_occupied.len());
-            for idx in first..end {
+        let registered_on = if split {
+            &mut self.registered_on
+        } else {
+            &mut self.occupied
+        };
+        for cells in returns.written_cells() {
+            for idx in cells {
                 if m_occupied[idx] > 0.0 {
-                    if split {
-                        self.registered_on.push(idx as u32);
-                    } else {
-                        self.occupied.push(idx as u32);
-                    }
+                    registered_on.push(idx as u32);
                 } else if m_free[idx] > 0.0 {
                     self.free.push(idx as u32);
                 }
@@ -385,21 +380,16 @@ impl MotionStage {
         }
         let labelled = sensor.m_occupied();
         if split {
-            for (block, _) in sensor
-                .may_hold_mass()
-                .iter()
-                .enumerate()
-                .filter(|(_, may)| **may)
-            {
-                let first = block * CELLS_PER_BLOCK;
-                let end = (first + CELLS_PER_BLOCK).min(labelled.len());
+            for cells in sensor.written_cells() {
                 self.occupied.extend(
-                    (first..end)
+                    cells
                         .filter(|&idx| labelled[idx] > 0.0)
-                        .map(|i| i as u32),
+                        .map(|idx| idx as u32),
                 );
             }
         }
+        // The history keeps these; the list grows by the labelled cells for the clustering.
+        let registered_len = self.registered_on.len();
         // Whether a cluster cell is registered on (occupied in `returns`), and whether it is
         // given evidence (occupied in `sensor`): both, unless `split`.
         let registers = |c: &clusters::Cell| !split || m_occupied[c.idx as usize] > 0.0;
@@ -693,10 +683,7 @@ impl MotionStage {
 
         // 6. This frame joins the history.
         let registered_on = if split {
-            // The list was extended with the labelled cells for the clusters; the grid's own
-            // occupied cells are the ones it held before.
-            let own = self.registered_on.len() - self.occupied.len();
-            &self.registered_on[..own]
+            &self.registered_on[..registered_len]
         } else {
             &self.occupied[..]
         };
