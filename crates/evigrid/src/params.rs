@@ -837,6 +837,15 @@ pub struct MotionParams {
     pub report_after_moving_frames: usize,
     /// Whether held-back objects are listed too, with `held_back: true`. By default false.
     pub report_held_back: bool,
+    /// Frames a track must have been judged moving before its velocity is a prior of the
+    /// registration of the cluster it predicts into (`docs/motion.md`, "The track's own
+    /// prediction"): against a past frame where no shift beats zero clearly, the shift the
+    /// track predicts (its velocity × the frame's span, give or take a cell) is taken when it
+    /// explains the cluster at least as well as zero and its move is seen on a cell; zero
+    /// explaining the cluster better where the predicted shift is a cell or longer is the
+    /// evidence of a stop and ends the prior for that registration. 0, the default, turns it
+    /// off.
+    pub prior_after_moving_frames: usize,
     /// Cells of the intermediate space (context T) this close to a building cell, in cells
     /// (4-neighbour steps, 0-4), take the context "beside a building", prior {F, I}: the map
     /// prior by the cell centre misses cells cut by a façade, and a footprint is drawn or
@@ -931,6 +940,7 @@ impl Default for MotionParams {
             mobile_after_moving_s: 1.0,
             report_after_moving_frames: 3,
             report_held_back: false,
+            prior_after_moving_frames: 0,
             building_margin_cells: 2,
             return_depth_cells: 0.6,
             placed_by_surface: true,

@@ -193,6 +193,11 @@ pub struct MotionStage {
     pose_sigma_m: f64,
     /// The same for the heading, radians.
     pose_sigma_rad: f64,
+    /// This frame's cluster centroids, m, and the velocity, m/s, a moving track predicts for
+    /// each (`motion.prior_after_moving_frames`; empty when off).
+    prior_centroids: Vec<[f64; 2]>,
+    /// See `prior_centroids`.
+    predictions: Vec<Option<[f64; 2]>>,
 }
 
 impl MotionStage {
@@ -227,6 +232,8 @@ impl MotionStage {
             sensor_xy_m: [0.0; 2],
             pose_sigma_m: 0.0,
             pose_sigma_rad: 0.0,
+            prior_centroids: Vec::new(),
+            predictions: Vec::new(),
         }
     }
 
@@ -429,12 +436,35 @@ impl MotionStage {
         self.moved.resize(total_cells, false);
         self.registrations.clear();
         self.registrations.resize(n_clusters, None);
+        // The prior of a moving track's prediction, per cluster (off: none).
+        self.prior_centroids.clear();
+        if self.params.prior_after_moving_frames > 0 {
+            for k in 0..n_clusters {
+                let (mut sx, mut sy, mut n) = (0.0, 0.0, 0usize);
+                for c in self.clusters.cluster(k).iter().filter(|c| registers(c)) {
+                    sx += c.col as f64 + 0.5;
+                    sy += c.row as f64 + 0.5;
+                    n += 1;
+                }
+                let n = n.max(1) as f64;
+                self.prior_centroids
+                    .push([sx / n * cell_size_m, sy / n * cell_size_m]);
+            }
+        }
+        self.tracks.predictions(
+            &self.prior_centroids,
+            time_s,
+            dt_s,
+            &self.params,
+            &mut self.predictions,
+        );
         let parts = rayon::current_num_threads().clamp(1, 64);
         if self.registrars.len() < parts {
             self.registrars.resize_with(parts, Registrar::default);
         }
         {
             let (clusters, history, params) = (&self.clusters, &self.history, &self.params);
+            let predictions = &self.predictions[..];
             let clear_now = &self.clear_now[..];
             let sensor_cell = (
                 self.sensor_xy_m[0] / cell_size_m,
@@ -477,6 +507,11 @@ impl MotionStage {
                             sensor_cell,
                             pose_sigma_cells,
                             pose_sigma_rad,
+                            predicted_cells_per_s: predictions
+                                .get(k)
+                                .copied()
+                                .flatten()
+                                .map(|[vx, vy]| (vx / cell_size_m, vy / cell_size_m)),
                         };
                         *slot = if split {
                             let mut own = std::mem::take(&mut registrar.own_cells);

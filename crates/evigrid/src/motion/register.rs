@@ -70,6 +70,21 @@ pub(crate) struct Now<'a> {
     pub(crate) pose_sigma_cells: f64,
     /// See `pose_sigma_cells`.
     pub(crate) pose_sigma_rad: f64,
+    /// The velocity, cells/s (east, north), that a moving track predicts for the cluster
+    /// (`motion.prior_after_moving_frames`; see [`Registrar::predicted_shift`]), if any.
+    pub(crate) predicted_cells_per_s: Option<(f64, f64)>,
+}
+
+/// What a moving track's prediction makes of one past frame ([`Registrar::predicted_shift`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Prior {
+    /// Nothing: no prediction, a predicted shift of zero, or neither it nor zero fits better.
+    None,
+    /// The shift near the prediction, with its count (`n`, `dx`, `dy`): taken.
+    Taken(u32, i64, i64),
+    /// Zero explains the cluster better than any shift near a prediction of a cell or more:
+    /// the object stopped.
+    Refuted,
 }
 
 /// Scratch buffers of the search, kept between clusters and frames.
@@ -224,6 +239,8 @@ impl Registrar {
         // Whether every frame kept so far read zero only for want of margin: a non-zero shift
         // explained more of the cluster, not clearly more (see below).
         let mut unresolved = true;
+        // Whether zero refuted the moving track's prediction against a newer frame.
+        let mut refuted = false;
         // The slot and time span of each frame in the fit, newest first.
         let mut fitted = [(0usize, 0.0f64); SLOTS];
         for frames_back in 1..=params.history_frames {
@@ -256,7 +273,21 @@ impl Registrar {
             // And it must be longer than the pose's error explains at the cluster's range.
             let explained_by_pose = ((best.1 * best.1 + best.2 * best.2) as f64) <= pose_gate_sq;
             let clear = best.0 >= n_zero + margin && seen >= margin && !explained_by_pose;
-            let (matched, dx, dy) = if clear { best } else { (n_zero, 0, 0) };
+            // Where no shift beats zero clearly, a moving track's prediction breaks the tie
+            // (`motion.prior_after_moving_frames`), until zero refutes it.
+            let prior = match now.predicted_cells_per_s {
+                Some(v) if !clear && !refuted => {
+                    self.predicted_shift(v, span_s, slot, reach, radius, pose_gate_sq)
+                }
+                _ => Prior::None,
+            };
+            refuted |= prior == Prior::Refuted;
+            let (matched, dx, dy) = match prior {
+                _ if clear => best,
+                Prior::Taken(n, dx, dy) => (n, dx, dy),
+                Prior::None | Prior::Refuted => (n_zero, 0, 0),
+            };
+            let predicted = matches!(prior, Prior::Taken(..));
             if f64::from(matched) < needed {
                 continue;
             }
@@ -274,7 +305,16 @@ impl Registrar {
             if frames > 0 {
                 let off_x = dx as f64 - sum_dt_x / sum_tt * span_s;
                 let off_y = dy as f64 - sum_dt_y / sum_tt * span_s;
-                if off_x.abs().max(off_y.abs()) > CHANGE_CELLS {
+                // A predicted shift off the line of newer frames that all read zero: those
+                // could not tell (their predicted shifts were zero or tied with it); newer
+                // frames that measured a move are kept.
+                let newer_zero = sum_dt_x == 0.0 && sum_dt_y == 0.0;
+                if predicted && off_x.abs().max(off_y.abs()) > CHANGE_CELLS {
+                    if !newer_zero {
+                        break;
+                    }
+                    (sum_dt_x, sum_dt_y, sum_tt, sum_t, frames) = (0.0, 0.0, 0.0, 0.0, 0);
+                } else if off_x.abs().max(off_y.abs()) > CHANGE_CELLS {
                     let newer = &fitted[..frames];
                     let newer_bits = newer.iter().fold(0u8, |bits, &(slot, _)| bits | 1 << slot);
                     let undecided =
@@ -288,7 +328,7 @@ impl Registrar {
                     (sum_dt_x, sum_dt_y, sum_tt, sum_t, frames) = (0.0, 0.0, 0.0, 0.0, 0);
                 }
             }
-            unresolved &= !clear && best.0 > n_zero;
+            unresolved &= !clear && !predicted && best.0 > n_zero;
             fitted[frames] = (slot, span_s);
             sum_dt_x += dx as f64 * span_s;
             sum_dt_y += dy as f64 * span_s;
@@ -328,6 +368,64 @@ impl Registration {
 }
 
 impl Registrar {
+    /// Against the past frame in `slot`, `span_s` back (after the counts of the last
+    /// `register`), what the velocity `velocity_cells_per_s` a moving track predicts makes of
+    /// the cluster: the shift within a cell (per axis) of the predicted one, not zero, that
+    /// explains most of the cluster (ties: the nearest the prediction) is taken if it
+    /// explains at least as much as zero, its move is seen on a cell, it is within the
+    /// frame's `reach` and longer than the pose's error explains (`pose_gate_sq`, cells²).
+    /// Where the predicted shift is a cell or longer and zero explains more, the object
+    /// stopped: refuted. A crawling car sliding along its own length ties with zero on the
+    /// cells its ends leave and enter; a stopped one matches itself at zero on all of them.
+    fn predicted_shift(
+        &self,
+        velocity_cells_per_s: (f64, f64),
+        span_s: f64,
+        slot: usize,
+        reach: i64,
+        radius: i64,
+        pose_gate_sq: f64,
+    ) -> Prior {
+        let (ex, ey) = (
+            velocity_cells_per_s.0 * span_s,
+            velocity_cells_per_s.1 * span_s,
+        );
+        let (px, py) = (ex.round() as i64, ey.round() as i64);
+        if (px, py) == (0, 0) {
+            return Prior::None;
+        }
+        let side = 2 * radius + 1;
+        let at = |dx: i64, dy: i64| ((dy + radius) * side + dx + radius) as usize;
+        let n_zero = self.counts[at(0, 0)][slot];
+        let mut best: Option<(u32, i64, i64)> = None;
+        for dy in (py - 1).max(-reach)..=(py + 1).min(reach) {
+            for dx in (px - 1).max(-reach)..=(px + 1).min(reach) {
+                if (dx, dy) == (0, 0) {
+                    continue;
+                }
+                let n = self.counts[at(dx, dy)][slot];
+                let nearer = |(_, bx, by): (u32, i64, i64)| {
+                    (dx - px).pow(2) + (dy - py).pow(2) < (bx - px).pow(2) + (by - py).pow(2)
+                };
+                if best.is_none_or(|b| n > b.0 || (n == b.0 && nearer(b))) {
+                    best = Some((n, dx, dy));
+                }
+            }
+        }
+        let Some((n, dx, dy)) = best else {
+            return Prior::None;
+        };
+        let seen = self.seen_counts[at(dx, dy)][slot];
+        let explained_by_pose = ((dx * dx + dy * dy) as f64) <= pose_gate_sq;
+        if n >= n_zero && seen >= 1 && !explained_by_pose {
+            Prior::Taken(n, dx, dy)
+        } else if n_zero > n && ex.hypot(ey) >= 1.0 {
+            Prior::Refuted
+        } else {
+            Prior::None
+        }
+    }
+
     /// Whether one of the `newer` frames (slot, time span) is explained better by zero shift
     /// than by the shift that `shift`, measured over `span_s`, predicts for it (after the
     /// counts of the last `register`).
@@ -415,6 +513,7 @@ mod tests {
             sensor_cell: (0.0, 0.0),
             pose_sigma_cells: 0.0,
             pose_sigma_rad: 0.0,
+            predicted_cells_per_s: None,
         }
     }
 
@@ -703,6 +802,7 @@ mod tests {
             sensor_cell: (0.0, 0.0),
             pose_sigma_cells: 0.0,
             pose_sigma_rad: 0.0,
+            predicted_cells_per_s: None,
         };
         assert_eq!(
             registrar.register(&a, &window, &history, now, &params),
@@ -733,6 +833,7 @@ mod tests {
             sensor_cell: (0.0, 0.0),
             pose_sigma_cells: 0.0,
             pose_sigma_rad: 0.0,
+            predicted_cells_per_s: None,
         };
         let found = Registrar::default().register(&now, &window, &history, now_frame, &params);
         assert!(found.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));

@@ -213,6 +213,61 @@ impl Tracks {
     }
 }
 
+impl Tracks {
+    /// The velocity, m/s, that a moving track predicts for each of this frame's clusters
+    /// (centroids `centroids_m`, `dt_s` after the last frame, at `now_s`), or `None`: the
+    /// prior of `motion.prior_after_moving_frames` (off at 0: every entry `None`).
+    ///
+    /// A track gives its prior when it is confirmed (existence probability at least
+    /// [`REPORT_MIN_EXISTENCE`]), moving ([`is_moving`]) and has been judged moving for at
+    /// least `prior_after_moving_frames` frames; it goes to the cluster nearest its predicted
+    /// position within `gate_m`, nearest pairs first, each track and cluster used once (the
+    /// association of [`Tracks::update`] before any velocity is measured).
+    pub(crate) fn predictions(
+        &mut self,
+        centroids_m: &[[f64; 2]],
+        now_s: f64,
+        dt_s: f64,
+        params: &MotionParams,
+        out: &mut Vec<Option<[f64; 2]>>,
+    ) {
+        out.clear();
+        out.resize(centroids_m.len(), None);
+        let needed = params.prior_after_moving_frames;
+        if needed == 0 {
+            return;
+        }
+        self.pairs.clear();
+        let gate_sq = params.gate_m * params.gate_m;
+        for (ti, t) in self.tracks.iter().enumerate() {
+            let gives = now_s - t.last_seen_s <= params.max_coast_s
+                && is_moving(t, params)
+                && t.moving_frames as usize >= needed
+                && t.existence_probability() as f32 >= REPORT_MIN_EXISTENCE;
+            if !gives {
+                continue;
+            }
+            let [x, y] = [0, 1].map(|a| t.position_m[a] + t.velocity[a].mean_mps * dt_s);
+            for (ci, c) in centroids_m.iter().enumerate() {
+                let d_sq = (x - c[0]).powi(2) + (y - c[1]).powi(2);
+                if d_sq <= gate_sq {
+                    self.pairs.push((d_sq, ti as u32, ci as u32));
+                }
+            }
+        }
+        self.pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        self.taken.clear();
+        self.taken.resize(self.tracks.len(), false);
+        for &(_, ti, ci) in &self.pairs {
+            let (ti, ci) = (ti as usize, ci as usize);
+            if !self.taken[ti] && out[ci].is_none() {
+                self.taken[ti] = true;
+                out[ci] = Some(self.tracks[ti].velocity.map(|v| v.mean_mps));
+            }
+        }
+    }
+}
+
 /// χ²(2) quantile 0.999: a measured velocity further than this (in Mahalanobis distance
 /// squared) from a track's is another object, typically a parked car that a passing car's
 /// track reaches.
