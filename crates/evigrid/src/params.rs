@@ -841,11 +841,19 @@ pub struct MotionParams {
     /// registration of the cluster it predicts into (`docs/motion.md`, "The track's own
     /// prediction"): against a past frame where no shift beats zero clearly, the shift the
     /// track predicts (its velocity × the frame's span, give or take a cell) is taken when it
-    /// explains the cluster at least as well as zero and its move is seen on a cell; zero
-    /// explaining the cluster better where the predicted shift is a cell or longer is the
-    /// evidence of a stop and ends the prior for that registration. 0, the default, turns it
-    /// off.
+    /// explains the cluster at least as well as zero and its move is seen on as many cells as
+    /// a clear shift's (`shift_margin_fraction`); zero explaining the cluster better where the
+    /// predicted shift is at least `stop_evidence_cells` long is the evidence of a stop and
+    /// ends the prior for that registration. 0, the default, turns it off.
     pub prior_after_moving_frames: usize,
+    /// How long, in cells, the shift a registration predicts for a newer past frame must be
+    /// for zero explaining that frame better to count as the evidence of a stop (a shift off
+    /// the line of the newer frames then ends the search on them; `docs/motion.md`, "The
+    /// track's own prediction"), and for the prior of `prior_after_moving_frames` to be
+    /// refuted. A shorter predicted shift is no evidence: a slow object's ends quantised to
+    /// whole cells may read zero or one cell. By default 0.5 (any predicted shift that rounds
+    /// to a cell, as before this key); `> 0`.
+    pub stop_evidence_cells: f64,
     /// Cells of the intermediate space (context T) this close to a building cell, in cells
     /// (4-neighbour steps, 0-4), take the context "beside a building", prior {F, I}: the map
     /// prior by the cell centre misses cells cut by a façade, and a footprint is drawn or
@@ -941,6 +949,7 @@ impl Default for MotionParams {
             report_after_moving_frames: 3,
             report_held_back: false,
             prior_after_moving_frames: 0,
+            stop_evidence_cells: 0.5,
             building_margin_cells: 2,
             return_depth_cells: 0.6,
             placed_by_surface: true,
@@ -995,6 +1004,7 @@ impl MotionParams {
         positive("motion.max_coast_s", self.max_coast_s)?;
         positive("motion.mobile_after_travel_m", self.mobile_after_travel_m)?;
         positive("motion.mobile_after_moving_s", self.mobile_after_moving_s)?;
+        positive("motion.stop_evidence_cells", self.stop_evidence_cells)?;
         unit("motion.mu_moving", self.mu_moving)?;
         unit("motion.mu_static", self.mu_static)?;
         unit("motion.return_depth_cells", self.return_depth_cells)?;

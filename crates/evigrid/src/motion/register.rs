@@ -277,7 +277,15 @@ impl Registrar {
             // (`motion.prior_after_moving_frames`), until zero refutes it.
             let prior = match now.predicted_cells_per_s {
                 Some(v) if !clear && !refuted => {
-                    self.predicted_shift(v, span_s, slot, reach, radius, pose_gate_sq)
+                    self.predicted_shift(
+                        v,
+                        span_s,
+                        slot,
+                        (reach, radius),
+                        pose_gate_sq,
+                        margin,
+                        params.stop_evidence_cells,
+                    )
                 }
                 _ => Prior::None,
             };
@@ -321,7 +329,13 @@ impl Registrar {
                         unresolved || self.heres.iter().any(|&h| self.free[h] & newer_bits != 0);
                     let restart = clear
                         && undecided
-                        && !self.zero_fits_better(newer, (dx, dy), span_s, radius);
+                        && !self.zero_fits_better(
+                            newer,
+                            (dx, dy),
+                            span_s,
+                            radius,
+                            params.stop_evidence_cells,
+                        );
                     if !restart {
                         break;
                     }
@@ -372,19 +386,21 @@ impl Registrar {
     /// `register`), what the velocity `velocity_cells_per_s` a moving track predicts makes of
     /// the cluster: the shift within a cell (per axis) of the predicted one, not zero, that
     /// explains most of the cluster (ties: the nearest the prediction) is taken if it
-    /// explains at least as much as zero, its move is seen on a cell, it is within the
-    /// frame's `reach` and longer than the pose's error explains (`pose_gate_sq`, cells²).
-    /// Where the predicted shift is a cell or longer and zero explains more, the object
-    /// stopped: refuted. A crawling car sliding along its own length ties with zero on the
-    /// cells its ends leave and enter; a stopped one matches itself at zero on all of them.
+    /// explains at least as much as zero, its move is seen on `margin` cells (as a clear
+    /// shift's), it is within the frame's `reach` and longer than the pose's error explains
+    /// (`pose_gate_sq`, cells²). Where the predicted shift is at least `stop_evidence_cells`
+    /// long and zero explains more, the object stopped: refuted. A crawling car sliding along
+    /// its own length ties with zero on the cells its ends leave and enter; a stopped one
+    /// matches itself at zero on all of them.
     fn predicted_shift(
         &self,
         velocity_cells_per_s: (f64, f64),
         span_s: f64,
         slot: usize,
-        reach: i64,
-        radius: i64,
+        (reach, radius): (i64, i64),
         pose_gate_sq: f64,
+        margin: u32,
+        stop_evidence_cells: f64,
     ) -> Prior {
         let (ex, ey) = (
             velocity_cells_per_s.0 * span_s,
@@ -417,9 +433,9 @@ impl Registrar {
         };
         let seen = self.seen_counts[at(dx, dy)][slot];
         let explained_by_pose = ((dx * dx + dy * dy) as f64) <= pose_gate_sq;
-        if n >= n_zero && seen >= 1 && !explained_by_pose {
+        if n >= n_zero && seen >= margin && !explained_by_pose {
             Prior::Taken(n, dx, dy)
-        } else if n_zero > n && ex.hypot(ey) >= 1.0 {
+        } else if n_zero > n && ex.hypot(ey) >= stop_evidence_cells {
             Prior::Refuted
         } else {
             Prior::None
@@ -428,18 +444,25 @@ impl Registrar {
 
     /// Whether one of the `newer` frames (slot, time span) is explained better by zero shift
     /// than by the shift that `shift`, measured over `span_s`, predicts for it (after the
-    /// counts of the last `register`).
+    /// counts of the last `register`), among the frames whose predicted shift is at least
+    /// `stop_evidence_cells` long (`motion.stop_evidence_cells`).
     fn zero_fits_better(
         &self,
         newer: &[(usize, f64)],
         shift: (i64, i64),
         span_s: f64,
         radius: i64,
+        stop_evidence_cells: f64,
     ) -> bool {
         let side = 2 * radius + 1;
         let zero = (radius * side + radius) as usize;
         newer.iter().any(|&(slot, newer_span_s)| {
             let scale = newer_span_s / span_s;
+            // A predicted shift shorter than this is no evidence either way (the object's
+            // ends quantised to whole cells may read zero or one cell).
+            if (shift.0 as f64 * scale).hypot(shift.1 as f64 * scale) < stop_evidence_cells {
+                return false;
+            }
             let px = (shift.0 as f64 * scale).round() as i64;
             let py = (shift.1 as f64 * scale).round() as i64;
             // Always inside the radius: a newer frame's span is shorter.
