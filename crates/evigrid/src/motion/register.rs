@@ -327,8 +327,11 @@ impl Registrar {
                     let newer_bits = newer.iter().fold(0u8, |bits, &(slot, _)| bits | 1 << slot);
                     let undecided =
                         unresolved || self.heres.iter().any(|&h| self.free[h] & newer_bits != 0);
+                    // A moving track's prediction refuted by a newer frame is the evidence
+                    // of a stop too.
                     let restart = clear
                         && undecided
+                        && !refuted
                         && !self.zero_fits_better(
                             newer,
                             (dx, dy),
