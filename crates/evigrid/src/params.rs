@@ -1103,6 +1103,10 @@ mod tests {
                 "[motion]\nmobile_after_travel_m = 0.0\n",
                 "motion.mobile_after_travel_m",
             ),
+            (
+                "[motion]\nstop_evidence_cells = 0.0\n",
+                "motion.stop_evidence_cells",
+            ),
         ] {
             match Params::from_toml_str(text) {
                 Ok(_) => panic!("{text} accepted"),

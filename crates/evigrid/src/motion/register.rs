@@ -276,17 +276,15 @@ impl Registrar {
             // Where no shift beats zero clearly, a moving track's prediction breaks the tie
             // (`motion.prior_after_moving_frames`), until zero refutes it.
             let prior = match now.predicted_cells_per_s {
-                Some(v) if !clear && !refuted => {
-                    self.predicted_shift(
-                        v,
-                        span_s,
-                        slot,
-                        (reach, radius),
-                        pose_gate_sq,
-                        margin,
-                        params.stop_evidence_cells,
-                    )
-                }
+                Some(v) if !clear && !refuted => self.predicted_shift(
+                    v,
+                    span_s,
+                    slot,
+                    (reach, radius),
+                    pose_gate_sq,
+                    margin,
+                    params.stop_evidence_cells,
+                ),
                 _ => Prior::None,
             };
             refuted |= prior == Prior::Refuted;
@@ -906,12 +904,147 @@ mod tests {
         );
 
         // The same side stopped three frames ago: zero explains the newer frames exactly,
-        // the predicted shift leaves an end unmatched. The stop is kept.
+        // the predicted shift leaves an end unmatched. With `stop_evidence_cells` at 0.5 (the
+        // rule before it), the stop is kept: the shift of two cells over 0.5 s predicts 0.8
+        // cell (rounded: one) against the frame 0.2 s back, which zero explains better (10
+        // against 9).
         let sides: Vec<_> = [10, 11, 12, 13, 14, 15, 15, 15]
             .into_iter()
             .map(|first| first..first + 10)
             .collect();
-        let found = register_side(&window, &side_history(&window, &sides), 15..25);
+        let history = side_history(&window, &sides);
+        let stopped = cells(&window, &(15..25).map(|c| (c, 10)).collect::<Vec<_>>());
+        let none = Clusters::new(window.len());
+        let register = |params: &MotionParams, now: Now<'_>| {
+            Registrar::default()
+                .register(&stopped, &window, &history, now, params)
+                .unwrap_or_else(|| panic!("not registered"))
+        };
+        let before = MotionParams {
+            stop_evidence_cells: 0.5,
+            ..MotionParams::default()
+        };
+        let found = register(&before, alone(0.8, &none));
         assert_eq!(found.velocity_cells_per_s, (0.0, 0.0), "{found:?}");
+        // With the default 1.5, the newer frames' predicted shifts (0.4, 0.8, 1.2 cells) are
+        // no evidence, and the one of 1.6 cells 0.4 s back (rounded: two) explains 9 cells,
+        // as zero does: the shift of two cells over 0.5 s is taken, 4 cells/s.
+        let params = MotionParams::default();
+        let found = register(&params, alone(0.8, &none));
+        assert!(
+            (found.velocity_cells_per_s.0 - 4.0).abs() < 1e-9,
+            "{found:?}"
+        );
+        // A track that saw the side move at a cell a frame (10 cells/s) predicts two cells
+        // 0.2 s back, which explain 9 of 10 (one to three cells: 9, 8, 7) against zero's 10:
+        // refuted, the stop's evidence; the search keeps the newer frames and reads zero.
+        let tracked = Now {
+            predicted_cells_per_s: Some((10.0, 0.0)),
+            ..alone(0.8, &none)
+        };
+        let found = register(&params, tracked);
+        assert_eq!(found.velocity_cells_per_s, (0.0, 0.0), "{found:?}");
+    }
+
+    /// A side of `len` cells on row 10 whose first column in eight frames 0.1 s apart is
+    /// `firsts` (the road ahead of it seen free), registered 0.8 s after the first frame at
+    /// the last first column, as the one cluster of its frame (the cells behind it seen
+    /// empty now), with the velocity a track predicts for it.
+    fn register_crawl(
+        firsts: [i64; 8],
+        len: i64,
+        predicted_cells_per_s: Option<(f64, f64)>,
+    ) -> Option<Registration> {
+        let window = window();
+        let sides: Vec<_> = firsts.iter().map(|&f| f..f + len).collect();
+        let history = side_history(&window, &sides);
+        let first = firsts[7];
+        let list: Vec<(i64, i64)> = (first..first + len).map(|c| (c, 10)).collect();
+        let mut clusters = Clusters::new(window.len());
+        clusters.label(&window, &indices(&window, &list));
+        let now = Now {
+            time_s: 0.8,
+            clusters: &clusters,
+            cluster: 0,
+            m_free: &ALL_FREE,
+            clear_now: &[],
+            sensor_cell: (0.0, 0.0),
+            pose_sigma_cells: 0.0,
+            pose_sigma_rad: 0.0,
+            predicted_cells_per_s,
+        };
+        Registrar::default().register(
+            &cells(&window, &list),
+            &window,
+            &history,
+            now,
+            &MotionParams::default(),
+        )
+    }
+
+    #[test]
+    fn a_crawl_whose_newer_frames_read_zero_by_quantisation_is_measured() {
+        // A 10-cell side crawling east, two cells in 0.5 s, its first column 10, 10, 10, 10,
+        // 11, 11, 12, 12 and 12 now. Against 0.1 and 0.2 s back zero explains all 10; 0.3
+        // and 0.4 s back 9, one cell 10 (not the margin of ⌈1.5⌉ = 2 more); 0.5 s back zero
+        // 8, two cells 10: clear. The newer frames' zeros are off its line by two cells. The
+        // shift predicts 0.4, 0.8, 1.2 and 1.6 cells for them; only the last is stop
+        // evidence (≥ 1.5 cells), and there two cells explain 9, as zero does: they could not
+        // tell (the side's front cell was seen free 0.3 s back), so they give way: 4 cells/s.
+        let found = register_crawl([10, 10, 10, 10, 11, 11, 12, 12], 10, None);
+        assert!(found.is_some_and(|r| r.frames == 1
+            && (r.velocity_cells_per_s.0 - 4.0).abs() < 1e-9
+            && r.velocity_cells_per_s.1 == 0.0));
+    }
+
+    #[test]
+    fn a_tracks_prediction_keeps_a_crawling_side_moving_until_zero_refutes_it() {
+        // A 20-cell side (a long vehicle, or two joined) crawling east at about 3 cells/s
+        // (1.5 m/s): first column 10, 10, 10, 11, 11, 11, 12, 12, and 12 now. A shift of one
+        // cell explains 20 against zero's 19 (0.3-0.5 s back), two cells 20 against 18
+        // (0.6-0.8 s back): never the margin ⌈0.15 · 20⌉ = 3 more. Alone it reads static.
+        let crawl = [10, 10, 10, 11, 11, 11, 12, 12];
+        let alone_found = register_crawl(crawl, 20, None);
+        assert!(alone_found.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 8));
+        // Its track predicts 3 cells/s. 0.1 s back: 0.3 cell, rounded zero, no prior. 0.2 s
+        // back: 0.6 cell, rounded one, which explains 19 against zero's 20, and 0.6 cell is
+        // no stop evidence: zero. 0.3-0.5 s back: one cell, 20 against 19, but its move is
+        // seen on two cells only (the cell left behind, seen empty now, and the front cell,
+        // seen free then), not the margin's 3: zero. 0.6 s back: 1.8 cells, rounded two, 20
+        // against 18, seen on four: taken, and the newer zeros give way: 2 cells in 0.6 s.
+        let tracked = register_crawl(crawl, 20, Some((3.0, 0.0)));
+        assert!(
+            tracked.is_some_and(|r| r.frames == 1
+                && (r.velocity_cells_per_s.0 - 2.0 / 0.6).abs() < 1e-9
+                && (r.sum_span_sq - 0.36).abs() < 1e-9),
+            "{tracked:?}"
+        );
+        // The same side stopped 0.5 s ago (first column 10, 10, 10, 12, 12, 12, 12, 12), its
+        // track at 4 cells/s: 0.4 s back the prediction is 1.6 cells (rounded two), and the
+        // shifts of one to three cells explain 19, 18, 17 against zero's 20: refuted. 0.6 s
+        // back, before the stop, two cells would explain 20 against 18 and be seen on four,
+        // but the prior has ended: zero there too, and the track is told it stopped.
+        let stopped = register_crawl([10, 10, 10, 12, 12, 12, 12, 12], 20, Some((4.0, 0.0)));
+        assert!(stopped.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 8));
+    }
+
+    #[test]
+    fn a_pole_given_a_passing_cars_prediction_stays_static() {
+        let (window, params, none) = (window(), MotionParams::default(), Clusters::new(1600));
+        // A pole of two cells at column 20 in every frame; a car's track at 10 cells/s
+        // predicts into it. 0.1 s back: one cell, which explains none of it (zero: both),
+        // and a cell is no stop evidence; 0.2 s back: two cells, none against two: refuted.
+        // Zero against all eight frames.
+        let mut history = OccupancyHistory::new(window.len());
+        for k in 0..8 {
+            history.push(&indices(&window, &[(20, 5), (20, 6)]), &[], 0.1 * k as f64);
+        }
+        let pole = cells(&window, &[(20, 5), (20, 6)]);
+        let now = Now {
+            predicted_cells_per_s: Some((10.0, 0.0)),
+            ..alone(0.8, &none)
+        };
+        let found = Registrar::default().register(&pole, &window, &history, now, &params);
+        assert!(found.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 8));
     }
 }

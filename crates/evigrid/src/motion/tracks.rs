@@ -410,6 +410,38 @@ mod tests {
         assert_eq!(v, 0.0);
     }
     #[test]
+    fn a_moving_track_predicts_into_the_nearest_cluster_only() {
+        let params = MotionParams::default();
+        let mut tracks = Tracks::default();
+        // At x = 0, then at 1 m measured at 10 m/s (variance 1) from the new track's 0 ± 25
+        // m/s (variance 625 + (3 · 0.1)² = 625.09): 10 · 625.09 / 626.09 = 9.98403 m/s.
+        // Two hits (existence 0.9: confirmed), one frame judged moving.
+        tracks.update(&[seen(0.0, None)], 0.0, 0.1, &params);
+        tracks.update(&[seen(1.0, Some(10.0))], 0.1, 0.1, &params);
+        let v = 10.0 * 625.09 / 626.09;
+        // Next frame it is predicted at 1 + 0.1 v = 1.9984 m: the car's cluster at 2.0 m
+        // (0.0016 m off) takes the prior; a pole at 3.5 m, within the 2 m gate too, does not.
+        let centroids = [[3.5, 0.0], [2.0, 0.0]];
+        let mut out = Vec::new();
+        tracks.predictions(&centroids, 0.2, 0.1, &params, &mut out);
+        assert_eq!(out.len(), 2);
+        assert_eq!(out[0], None);
+        assert!(out[1].is_some_and(|[vx, vy]| (vx - v).abs() < 1e-9 && vy == 0.0));
+        // The car's cluster missing, the pole alone: the track predicts into it.
+        tracks.predictions(&centroids[..1], 0.2, 0.1, &params, &mut out);
+        assert!(out[0].is_some());
+        // Two frames judged moving needed, or the prior off: none.
+        for frames in [2, 0] {
+            let p = MotionParams {
+                prior_after_moving_frames: frames,
+                ..params.clone()
+            };
+            tracks.predictions(&centroids, 0.2, 0.1, &p, &mut out);
+            assert_eq!(out, vec![None, None]);
+        }
+    }
+
+    #[test]
     fn a_confirmed_track_keeps_its_object_against_a_nearer_tentative_one() {
         let params = MotionParams::default();
         let mut tracks = Tracks::default();
