@@ -278,8 +278,7 @@ impl Registrar {
             let prior = match now.predicted_cells_per_s {
                 Some(v) if !clear && !refuted => self.predicted_shift(
                     v,
-                    span_s,
-                    slot,
+                    (slot, span_s),
                     (reach, radius),
                     pose_gate_sq,
                     margin,
@@ -396,8 +395,7 @@ impl Registrar {
     fn predicted_shift(
         &self,
         velocity_cells_per_s: (f64, f64),
-        span_s: f64,
-        slot: usize,
+        (slot, span_s): (usize, f64),
         (reach, radius): (i64, i64),
         pose_gate_sq: f64,
         margin: u32,
