@@ -214,7 +214,7 @@ pub(super) struct Band {
 /// `pose_tolerance` is (metres, radians), the tolerance at range r being their combination
 /// √(m² + (r·rad)²) (both in `band`). `nearest_range` is each fine sector's nearest obstacle
 /// range (∞: none), `nearest_xy` that return's position relative to the sensor;
-/// `half_width_rad` half the scanner's angle between rays. A cell may be visited more than
+/// `half_width_rad` half the scanner's angle between rays. Each cell is visited at most
 /// once.
 pub(super) fn for_each_cell_behind(
     nearest_range: &[f64],
@@ -232,6 +232,9 @@ pub(super) fn for_each_cell_behind(
         silhouette_faces,
         convex_corners,
     } = band;
+    // Whether a cell is visited depends on the cell alone (its centre's ray and range), and
+    // neighbouring fine sectors' returns mostly share their cells: each cell is judged once.
+    let mut judged = CellSet::new(window.len());
     for (&range, &a) in nearest_range.iter().zip(nearest_xy) {
         if !range.is_finite() {
             continue;
@@ -244,6 +247,9 @@ pub(super) fn for_each_cell_behind(
                 let Some(idx) = window.storage_index(c, r) else {
                     continue;
                 };
+                if !judged.insert(idx) {
+                    continue;
+                }
                 let centre = [
                     (c as f64 + 0.5) * cell_size_m - origin_m.0,
                     (r as f64 + 0.5) * cell_size_m - origin_m.1,
@@ -274,6 +280,29 @@ pub(super) fn for_each_cell_behind(
                 }
             }
         }
+    }
+}
+
+/// A set of storage indices below a fixed bound, one bit each.
+struct CellSet {
+    words: Vec<u64>,
+}
+
+impl CellSet {
+    /// An empty set of indices below `len`.
+    fn new(len: usize) -> Self {
+        Self {
+            words: vec![0; len.div_ceil(64)],
+        }
+    }
+
+    /// Adds `idx`; whether it was not in the set yet.
+    #[inline]
+    fn insert(&mut self, idx: usize) -> bool {
+        let (word, bit) = (idx / 64, 1u64 << (idx % 64));
+        let fresh = self.words[word] & bit == 0;
+        self.words[word] |= bit;
+        fresh
     }
 }
 
