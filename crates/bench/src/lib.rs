@@ -24,6 +24,7 @@
 #![deny(missing_docs)]
 
 pub mod copy;
+pub mod drive_run;
 pub mod naive;
 pub mod real;
 pub mod workload;

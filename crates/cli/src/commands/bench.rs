@@ -33,7 +33,17 @@ pub struct BenchArgs {
     /// when it is absent.
     #[arg(long)]
     odometry_scans: Option<PathBuf>,
-    /// Skip the real-data cases (`sensor`, `prior`, `frame`, `ground`, `odometry`).
+    /// KITTI raw drive for the `drive` case: the whole default run of `evigrid run --drive`
+    /// with every default output, into a temporary folder, timed in CPU against the drive's
+    /// duration. By default the shared KITTI raw drive 0013
+    /// (`$EVIGRID_SHARED/data/lidar/kitti-raw-0013/2011_09_26`), the case skipped when it is
+    /// absent.
+    #[arg(long)]
+    drive: Option<PathBuf>,
+    /// Run the `drive` case alone (no window cases). Run it on one core (`taskset -c 0`).
+    #[arg(long)]
+    drive_only: bool,
+    /// Skip the real-data cases (`sensor`, `prior`, `frame`, `ground`, `odometry`, `drive`).
     #[arg(long)]
     synthetic_only: bool,
     /// Cell size of the real-data cases, metres.
@@ -73,6 +83,14 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
             "--cell-size {}: must be a positive number of metres",
             args.cell_size
         )));
+    }
+    if args.drive_only {
+        if args.synthetic_only {
+            return Err(BadInput::new(
+                "--drive-only and --synthetic-only: the drive case is a real-data case",
+            ));
+        }
+        return drive_case(args.drive.as_deref(), args.json);
     }
     let real = if args.synthetic_only {
         None
@@ -139,6 +157,9 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         );
     } else {
         crate::out!("{}", table(&report));
+    }
+    if !args.synthetic_only && report.complete {
+        drive_case(args.drive.as_deref(), args.json)?;
     }
     if !report.complete {
         return Err(
@@ -213,4 +234,65 @@ fn table(report: &BenchReport) -> String {
         report.naive_max_difference
     );
     out
+}
+
+/// The `drive` case ([`evigrid_bench::drive_run`]) on `drive` (by default the shared KITTI raw
+/// drive 0013, skipped with a note when absent), its report printed.
+fn drive_case(drive: Option<&std::path::Path>, json: bool) -> anyhow::Result<()> {
+    let default_drive = PathBuf::from(
+        std::env::var("EVIGRID_SHARED").unwrap_or_else(|_| "../shared".into()),
+    )
+    .join("data/lidar/kitti-raw-0013/2011_09_26");
+    let dir = match drive {
+        Some(dir) if !dir.is_dir() => {
+            return Err(BadInput::new(format!(
+                "--drive {}: not a folder",
+                dir.display()
+            )));
+        }
+        Some(dir) => dir.to_path_buf(),
+        None if default_drive.is_dir() => default_drive,
+        None => {
+            crate::outln!(
+                "drive: skipped ({} not found; give --drive or set EVIGRID_SHARED)",
+                default_drive.display()
+            );
+            return Ok(());
+        }
+    };
+    let out = tempfile::tempdir().context("creating a temporary folder for the drive case")?;
+    let report = evigrid_bench::drive_run::run_drive(&dir, out.path())
+        .map_err(|e| BadInput::new(format!("--drive {}: {e}", dir.display())))?;
+    if json {
+        crate::outln!(
+            "{}",
+            serde_json::to_string_pretty(&report).context("serialising the drive report")?
+        );
+        return Ok(());
+    }
+    let target = evigrid_bench::drive_run::TARGET_DRIVE_PER_CPU;
+    let mut text = format!(
+        "drive {} ({} frames, {:.3} s of drive), every default output on: {:.2} CPU-s \
+         (user + sys), {:.2} s wall\n",
+        report.drive, report.frames, report.drive_s, report.cpu_s, report.wall_s
+    );
+    text += &format!(
+        "  {:<24} {:>8.3}  ≥ {target:<6} {}   ({:.3} CPU-s per second of drive)\n",
+        "drive_s/cpu_s",
+        report.drive_per_cpu,
+        if report.drive_per_cpu >= target {
+            "met"
+        } else {
+            "not met"
+        },
+        1.0 / report.drive_per_cpu
+    );
+    text += "  share of the wall time:";
+    for stage in &report.stages {
+        text += &format!(" {} {:.1} %,", stage.stage, 100.0 * stage.share);
+    }
+    text.pop();
+    text += "\n";
+    crate::out!("{text}");
+    Ok(())
 }
