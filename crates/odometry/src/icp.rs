@@ -241,6 +241,7 @@ pub(crate) fn surface_information(
         .map(|chunk| {
             let mut information = Matrix6::zeros();
             let mut weight_sum = 0.0;
+            let mut near = Vec::new();
             for point in chunk {
                 let moved = (map_from_sensor * Point3::from(*point)).coords;
                 let Some((nearest, distance_sq)) = map.nearest(&moved, max_sq) else {
@@ -248,7 +249,7 @@ pub(crate) fn surface_information(
                 };
                 let weight = geman_mcclure_weight(distance_sq, scale_sq);
                 weight_sum += weight;
-                let near = map.points_near(&nearest, map.voxel_size());
+                map.points_near_into(&nearest, map.voxel_size(), &mut near);
                 // Too few map points to see a surface (the sparse far end of a façade): the pair
                 // counts in the weight but claims no information, which its sampling alone would
                 // fake along the surface.

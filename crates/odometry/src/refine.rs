@@ -341,12 +341,16 @@ impl PoseRefiner {
     pub fn refine(&self, points: &[[f32; 3]], prior: &Isometry3<f64>, time_s: f64) -> Refinement {
         let p = &self.params;
         let (min_sq, max_sq) = (p.min_range_m * p.min_range_m, p.max_range_m * p.max_range_m);
-        let kept: Vec<Vector3<f64>> = points
-            .iter()
-            .filter(|raw| raw.iter().all(|c| c.is_finite()))
-            .map(|raw| Vector3::new(f64::from(raw[0]), f64::from(raw[1]), f64::from(raw[2])))
-            .filter(|point| (min_sq..=max_sq).contains(&point.norm_squared()))
-            .collect();
+        // Sized once: collected from a filter, the vector grew by doubling, copying the scan's
+        // points over and over.
+        let mut kept: Vec<Vector3<f64>> = Vec::with_capacity(points.len());
+        kept.extend(
+            points
+                .iter()
+                .filter(|raw| raw.iter().all(|c| c.is_finite()))
+                .map(|raw| Vector3::new(f64::from(raw[0]), f64::from(raw[1]), f64::from(raw[2])))
+                .filter(|point| (min_sq..=max_sq).contains(&point.norm_squared())),
+        );
         let voxel_size_m = match &self.map {
             Some(map) => map.voxel_size(),
             None if is_planar(&kept) => p.planar_voxel_size_m,
