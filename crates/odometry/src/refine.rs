@@ -547,8 +547,12 @@ impl PoseRefiner {
         let map = self
             .map
             .get_or_insert_with(|| VoxelMap::new(refinement.voxel_size_m, max_points));
-        map.add(&refinement.frame, pose);
-        map.remove_far(&pose.translation.vector, self.params.max_range_m);
+        map.add_and_remove_far(
+            &refinement.frame,
+            pose,
+            &pose.translation.vector,
+            self.params.max_range_m,
+        );
         if self.track.len() == 2 {
             self.track.remove(0);
         }

@@ -223,6 +223,26 @@ impl VoxelMap {
 
     /// Adds sensor-frame points placed by `world_from_sensor`.
     pub(crate) fn add(&mut self, points: &[Vector3<f64>], world_from_sensor: &Isometry3<f64>) {
+        self.insert_points(points, world_from_sensor);
+        self.reindex();
+    }
+
+    /// [`VoxelMap::add`] then [`VoxelMap::remove_far`], with the search store rebuilt once:
+    /// the same map (the store's layout does not change what a search finds).
+    pub(crate) fn add_and_remove_far(
+        &mut self,
+        points: &[Vector3<f64>],
+        world_from_sensor: &Isometry3<f64>,
+        centre: &Vector3<f64>,
+        radius: f64,
+    ) {
+        self.insert_points(points, world_from_sensor);
+        self.forget_far(centre, radius);
+        self.reindex();
+    }
+
+    /// The per-voxel part of [`VoxelMap::add`].
+    fn insert_points(&mut self, points: &[Vector3<f64>], world_from_sensor: &Isometry3<f64>) {
         for point in points {
             let world = world_from_sensor * nalgebra::Point3::from(*point);
             let world = world.coords;
@@ -238,19 +258,23 @@ impl VoxelMap {
                 voxel.push(world);
             }
         }
-        self.reindex();
     }
 
     /// Forgets the voxels whose first point is farther than `radius` from `centre`: the map then
     /// covers what the sensor can see from there, whatever the length of the drive.
     pub(crate) fn remove_far(&mut self, centre: &Vector3<f64>, radius: f64) {
+        self.forget_far(centre, radius);
+        self.reindex();
+    }
+
+    /// The per-voxel part of [`VoxelMap::remove_far`].
+    fn forget_far(&mut self, centre: &Vector3<f64>, radius: f64) {
         let radius_sq = radius * radius;
         self.voxels.retain(|_, points| {
             points
                 .first()
                 .is_some_and(|p| (p - centre).norm_squared() <= radius_sq)
         });
-        self.reindex();
     }
 
     /// The map points within `radius` (at most a voxel edge) of `point`, from the 27 voxels
@@ -882,6 +906,35 @@ mod tests {
                 assert!((a - b).norm() >= 0.5 - 1e-12);
             }
         }
+    }
+
+    #[test]
+    fn adding_and_removing_in_one_go_gives_the_map_of_the_two_steps() {
+        let cloud: Vec<Vector3<f64>> = (0..400)
+            .map(|i| {
+                let t = f64::from(i);
+                Vector3::new((t * 0.37) % 30.0 - 15.0, (t * 0.91) % 20.0 - 10.0, t % 3.0)
+            })
+            .collect();
+        let pose = Isometry3::translation(0.5, -0.25, 0.0);
+        let (centre, radius) = (Vector3::new(3.0, 1.0, 0.0), 9.0);
+        let mut two_steps = VoxelMap::new(1.0, 20);
+        two_steps.add(&cloud[..200], &Isometry3::identity());
+        let mut one_go = two_steps.clone();
+        two_steps.add(&cloud[200..], &pose);
+        let added = two_steps.voxel_count();
+        two_steps.remove_far(&centre, radius);
+        // Some voxels were added and some forgotten.
+        assert!(added > one_go.voxel_count() && two_steps.voxel_count() < added);
+        one_go.add_and_remove_far(&cloud[200..], &pose, &centre, radius);
+        assert_eq!(one_go.voxel_count(), two_steps.voxel_count());
+        for (key, points) in &two_steps.voxels {
+            assert_eq!(one_go.voxels.get(key), Some(points));
+            let (start, count) = one_go.ranges[key];
+            assert_eq!(&one_go.flat[start as usize..(start + count) as usize], &points[..]);
+        }
+        assert_eq!(one_go.flat.len(), two_steps.flat.len());
+        assert_eq!(one_go.ranges.len(), two_steps.ranges.len());
     }
 
     #[test]
