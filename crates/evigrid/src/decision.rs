@@ -66,8 +66,9 @@ pub fn betp_cells(grid: &PerceptionGrid, cells: std::ops::Range<usize>, out: &mu
     // Sets in ascending order, as `betp` adds them: each class gets the same sums.
     for (set, &inverse) in INVERSE_SIZE.iter().enumerate().skip(1) {
         let masses = &grid.plane(set)[cells.clone()];
-        // Adding +0 changes no sum that starts at +0.
-        if masses.iter().all(|&m| m == 0.0) {
+        // Adding ±0 changes no sum that starts at +0. (Folded without an early exit, so
+        // that the test runs on whole vectors.)
+        if !masses.iter().fold(false, |any, &m| any | (m != 0.0)) {
             continue;
         }
         for (k, pk) in out.iter_mut().enumerate() {
@@ -78,13 +79,16 @@ pub fn betp_cells(grid: &PerceptionGrid, cells: std::ops::Range<usize>, out: &mu
             }
         }
     }
-    for (i, &empty) in grid.plane(0)[cells].iter().enumerate() {
-        let normal = 1.0 - empty;
-        for pk in out.iter_mut() {
-            pk[i] = if normal <= MIN_NORMAL_MASS {
+    // Class by class along the cells (each cell's value is its own: the order changes no
+    // bit), so that the division runs on whole vectors.
+    let empty = &grid.plane(0)[cells];
+    for pk in out.iter_mut() {
+        for (p, &empty) in pk.iter_mut().zip(empty) {
+            let normal = 1.0 - empty;
+            *p = if normal <= MIN_NORMAL_MASS {
                 0.0
             } else {
-                pk[i] / normal
+                *p / normal
             };
         }
     }
