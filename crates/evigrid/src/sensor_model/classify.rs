@@ -23,6 +23,8 @@ pub(super) struct PointClassifier<'a> {
     /// How far along its ray, m, a return is moved before its placed cell is taken
     /// ([`SensorModel::set_return_depth_m`](super::SensorModel::set_return_depth_m)); 0: its own.
     pub(super) return_depth_m: f64,
+    /// Fine sectors of the surface placement ([`super::surface::sector_count`]), 0 without it.
+    pub(super) fine_sectors: usize,
 }
 
 /// What one chunk of points gives.
@@ -43,6 +45,10 @@ pub(super) struct Classified {
     /// Per obstacle return, in the order of `obstacle_cells`: its levelled position (east and
     /// north of the sensor), m.
     pub(super) obstacle_xy: Vec<[f64; 2]>,
+    /// Per obstacle return, in the order of `obstacle_cells`: its fine sector of the surface
+    /// placement ([`super::surface::sector_of`], from the bearing its sector was found by);
+    /// empty without the surface placement.
+    pub(super) obstacle_fine_sector: Vec<u32>,
 }
 
 impl PointClassifier<'_> {
@@ -90,6 +96,7 @@ impl PointClassifier<'_> {
         out.obstacle_cells.clear();
         out.placed_cells.clear();
         out.obstacle_xy.clear();
+        out.obstacle_fine_sector.clear();
         let (sensor_x, sensor_y) = self.sensor_xy;
         for (i, &q) in points.iter().enumerate() {
             let is_obstacle = match (labels, self.plane) {
@@ -120,11 +127,18 @@ impl PointClassifier<'_> {
                 .storage_index_of_point(sensor_x + q[0], sensor_y + q[1])
             {
                 Some(idx) => {
-                    let s = sector_of(q, self.sectors_per_radian, self.sectors);
+                    // One bearing for both sectors (the fine one was computed twice more, by
+                    // the surface table and the placed grid).
+                    let bearing = bearing(q);
+                    let s = sector_at(bearing, self.sectors_per_radian, self.sectors);
                     let range_m = horizontal_range(q);
                     out.obstacle_cells.push((idx, s as u32, range_m));
                     out.placed_cells.push(self.placed_cell(q, range_m, idx));
                     out.obstacle_xy.push([q[0], q[1]]);
+                    if self.fine_sectors > 0 {
+                        out.obstacle_fine_sector
+                            .push(super::surface::sector_at(bearing, self.fine_sectors) as u32);
+                    }
                 }
                 None => out.dropped_outside_window += 1,
             }
@@ -142,7 +156,19 @@ pub(super) fn horizontal_range(q: [f64; 3]) -> f64 {
 /// Sector of a levelled point by its bearing, `atan2(y, x)` measured from −π.
 #[inline]
 pub(super) fn sector_of(q: [f64; 3], sectors_per_radian: f64, sectors: usize) -> usize {
-    let angle = fast_atan2(q[1], q[0]) + std::f64::consts::PI;
+    sector_at(bearing(q), sectors_per_radian, sectors)
+}
+
+/// Bearing of a levelled point, `atan2(y, x)` measured from −π: what [`sector_of`] and
+/// [`super::surface::sector_of`] divide.
+#[inline]
+pub(super) fn bearing(q: [f64; 3]) -> f64 {
+    fast_atan2(q[1], q[0]) + std::f64::consts::PI
+}
+
+/// [`sector_of`] of the bearing `angle` ([`bearing`]).
+#[inline]
+fn sector_at(angle: f64, sectors_per_radian: f64, sectors: usize) -> usize {
     // `as usize` saturates: a tiny negative angle gives sector 0.
     ((angle * sectors_per_radian) as usize).min(sectors - 1)
 }

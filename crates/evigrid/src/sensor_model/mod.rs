@@ -295,6 +295,11 @@ impl SensorModel {
             window,
             sensor_xy: (sensor_x, sensor_y),
             return_depth_m: self.return_depth_m,
+            fine_sectors: if self.placed_by_surface {
+                surface::sector_count()
+            } else {
+                0
+            },
         };
         let chunk_count = self.levelled.len().div_ceil(CLASSIFY_CHUNK);
         self.classified
@@ -334,29 +339,25 @@ impl SensorModel {
         }
         self.obstacle_range.clear();
         self.obstacle_range.resize(sectors, f64::INFINITY);
-        let fine_sectors = if self.placed_by_surface {
-            surface::sector_count()
-        } else {
-            0
-        };
+        let fine_sectors = classify.fine_sectors;
         self.surface_range.clear();
         self.surface_range.resize(fine_sectors, f64::INFINITY);
         self.nearest_xy.clear();
         self.nearest_xy.resize(fine_sectors, [0.0; 2]);
-        let obstacles = self
-            .classified
-            .iter()
-            .flat_map(|c| c.obstacle_cells.iter().zip(&c.obstacle_xy));
-        for (&(idx, s, range_m), &xy) in obstacles {
-            if self.stray.is_stray(idx) {
-                stats.stray_obstacle_points += 1;
-                continue;
-            }
-            stats.obstacle_points += 1;
-            let range = &mut self.obstacle_range[s as usize];
-            *range = range.min(range_m);
-            if fine_sectors > 0 {
-                let f = surface::sector_of(xy, fine_sectors);
+        for chunk in &self.classified {
+            let returns = chunk.obstacle_cells.iter().zip(&chunk.obstacle_xy);
+            for (i, (&(idx, s, range_m), &xy)) in returns.enumerate() {
+                if self.stray.is_stray(idx) {
+                    stats.stray_obstacle_points += 1;
+                    continue;
+                }
+                stats.obstacle_points += 1;
+                let range = &mut self.obstacle_range[s as usize];
+                *range = range.min(range_m);
+                if fine_sectors == 0 {
+                    continue;
+                }
+                let f = chunk.obstacle_fine_sector[i] as usize;
                 if range_m < self.surface_range[f] {
                     self.surface_range[f] = range_m;
                     self.nearest_xy[f] = xy;
@@ -495,21 +496,19 @@ impl SensorModel {
         let by_surface = self.placed_by_surface && depth_m > 0.0 && !self.surface_range.is_empty();
         let cell_size_m = window.cell_size_m();
         for chunk in &self.classified {
-            let returns = chunk
-                .obstacle_cells
-                .iter()
-                .zip(&chunk.placed_cells)
-                .zip(&chunk.obstacle_xy);
-            for ((&(idx, _, range_m), &placed), &xy) in returns {
+            let returns = chunk.obstacle_cells.iter().zip(&chunk.placed_cells);
+            for (i, (&(idx, _, range_m), &placed)) in returns.enumerate() {
                 if self.stray.is_stray(idx) {
                     continue;
                 }
                 // A return on the nearest surface of its fine sector is placed by that surface
-                // (below).
+                // (below). (`by_surface` implies the fine sectors of the last `build`.)
                 if by_surface
-                    && range_m
-                        <= self.surface_range[surface::sector_of(xy, self.surface_range.len())]
-                            + cell_size_m
+                    && chunk
+                        .obstacle_fine_sector
+                        .get(i)
+                        .and_then(|&f| self.surface_range.get(f as usize))
+                        .is_some_and(|&surface_m| range_m <= surface_m + cell_size_m)
                 {
                     continue;
                 }
