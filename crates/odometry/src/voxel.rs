@@ -118,8 +118,20 @@ pub(crate) fn downsample(points: &[Vector3<f64>], voxel_size: f64) -> Vec<usize>
             chosen[slot] = (rank, index);
         }
     }
-    let mut indices: Vec<usize> = chosen.into_iter().map(|(_, index)| index).collect();
-    indices.sort_unstable();
+    // Ascending without a sort: one bit per point, read in order (each point is chosen at most
+    // once).
+    let mut kept = vec![0u64; points.len().div_ceil(64)];
+    for &(_, index) in &chosen {
+        kept[index / 64] |= 1 << (index % 64);
+    }
+    let mut indices = Vec::with_capacity(chosen.len());
+    for (word_index, &word) in kept.iter().enumerate() {
+        let mut bits = word;
+        while bits != 0 {
+            indices.push(word_index * 64 + bits.trailing_zeros() as usize);
+            bits &= bits - 1;
+        }
+    }
     indices
 }
 
