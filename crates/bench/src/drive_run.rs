@@ -278,6 +278,23 @@ mod tests {
     }
 
     #[test]
+    fn each_record_adds_its_stage_timings() {
+        // Two records as `frames.jsonl` writes them (fields trimmed); the second has no
+        // refinement timing, which adds nothing.
+        let mut timings = Timings::default();
+        let first = r#"{"read_ms":1.5,"process_ms":30.0,"render_ms":6.0,"stats":{"sensor_ms":10.0,"step_ms":1.0,"motion_ms":2.0,"pose_refinement":{"ms":12.0}}}"#;
+        let second = r#"{"read_ms":0.5,"process_ms":20.0,"render_ms":4.0,"stats":{"sensor_ms":9.0,"step_ms":1.0,"motion_ms":3.0,"pose_refinement":null}}"#;
+        for record in [first, second, "not json"] {
+            assert!(timings.on_record(record).is_ok());
+        }
+        assert_eq!(timings.ms, [2.0, 19.0, 12.0, 2.0, 5.0, 50.0, 10.0]);
+        // Over 100 ms of wall: other processing 50 − 19 − 12 − 2 − 5 = 12 ms, and 100 − 2 − 19
+        // − 12 − 2 − 5 − 12 − 10 = 38 ms at start and end.
+        let shares = timings.shares(100.0);
+        assert!((shares[5].ms - 12.0).abs() < 1e-12 && (shares[7].ms - 38.0).abs() < 1e-12);
+    }
+
+    #[test]
     fn shares_split_the_processing_and_leave_the_rest_to_start_and_end() {
         // Over 1000 ms of wall: reading 10, sensor 200, refinement 300, step 50, motion 40,
         // processing 650 in all (60 other), outputs 200: 860 ms in frames, 140 at start and end.
