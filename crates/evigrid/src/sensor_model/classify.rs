@@ -23,7 +23,7 @@ pub(super) struct PointClassifier<'a> {
     /// How far along its ray, m, a return is moved before its placed cell is taken
     /// ([`SensorModel::set_return_depth_m`](super::SensorModel::set_return_depth_m)); 0: its own.
     pub(super) return_depth_m: f64,
-    /// Fine sectors of the surface placement ([`super::surface::sector_count`]), 0 without it.
+    /// Fine sectors of the surface placement (`surface::sector_count`), 0 without it.
     pub(super) fine_sectors: usize,
 }
 
@@ -46,7 +46,7 @@ pub(super) struct Classified {
     /// north of the sensor), m.
     pub(super) obstacle_xy: Vec<[f64; 2]>,
     /// Per obstacle return, in the order of `obstacle_cells`: its fine sector of the surface
-    /// placement ([`super::surface::sector_of`], from the bearing its sector was found by);
+    /// placement ([`fine_sector_at`], from the bearing its sector was found by);
     /// empty without the surface placement.
     pub(super) obstacle_fine_sector: Vec<u32>,
 }
@@ -137,7 +137,7 @@ impl PointClassifier<'_> {
                     out.obstacle_xy.push([q[0], q[1]]);
                     if self.fine_sectors > 0 {
                         out.obstacle_fine_sector
-                            .push(super::surface::sector_at(bearing, self.fine_sectors) as u32);
+                            .push(fine_sector_at(bearing, self.fine_sectors) as u32);
                     }
                 }
                 None => out.dropped_outside_window += 1,
@@ -160,7 +160,7 @@ pub(super) fn sector_of(q: [f64; 3], sectors_per_radian: f64, sectors: usize) ->
 }
 
 /// Bearing of a levelled point, `atan2(y, x)` measured from −π: what [`sector_of`] and
-/// [`super::surface::sector_of`] divide.
+/// `surface::sector_of` divide.
 #[inline]
 pub(super) fn bearing(q: [f64; 3]) -> f64 {
     fast_atan2(q[1], q[0]) + std::f64::consts::PI
@@ -171,6 +171,13 @@ pub(super) fn bearing(q: [f64; 3]) -> f64 {
 fn sector_at(angle: f64, sectors_per_radian: f64, sectors: usize) -> usize {
     // `as usize` saturates: a tiny negative angle gives sector 0.
     ((angle * sectors_per_radian) as usize).min(sectors - 1)
+}
+
+/// The fine sector of the surface placement (`surface::sector_of`) of the bearing
+/// `angle` ([`bearing`]), of `sectors`.
+#[inline]
+pub(super) fn fine_sector_at(angle: f64, sectors: usize) -> usize {
+    ((angle * sectors as f64 / std::f64::consts::TAU) as usize).min(sectors.saturating_sub(1))
 }
 
 /// `atan2(y, x)` within 1e-7 rad: octant reduction and a fitted polynomial for atan on

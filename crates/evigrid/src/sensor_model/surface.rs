@@ -37,13 +37,8 @@ pub(super) fn sector_count() -> usize {
 /// Fine sector of a levelled position by its bearing, measured from −π, of `sectors`.
 #[inline]
 pub(super) fn sector_of(xy: [f64; 2], sectors: usize) -> usize {
-    sector_at(super::classify::bearing([xy[0], xy[1], 0.0]), sectors)
-}
-
-/// [`sector_of`] of a bearing measured from −π (`classify::bearing`).
-#[inline]
-pub(super) fn sector_at(angle: f64, sectors: usize) -> usize {
-    ((angle * sectors as f64 / std::f64::consts::TAU) as usize).min(sectors.saturating_sub(1))
+    use super::classify::{bearing, fine_sector_at};
+    fine_sector_at(bearing([xy[0], xy[1], 0.0]), sectors)
 }
 
 /// 2-D cross product.
