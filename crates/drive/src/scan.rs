@@ -248,7 +248,10 @@ pub fn parse_kitti_bin(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
     let (records, _) = bytes.as_chunks::<16>();
     let f = |r: &[u8; 16], i: usize| f32::from_le_bytes([r[i], r[i + 1], r[i + 2], r[i + 3]]);
     Ok(Scan {
-        points_in_sensor: records.iter().map(|r| [f(r, 0), f(r, 4), f(r, 8)]).collect(),
+        points_in_sensor: records
+            .iter()
+            .map(|r| [f(r, 0), f(r, 4), f(r, 8)])
+            .collect(),
         intensity: records.iter().map(|r| f(r, 12)).collect(),
     })
 }

@@ -943,7 +943,10 @@ mod tests {
         for (key, points) in &two_steps.voxels {
             assert_eq!(one_go.voxels.get(key), Some(points));
             let (start, count) = one_go.ranges[key];
-            assert_eq!(&one_go.flat[start as usize..(start + count) as usize], &points[..]);
+            assert_eq!(
+                &one_go.flat[start as usize..(start + count) as usize],
+                &points[..]
+            );
         }
         assert_eq!(one_go.flat.len(), two_steps.flat.len());
         assert_eq!(one_go.ranges.len(), two_steps.ranges.len());

@@ -239,10 +239,9 @@ fn table(report: &BenchReport) -> String {
 /// The `drive` case ([`evigrid_bench::drive_run`]) on `drive` (by default the shared KITTI raw
 /// drive 0013, skipped with a note when absent), its report printed.
 fn drive_case(drive: Option<&std::path::Path>, json: bool) -> anyhow::Result<()> {
-    let default_drive = PathBuf::from(
-        std::env::var("EVIGRID_SHARED").unwrap_or_else(|_| "../shared".into()),
-    )
-    .join("data/lidar/kitti-raw-0013/2011_09_26");
+    let default_drive =
+        PathBuf::from(std::env::var("EVIGRID_SHARED").unwrap_or_else(|_| "../shared".into()))
+            .join("data/lidar/kitti-raw-0013/2011_09_26");
     let dir = match drive {
         Some(dir) if !dir.is_dir() => {
             return Err(BadInput::new(format!(
