@@ -105,6 +105,49 @@ fn bad_options_exit_2_with_one_line_naming_the_option() -> TestResult {
 }
 
 #[test]
+fn the_drive_case_refuses_a_missing_folder_and_skips_without_the_shared_data() -> TestResult {
+    for (args, named) in [
+        (
+            vec!["bench", "--drive-only", "--drive", "/nonexistent/drive"],
+            "--drive /nonexistent/drive: not a folder",
+        ),
+        (
+            vec!["bench", "--drive-only", "--synthetic-only"],
+            "--synthetic-only",
+        ),
+    ] {
+        let out = evigrid(&args)?;
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(named), "{args:?}: {stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
+    }
+    // No shared data: a note on standard error, nothing measured, success; with `--json` the
+    // one document says `"drive": null`.
+    let empty = tempfile::tempdir()?;
+    for json in [false, true] {
+        let mut args = vec!["bench", "--drive-only"];
+        if json {
+            args.push("--json");
+        }
+        let out = Command::new(env!("CARGO_BIN_EXE_evigrid"))
+            .args(&args)
+            .env("EVIGRID_SHARED", empty.path())
+            .output()?;
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert!(stderr.contains("drive case skipped"), "{stderr}");
+        if json {
+            let report: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+            assert!(report["drive"].is_null(), "{report}");
+        } else {
+            assert!(out.stdout.is_empty());
+        }
+    }
+    Ok(())
+}
+
+#[test]
 fn real_cases_time_the_ground_and_the_odometry_against_the_step() -> TestResult {
     let drive =
         "data/lidar/kitti-raw-0013/2011_09_26/2011_09_26_drive_0013_sync/velodyne_points/data";

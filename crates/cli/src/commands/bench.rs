@@ -33,17 +33,18 @@ pub struct BenchArgs {
     /// when it is absent.
     #[arg(long)]
     odometry_scans: Option<PathBuf>,
-    /// KITTI raw drive for the `drive` case: the whole default run of `evigrid run --drive`
-    /// with every default output, into a temporary folder, timed in CPU against the drive's
-    /// duration. By default the shared KITTI raw drive 0013
-    /// (`$EVIGRID_SHARED/data/lidar/kitti-raw-0013/2011_09_26`), the case skipped when it is
-    /// absent.
+    /// KITTI raw drive for the `drive` case, which then runs after the window cases: the whole
+    /// default run of `evigrid run --drive` with every default output, into a temporary
+    /// folder, its CPU time (user + sys) against the drive's duration.
     #[arg(long)]
     drive: Option<PathBuf>,
-    /// Run the `drive` case alone (no window cases). Run it on one core (`taskset -c 0`).
+    /// Run the `drive` case alone (no window cases), on `--drive` or by default the shared
+    /// KITTI raw drive 0013 (`$EVIGRID_SHARED/data/lidar/kitti-raw-0013/2011_09_26`; skipped
+    /// with a note when absent). The goal is stated for one core: `taskset -c 0`.
     #[arg(long)]
     drive_only: bool,
-    /// Skip the real-data cases (`sensor`, `prior`, `frame`, `ground`, `odometry`, `drive`).
+    /// Skip the real-data cases (`sensor`, `prior`, `frame`, `ground`, `odometry`; no
+    /// `drive`).
     #[arg(long)]
     synthetic_only: bool,
     /// Cell size of the real-data cases, metres.
@@ -84,13 +85,29 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
             args.cell_size
         )));
     }
+    if args.synthetic_only && (args.drive_only || args.drive.is_some()) {
+        return Err(BadInput::new(
+            "--synthetic-only with --drive or --drive-only: the drive case is a real-data case",
+        ));
+    }
+    if let Some(dir) = args.drive.as_deref().filter(|dir| !dir.is_dir()) {
+        return Err(BadInput::new(format!(
+            "--drive {}: not a folder",
+            dir.display()
+        )));
+    }
     if args.drive_only {
-        if args.synthetic_only {
-            return Err(BadInput::new(
-                "--drive-only and --synthetic-only: the drive case is a real-data case",
-            ));
+        let drive = drive_case(args.drive.as_deref())?;
+        match (args.json, drive) {
+            (true, drive) => crate::outln!(
+                "{}",
+                serde_json::to_string_pretty(&serde_json::json!({ "drive": drive }))
+                    .context("serialising the report")?
+            ),
+            (false, Some(drive)) => crate::out!("{}", drive_table(&drive)),
+            (false, None) => {}
         }
-        return drive_case(args.drive.as_deref(), args.json);
+        return Ok(());
     }
     let real = if args.synthetic_only {
         None
@@ -150,16 +167,28 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         evigrid_bench::BenchError::Real(real) => BadInput::new(real.to_string()),
         other => anyhow::Error::new(other),
     })?;
+    // The drive case after the windows only when asked for (`--drive`): a whole drive's run.
+    let drive = match args.drive.as_deref() {
+        Some(dir) if report.complete => drive_case(Some(dir))?,
+        _ => None,
+    };
     if args.json {
+        let mut value = serde_json::to_value(&report).context("serialising the report")?;
+        if let (Some(object), Some(drive)) = (value.as_object_mut(), &drive) {
+            object.insert(
+                "drive".into(),
+                serde_json::to_value(drive).context("serialising the drive report")?,
+            );
+        }
         crate::outln!(
             "{}",
-            serde_json::to_string_pretty(&report).context("serialising the report")?
+            serde_json::to_string_pretty(&value).context("serialising the report")?
         );
     } else {
         crate::out!("{}", table(&report));
-    }
-    if !args.synthetic_only && report.complete {
-        drive_case(args.drive.as_deref(), args.json)?;
+        if let Some(drive) = &drive {
+            crate::out!("{}", drive_table(drive));
+        }
     }
     if !report.complete {
         return Err(
@@ -237,38 +266,33 @@ fn table(report: &BenchReport) -> String {
 }
 
 /// The `drive` case ([`evigrid_bench::drive_run`]) on `drive` (by default the shared KITTI raw
-/// drive 0013, skipped with a note when absent), its report printed.
-fn drive_case(drive: Option<&std::path::Path>, json: bool) -> anyhow::Result<()> {
+/// drive 0013; `None`, with a note, when that is absent).
+fn drive_case(
+    drive: Option<&std::path::Path>,
+) -> anyhow::Result<Option<evigrid_bench::drive_run::DriveRunReport>> {
     let default_drive =
         PathBuf::from(std::env::var("EVIGRID_SHARED").unwrap_or_else(|_| "../shared".into()))
             .join("data/lidar/kitti-raw-0013/2011_09_26");
     let dir = match drive {
-        Some(dir) if !dir.is_dir() => {
-            return Err(BadInput::new(format!(
-                "--drive {}: not a folder",
-                dir.display()
-            )));
-        }
         Some(dir) => dir.to_path_buf(),
         None if default_drive.is_dir() => default_drive,
         None => {
-            crate::outln!(
-                "drive: skipped ({} not found; give --drive or set EVIGRID_SHARED)",
+            crate::errln!(
+                "evigrid bench: drive case skipped: {} not found (give --drive or set \
+                 EVIGRID_SHARED)",
                 default_drive.display()
             );
-            return Ok(());
+            return Ok(None);
         }
     };
     let out = tempfile::tempdir().context("creating a temporary folder for the drive case")?;
     let report = evigrid_bench::drive_run::run_drive(&dir, out.path())
         .map_err(|e| BadInput::new(format!("--drive {}: {e}", dir.display())))?;
-    if json {
-        crate::outln!(
-            "{}",
-            serde_json::to_string_pretty(&report).context("serialising the drive report")?
-        );
-        return Ok(());
-    }
+    Ok(Some(report))
+}
+
+/// The `drive` case's report as text: the ratio with its target, then the stages' shares.
+fn drive_table(report: &evigrid_bench::drive_run::DriveRunReport) -> String {
     let target = evigrid_bench::drive_run::TARGET_DRIVE_PER_CPU;
     let mut text = format!(
         "drive {} ({} frames, {:.3} s of drive), every default output on: {:.2} CPU-s \
@@ -292,6 +316,5 @@ fn drive_case(drive: Option<&std::path::Path>, json: bool) -> anyhow::Result<()>
     }
     text.pop();
     text += "\n";
-    crate::out!("{text}");
-    Ok(())
+    text
 }
