@@ -928,6 +928,32 @@ pub struct MotionParams {
     /// refinement's gate at 1 m / 2°, won moving IoU on the validation drives but cost dynamic
     /// accuracy 0.05 on every set, more than the 0.02 the tuning rule allows: an option.
     pub pose_gate_sigmas: f64,
+    /// The object layer (`docs/motion.md`, "An object layer"): each moving track whose
+    /// heading is known (from its velocity) gets an oriented rectangle fitted to its returns,
+    /// its extent kept over the frames in the object's own frame, anchored on the faces the
+    /// sensor sees; the track's cells whose centre lies inside take the moving evidence, its
+    /// placed cells outside do not. `true`, the default (chosen on the tuning drives, adopted
+    /// on validation); `false`: every placed cell of the track's cluster, as before.
+    pub object_layer: bool,
+    /// With `object_layer`: m(Ω∖{M}) given to a moving track's placed cells whose centre lies
+    /// outside its rectangle (0: no evidence, they keep what the SPEC §5 step made of them,
+    /// mostly M: the free→occupied conflict). 0.9, the default, is `mu_static`.
+    pub object_outside_static: f64,
+    /// With `object_layer`: the heading is taken from the track's velocity only when its
+    /// uncertainty, √(σx² + σy²) over the speed, is at most the tangent of this angle, degrees.
+    pub object_heading_max_deg: f64,
+    /// With `object_layer`: the faces' direction is the one, in whole degrees within this many
+    /// of the velocity's heading, that gives the returns the smallest box (0: the velocity's
+    /// heading).
+    pub object_heading_fit_deg: f64,
+    /// With `object_layer`: an object longer than this (along its heading), metres, is not
+    /// fitted (two objects joined, or a wall): its cells keep the evidence of the track.
+    pub object_max_length_m: f64,
+    /// With `object_layer`: the same across its heading, metres.
+    pub object_max_width_m: f64,
+    /// With `object_layer`: how far outside the rectangle, metres, a cell centre still counts
+    /// as inside (added to `surface_pose_sigmas` times the pose's error at its range).
+    pub object_margin_m: f64,
 }
 
 impl Default for MotionParams {
@@ -962,6 +988,13 @@ impl Default for MotionParams {
             surface_convex_corners: false,
             surface_register_on_returns: true,
             pose_gate_sigmas: 0.0,
+            object_layer: true,
+            object_outside_static: 0.9,
+            object_heading_max_deg: 40.0,
+            object_heading_fit_deg: 15.0,
+            object_max_length_m: 10.0,
+            object_max_width_m: 3.0,
+            object_margin_m: 0.0,
         }
     }
 }
@@ -1011,6 +1044,34 @@ impl MotionParams {
         unit("motion.mu_moving", self.mu_moving)?;
         unit("motion.mu_static", self.mu_static)?;
         unit("motion.return_depth_cells", self.return_depth_cells)?;
+        unit("motion.object_outside_static", self.object_outside_static)?;
+        positive("motion.object_heading_max_deg", self.object_heading_max_deg)?;
+        at_most_f64(
+            "motion.object_heading_max_deg",
+            self.object_heading_max_deg,
+            80.0,
+        )?;
+        at_most_f64(
+            "motion.object_heading_fit_deg",
+            self.object_heading_fit_deg,
+            45.0,
+        )?;
+        if self.object_heading_fit_deg.is_nan() || self.object_heading_fit_deg < 0.0 {
+            return Err(ParamsError::BelowMinimum {
+                name: "motion.object_heading_fit_deg",
+                value: self.object_heading_fit_deg,
+                min: 0.0,
+            });
+        }
+        positive("motion.object_max_length_m", self.object_max_length_m)?;
+        positive("motion.object_max_width_m", self.object_max_width_m)?;
+        if !(self.object_margin_m.is_finite() && self.object_margin_m >= 0.0) {
+            return Err(ParamsError::BelowMinimum {
+                name: "motion.object_margin_m",
+                value: self.object_margin_m,
+                min: 0.0,
+            });
+        }
         positive("motion.surface_depth_cells", self.surface_depth_cells)?;
         at_most_f64("motion.surface_depth_cells", self.surface_depth_cells, 8.0)?;
         if !(self.surface_pose_sigmas.is_finite() && self.surface_pose_sigmas >= 0.0) {
@@ -1106,6 +1167,30 @@ mod tests {
             (
                 "[motion]\nstop_evidence_cells = 0.0\n",
                 "motion.stop_evidence_cells",
+            ),
+            (
+                "[motion]\nobject_outside_static = 1.5\n",
+                "motion.object_outside_static",
+            ),
+            (
+                "[motion]\nobject_heading_max_deg = 85\n",
+                "motion.object_heading_max_deg",
+            ),
+            (
+                "[motion]\nobject_heading_fit_deg = -1\n",
+                "motion.object_heading_fit_deg",
+            ),
+            (
+                "[motion]\nobject_heading_fit_deg = 50\n",
+                "motion.object_heading_fit_deg",
+            ),
+            (
+                "[motion]\nobject_max_width_m = 0\n",
+                "motion.object_max_width_m",
+            ),
+            (
+                "[motion]\nobject_margin_m = -0.1\n",
+                "motion.object_margin_m",
             ),
         ] {
             match Params::from_toml_str(text) {

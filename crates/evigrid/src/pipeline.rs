@@ -479,6 +479,18 @@ impl FrontEnd {
         self.placed.as_ref().unwrap_or(&self.sensor)
     }
 
+    /// The last scan's visible obstacle returns: with the surface placement (`[motion]
+    /// placed_by_surface`), the nearest return of each 0.1° sector; else every return the
+    /// stray filter kept. Each with the storage index of its cell and its position, world
+    /// metres (x east, y north).
+    pub fn obstacle_returns(&self) -> impl Iterator<Item = (usize, [f64; 2])> + '_ {
+        let [x, y, _]: [f64; 3] = self.world_from_sensor.translation.vector.into();
+        self.sensor_model.visible_returns().filter_map(move |q| {
+            let p = [x + q[0], y + q[1]];
+            Some((self.window.storage_index_of_point(p[0], p[1])?, p))
+        })
+    }
+
     /// The GISGrid (vacuous without a map), in storage order.
     pub fn gis(&self) -> &GisGrid {
         &self.gis
@@ -715,6 +727,9 @@ impl Fusion {
             } else {
                 sensor_grid
             };
+            if self.params.motion.object_layer {
+                motion.set_returns(front_end.obstacle_returns());
+            }
             Some(motion.update_registering(
                 window,
                 sensor_grid,

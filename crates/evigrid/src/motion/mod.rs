@@ -27,6 +27,7 @@ mod context;
 mod evidence;
 mod history;
 mod kalman;
+mod objects;
 mod register;
 mod tracks;
 
@@ -34,6 +35,7 @@ use std::ops::Range;
 use std::time::Instant;
 
 pub use evidence::{MotionMass, combine};
+pub use objects::ObjectExtent;
 
 use crate::decision::decide;
 use crate::grids::{CELLS_PER_BLOCK, GisGrid, N_SETS, PerceptionGrid, SensorGrid};
@@ -84,6 +86,9 @@ pub enum CellMotion {
     Moving,
     /// A cell of a moving cluster explained as static: no evidence.
     StaticPart,
+    /// A cell of a moving track whose centre lies outside the track's rectangle
+    /// (`object_layer`): `object_outside_static` on Ω∖{M}, or no evidence.
+    OutsideObject,
 }
 
 /// One cluster cell of the last frame, for diagnosis.
@@ -142,6 +147,10 @@ pub struct MovingObject {
     pub held_back: bool,
     /// Cells given moving evidence this frame.
     pub cells: u32,
+    /// Its rectangle, with `motion.object_layer` when its heading is known (not written
+    /// otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub extent: Option<ObjectExtent>,
 }
 
 /// The existence probability an object needs to be reported (two hits without a miss).
@@ -198,6 +207,8 @@ pub struct MotionStage {
     prior_centroids: Vec<[f64; 2]>,
     /// See `prior_centroids`.
     predictions: Vec<Option<[f64; 2]>>,
+    /// The object layer (`object_layer`): extents per track, this frame's returns.
+    objects: objects::ObjectLayer,
 }
 
 impl MotionStage {
@@ -234,6 +245,7 @@ impl MotionStage {
             pose_sigma_rad: 0.0,
             prior_centroids: Vec::new(),
             predictions: Vec::new(),
+            objects: objects::ObjectLayer::default(),
         }
     }
 
@@ -242,6 +254,7 @@ impl MotionStage {
         self.history.reset_all();
         self.clusters.clear();
         self.tracks.clear();
+        self.objects.clear();
         self.velocity_east.fill(0.0);
         self.velocity_north.fill(0.0);
         self.velocity_cells.clear();
@@ -317,6 +330,13 @@ impl MotionStage {
         self.sensor_xy_m = [x_m, y_m].map(|v| if v.is_finite() { v } else { 0.0 });
         self.pose_sigma_m = clean(sigma_m);
         self.pose_sigma_rad = clean(sigma_rad);
+    }
+
+    /// This frame's obstacle returns (the storage index of each one's cell, its position in
+    /// world metres), for the object layer (`motion.object_layer`) of the next
+    /// [`MotionStage::update`]; without them no rectangle is fitted.
+    pub fn set_returns(&mut self, returns: impl Iterator<Item = (usize, [f64; 2])>) {
+        self.objects.set_returns(returns);
     }
 
     /// Measures the motion of the scan in `sensor` (taken at `time_s`, `dt_s` after the
@@ -587,6 +607,10 @@ impl MotionStage {
         let recent = (1..=self.params.history_frames)
             .filter_map(|k| self.history.frame_back(k))
             .fold(0u8, |bits, (bit, _)| bits | bit);
+        let object_layer = self.params.object_layer;
+        if object_layer {
+            self.objects.group(&self.clusters);
+        }
         let mut first = 0;
         for k in 0..self.clusters.len() {
             let cells = self.clusters.cluster(k);
@@ -632,11 +656,68 @@ impl MotionStage {
             }
             let [vx, vy] = track.velocity.map(|v| v.mean_mps as f32);
             let sigma_mps = (track.velocity[0].variance + track.velocity[1].variance).sqrt() as f32;
+            // The object layer: a moving track's rectangle, fitted to its returns.
+            let fitted = match mass {
+                MotionMass::Moving(_) if object_layer => {
+                    let centroid = self.observations[k].centroid_m;
+                    let range_m = (centroid[0] - self.sensor_xy_m[0])
+                        .hypot(centroid[1] - self.sensor_xy_m[1]);
+                    let pose_m = self.pose_sigma_m.hypot(range_m * self.pose_sigma_rad);
+                    let limits = objects::Limits {
+                        heading_tan: self.params.object_heading_max_deg.to_radians().tan(),
+                        heading_search_deg: self.params.object_heading_fit_deg,
+                        max_length_m: self.params.object_max_length_m,
+                        max_width_m: self.params.object_max_width_m,
+                        margin_m: self.params.object_margin_m
+                            + self.params.surface_pose_sigmas * pose_m,
+                    };
+                    let motion = objects::Motion {
+                        id: track.id,
+                        velocity_mps: track.velocity.map(|v| v.mean_mps),
+                        sigma_mps: f64::from(sigma_mps),
+                    };
+                    self.objects
+                        .fit_cluster(k, motion, self.sensor_xy_m, time_s, limits)
+                }
+                _ => None,
+            };
+            let within = |c: &clusters::Cell| {
+                fitted.as_ref().map(|(rect, _)| {
+                    rect.contains([
+                        (c.col as f64 + 0.5) * cell_size_m,
+                        (c.row as f64 + 0.5) * cell_size_m,
+                    ])
+                })
+            };
+            // What each cell takes: with a rectangle, a placed cell of the track whose centre
+            // it holds takes the track's evidence, one outside it does not
+            // (`object_outside_static` on Ω∖{M}, or nothing). A static part of a moving
+            // cluster takes nothing; a cell only of the grid registered on, nothing either
+            // (given the moving evidence inside the rectangle, they were measured: more false
+            // M than hits, `docs/motion.md`, "An object layer").
+            let outside = if self.params.object_outside_static > 0.0 {
+                MotionMass::Static(self.params.object_outside_static as f32)
+            } else {
+                MotionMass::Vacuous
+            };
+            let of_cell = |c: &clusters::Cell, moved: bool| -> Option<(MotionMass, CellMotion)> {
+                if !labels(c) {
+                    return None;
+                }
+                let within = within(c);
+                Some(match (mass, within) {
+                    (MotionMass::Moving(_), _) if !moved => {
+                        (MotionMass::Vacuous, CellMotion::StaticPart)
+                    }
+                    (MotionMass::Moving(_), Some(false)) => (outside, CellMotion::OutsideObject),
+                    _ => (mass, state),
+                })
+            };
             if let MotionMass::Moving(_) = mass {
                 let cells_moving = cells
                     .iter()
                     .zip(moved)
-                    .filter(|&(c, &m)| m && labels(c))
+                    .filter(|&(c, &m)| matches!(of_cell(c, m), Some((MotionMass::Moving(_), _))))
                     .count() as u32;
                 let object = MovingObject {
                     id: track.id,
@@ -651,6 +732,7 @@ impl MotionStage {
                         || (track.moving_frames as usize) < self.params.report_after_moving_frames
                         || (track.existence_probability() as f32) < REPORT_MIN_EXISTENCE,
                     cells: cells_moving,
+                    extent: fitted.map(|(_, extent)| extent),
                 };
                 let fast = f64::from(vx.hypot(vy)) > self.params.max_speed_mps;
                 if cells_moving > 0 && !fast && (!object.held_back || self.params.report_held_back)
@@ -661,16 +743,13 @@ impl MotionStage {
             let labelled_cells = cells.iter().filter(|c| labels(c)).count() as u32;
             for (c, &moved) in cells.iter().zip(moved) {
                 // A cell only of the grid registered on takes no evidence.
-                if !labels(c) {
+                let Some((mass, cell_state)) = of_cell(c, moved) else {
                     continue;
-                }
+                };
                 let idx = c.idx as usize;
                 self.cell_states.push(CellReport {
                     idx: c.idx,
-                    state: match mass {
-                        MotionMass::Moving(_) if !moved => CellMotion::StaticPart,
-                        _ => state,
-                    },
+                    state: cell_state,
                     cluster_cells: labelled_cells,
                     frames: self.cluster_frames.get(k).copied().unwrap_or(0),
                     speed_mps: vx.hypot(vy),
@@ -680,8 +759,6 @@ impl MotionStage {
                 });
                 match mass {
                     MotionMass::Vacuous => continue,
-                    // A static part of a moving cluster gets no evidence.
-                    MotionMass::Moving(_) if !moved => continue,
                     MotionMass::Moving(_) => {
                         moving_cells += 1;
                         self.velocity_east[idx] = vx;
@@ -715,6 +792,9 @@ impl MotionStage {
         }
 
         merge_pieces(&mut self.moving_objects, self.params.gate_m);
+        if object_layer {
+            self.objects.forget_before(time_s - self.params.max_coast_s);
+        }
 
         // 6. This frame joins the history.
         let registered_on = if split {
@@ -798,6 +878,7 @@ mod tests {
             existence_probability: 0.99,
             held_back: false,
             cells,
+            extent: None,
         }
     }
 
@@ -905,6 +986,86 @@ mod tests {
             0,
             "held back: one frame moving"
         );
+    }
+
+    #[test]
+    fn the_object_layer_labels_the_cells_whose_centre_its_rectangle_holds() {
+        // The car of `driving_away`, with one more placed cell beside its face, (face, 14),
+        // and its returns as points: the face x = 0.5·face + 0.05 on y = 5.05 and 6.95 (rows
+        // 10-13 span y 5-7), and the return in front of the face at x = 0.5·face − 0.4, in
+        // cell face − 1 of row 10 (y 5.3), whose centre the rectangle holds. The sensor at (1, 6). Frame 1 (face column 11):
+        // the track moves east, 4.9505 m/s (as above), σ 2.5 m/s per axis, √2·2.5 = 3.54
+        // over 4.95: 35.5° of heading error, within the test's 40°.
+        let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
+        let (w, h) = (window.width(), window.height());
+        let at = |col: i64, row: i64| window.storage_index(col, row).unwrap_or(0);
+        let run = |layer: bool| {
+            let mut params = crate::Params::default();
+            params.motion.object_layer = layer;
+            params.motion.object_heading_max_deg = 40.0;
+            params.motion.object_heading_fit_deg = 0.0;
+            params.motion.object_outside_static = 0.0;
+            let mut stage = MotionStage::new(&params, w, h);
+            let mut perception = PerceptionGrid::new(w, h);
+            let mut decisions = vec![Label::Unknown; w * h];
+            for t in 0..2 {
+                let (returns, mut placed) = driving_away(t, &window);
+                let face = 10 + t;
+                placed.set_occupied(at(face, 14), 0.8);
+                let x = 0.5 * face as f64;
+                let points = [
+                    (at(face, 10), [x + 0.05, 5.05]),
+                    (at(face, 13), [x + 0.05, 6.95]),
+                    (at(face - 1, 10), [x - 0.4, 5.3]),
+                ];
+                stage.set_pose(1.0, 6.0, 0.0, 0.0);
+                stage.set_returns(points.into_iter());
+                stage.update_registering(
+                    &window,
+                    &placed,
+                    &returns,
+                    0.1 * t as f64,
+                    0.1,
+                    &mut perception,
+                    &mut decisions,
+                );
+            }
+            stage
+        };
+        let state = |stage: &MotionStage, idx: usize| {
+            stage
+                .cell_states()
+                .iter()
+                .find(|r| r.idx as usize == idx)
+                .map(|r| r.state)
+        };
+        let (off, on) = (run(false), run(true));
+        // Without the layer: the 20 placed cells and the one beside move; the return in front
+        // of the face, not placed, takes nothing.
+        assert_eq!(off.cell_states().len(), 21);
+        assert_eq!(state(&off, at(11, 14)), Some(CellMotion::Moving));
+        assert_eq!(state(&off, at(10, 10)), None);
+        // With it: heading east, along the sensor (x 1) is below the nearest return (x 5.1):
+        // the face anchored at 5.1, open behind (no length seen); across it lies between y
+        // 5.05 and 6.95 (silhouettes). The cell beside (centre y 7.25) is outside; the
+        // return's cell in front (centre (5.25, 5.25), behind x 5.1) is inside, but not a
+        // placed cell: it takes nothing.
+        assert_eq!(state(&on, at(11, 14)), Some(CellMotion::OutsideObject));
+        assert_eq!(state(&on, at(10, 10)), None);
+        let moving = |stage: &MotionStage| {
+            stage
+                .cell_states()
+                .iter()
+                .filter(|r| r.state == CellMotion::Moving)
+                .count()
+        };
+        assert_eq!((moving(&off), moving(&on)), (21, 20));
+        // The layer never changes a track's speed.
+        for r in on.cell_states() {
+            assert!((r.speed_mps - 4.9505).abs() < 1e-3, "{r:?}");
+        }
+        assert_eq!(on.velocity_east()[at(11, 14)], 0.0);
+        assert!((on.velocity_east()[at(11, 10)] - 4.9505).abs() < 1e-3);
     }
 
     #[test]

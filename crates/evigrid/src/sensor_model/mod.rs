@@ -411,6 +411,31 @@ impl SensorModel {
         self.surface_silhouette_faces = silhouette_faces;
     }
 
+    /// The last scan's visible obstacle returns, positions from the sensor (levelled frame:
+    /// world axes, metres): with the surface placement, the nearest return of each fine sector
+    /// (0.1°: the faces the sensor sees, a few thousand points however dense the scan); else
+    /// every return the stray filter kept. The motion stage's object layer fits each moving
+    /// track's extent to them.
+    pub(crate) fn visible_returns(&self) -> Box<dyn Iterator<Item = [f64; 2]> + '_> {
+        if self.placed_by_surface && !self.surface_range.is_empty() {
+            Box::new(
+                self.surface_range
+                    .iter()
+                    .zip(&self.nearest_xy)
+                    .filter(|(r, _)| r.is_finite())
+                    .map(|(_, &xy)| xy),
+            )
+        } else {
+            Box::new(
+                self.classified
+                    .iter()
+                    .flat_map(|c| c.obstacle_cells.iter().zip(&c.obstacle_xy))
+                    .filter(|&(&(idx, _, _), _)| !self.stray.is_stray(idx))
+                    .map(|(_, &xy)| xy),
+            )
+        }
+    }
+
     /// Fills `out` (cleared first) from the scan of the last [`SensorModel::build`], with each
     /// obstacle return's occupied evidence in the cell of the return moved `return_depth_m`
     /// further along its ray, and each ray's free space extended by as much: a cell is
