@@ -100,7 +100,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         "false M  truth {truth_name} | {seen} | {} | {} | {}",
                         states
                             .get(&(idx as u32))
-                            .map_or("-".to_owned(), |s| format!("{:?}", s.state)),
+                            .map_or("-".to_owned(), |s| if detail {
+                                format!(
+                                    "{:?} n{} f{} m{} v{:.0} s{:.1}",
+                                    s.state,
+                                    s.cluster_cells.min(9),
+                                    s.frames,
+                                    s.measurements.min(9),
+                                    s.speed_mps,
+                                    s.sigma_mps,
+                                )
+                            } else {
+                                format!("{:?}", s.state)
+                            }),
                         if beside_moving { "beside M" } else { "apart" },
                         if has_velocity {
                             "velocity"

@@ -70,7 +70,7 @@ mod window;
 
 // The per-frame pipeline: what an embedding uses first.
 pub use pipeline::{
-    FrameStats, FrontEnd, FrontEndStats, Fusion, FusionStats, Method, NewCells, Pipeline,
+    FrameStats, FrontEnd, FrontEndStats, Fusion, FusionStats, MapFrame, Method, NewCells, Pipeline,
     PipelineError, Prior, RefinementOutcome, RefinementStats,
 };
 // Parameters (SPEC §7), one type per `[section]`.

@@ -211,6 +211,40 @@ pub struct RefinementStats {
     pub ms: f64,
 }
 
+/// The frame of the pose refinement's local map that a scan was placed in
+/// ([`FrontEnd::map_frame`]): `world_from_map` in the plane, and which map it belongs to.
+///
+/// Two scans placed in frames of one map put a static point apart by the change of the frame
+/// between them (`docs/motion.md`, "The map frame's move"), plus their registrations' errors:
+/// the pull towards the given poses moves the frame, not the map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapFrame {
+    /// Which map (the refiner counts the maps it started): frames of two maps are unrelated.
+    pub map: usize,
+    /// `world_from_map`'s translation east, metres.
+    pub east_m: f64,
+    /// `world_from_map`'s translation north, metres.
+    pub north_m: f64,
+    /// `world_from_map`'s turn about the vertical, radians (counter-clockwise).
+    pub heading_rad: f64,
+}
+
+impl MapFrame {
+    /// Where the point `(x, y)` (world metres) placed in the frame `from` is placed in this
+    /// frame: `self · from⁻¹ · (x, y)`.
+    pub fn moved_from(&self, from: &MapFrame, x: f64, y: f64) -> (f64, f64) {
+        let (sin_f, cos_f) = from.heading_rad.sin_cos();
+        // In the map: from⁻¹ · p.
+        let (px, py) = (x - from.east_m, y - from.north_m);
+        let (mx, my) = (cos_f * px + sin_f * py, -sin_f * px + cos_f * py);
+        let (sin_s, cos_s) = self.heading_rad.sin_cos();
+        (
+            cos_s * mx - sin_s * my + self.east_m,
+            sin_s * mx + cos_s * my + self.north_m,
+        )
+    }
+}
+
 /// The per-frame front end (SPEC §2-§4): the window that follows the vehicle, the GISGrid of the
 /// map prior kept in it, and each scan's SensorGrid.
 ///
@@ -237,6 +271,8 @@ pub struct FrontEnd {
     world_from_sensor: IsometryMatrix3,
     /// How far the refinement moves the given poses ([`FrontEnd::pose_sigma`]).
     corrections: CorrectionSpread,
+    /// The map frame the last scan was placed in ([`FrontEnd::map_frame`]).
+    map_frame: Option<MapFrame>,
 }
 
 /// The running mean square of the refinement's corrections (`docs/motion.md`, "Gating by the
@@ -324,6 +360,7 @@ impl FrontEnd {
             refiner,
             world_from_sensor: IsometryMatrix3::identity(),
             corrections: CorrectionSpread::default(),
+            map_frame: None,
         })
     }
 
@@ -416,10 +453,28 @@ impl FrontEnd {
                 pose_refinement.correction_deg.to_radians(),
             );
         }
+        self.map_frame = None;
         if let (Some(refiner), Some(refinement)) = (&mut self.refiner, &refinement) {
             let start = Instant::now();
+            let maps = refiner.map_starts();
             refiner.insert(refinement);
             pose_refinement.ms += ms(start);
+            // The scan joined the map (registered, the first, or starting a new map): it was
+            // placed at `world_from_map · map_from_sensor`.
+            let joined = matches!(
+                refinement.outcome,
+                odometry::RefineOutcome::Refined | odometry::RefineOutcome::First
+            ) || refiner.map_starts() != maps;
+            if joined {
+                let frame = refiner.world_from_map();
+                let rotation = frame.rotation.to_rotation_matrix();
+                self.map_frame = Some(MapFrame {
+                    map: refiner.map_starts(),
+                    east_m: frame.translation.x,
+                    north_m: frame.translation.y,
+                    heading_rad: rotation[(1, 0)].atan2(rotation[(0, 0)]),
+                });
+            }
         }
         self.world_from_sensor = *world_from_sensor;
         self.dt_s = time_s - previous_s;
@@ -439,6 +494,13 @@ impl FrontEnd {
     /// (`[localisation]`). The identity before the first frame.
     pub fn world_from_sensor(&self) -> &IsometryMatrix3 {
         &self.world_from_sensor
+    }
+
+    /// The frame of the pose refinement's local map the last scan was placed in: `None`
+    /// without refinement, and for a scan that did not join the map (its given pose was used:
+    /// a refused registration, or no data).
+    pub fn map_frame(&self) -> Option<MapFrame> {
+        self.map_frame
     }
 
     /// An estimate of the error of the pose used, from the pose refinement: (σ per axis,
@@ -1032,6 +1094,82 @@ mod tests {
                 (range < 60.0).then_some([(range * bc) as f32, (range * bs) as f32, 0.0])
             })
             .collect()
+    }
+
+    #[test]
+    fn a_map_frame_carries_a_point_by_its_change() {
+        // The point (3, 0) placed in the frame (1, 0, 0°) lies at (2, 0) in the map; in the
+        // frame (1, 0, 90°) that map point is placed at (1 − 0, 0 + 2) = (1, 2).
+        let then = MapFrame {
+            map: 1,
+            east_m: 1.0,
+            north_m: 0.0,
+            heading_rad: 0.0,
+        };
+        let now = MapFrame {
+            heading_rad: std::f64::consts::FRAC_PI_2,
+            ..then
+        };
+        let (x, y) = now.moved_from(&then, 3.0, 0.0);
+        assert!(
+            (x - 1.0).abs() < 1e-12 && (y - 2.0).abs() < 1e-12,
+            "{x} {y}"
+        );
+        // An unchanged frame leaves every point where it was.
+        let (x, y) = then.moved_from(&then, -4.5, 7.25);
+        assert!(
+            (x + 4.5).abs() < 1e-12 && (y - 7.25).abs() < 1e-12,
+            "{x} {y}"
+        );
+    }
+
+    #[test]
+    fn the_map_frame_is_known_only_for_scans_that_joined_the_map() -> Result<(), PipelineError> {
+        let mut none = params();
+        none.localisation.refinement = PoseRefinement::None;
+        let mut off = FrontEnd::new(&none, None)?;
+        off.process(
+            &street_scan((0.0, 0.0, 0.0)),
+            &IsometryMatrix3::identity(),
+            0.0,
+        )?;
+        assert_eq!(off.map_frame(), None);
+        let mut on = params();
+        on.localisation.refinement = PoseRefinement::ScanToMap;
+        let mut refined = FrontEnd::new(&on, None)?;
+        // The first scan starts the map in the world's frame.
+        refined.process(
+            &street_scan((0.0, 0.0, 0.0)),
+            &IsometryMatrix3::identity(),
+            0.0,
+        )?;
+        let first = refined.map_frame();
+        assert_eq!(
+            first,
+            Some(MapFrame {
+                map: 1,
+                east_m: 0.0,
+                north_m: 0.0,
+                heading_rad: 0.0
+            })
+        );
+        // The next, 0.8 m on and given 0.1 m off across the street: registered, and the pull
+        // towards the given pose moves the frame by less than that.
+        let prior = IsometryMatrix3::from_xyz_rpy(0.8, 0.1, 0.0, 0.0, 0.0, 0.0);
+        let stats = refined.process(&street_scan((0.8, 0.0, 0.0)), &prior, 0.1)?;
+        assert_eq!(stats.pose_refinement.outcome, RefinementOutcome::Refined);
+        let frame = refined.map_frame().unwrap_or(MapFrame {
+            map: 0,
+            east_m: f64::NAN,
+            north_m: f64::NAN,
+            heading_rad: f64::NAN,
+        });
+        assert_eq!(frame.map, 1);
+        assert!(
+            frame.north_m.abs() < 0.1 && frame.east_m.abs() < 0.1,
+            "{frame:?}"
+        );
+        Ok(())
     }
 
     #[test]

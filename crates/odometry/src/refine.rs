@@ -302,6 +302,8 @@ pub struct PoseRefiner {
     /// the last refined scan (twists right-multiplied on its pose, the pose); `None` until a
     /// scan was refined since the map started, when it is the prior's.
     frame_covariance: Option<(Isometry3<f64>, Matrix6<f64>)>,
+    /// Maps started so far (the first included): a new map has a new frame.
+    map_starts: usize,
 }
 
 impl PoseRefiner {
@@ -317,6 +319,7 @@ impl PoseRefiner {
             refused_in_a_row: 0,
             track: Vec::with_capacity(2),
             frame_covariance: None,
+            map_starts: 0,
             // As KISS-ICP: corrections under 0.1 m (bound at the range) are sampling noise, and
             // would shrink the threshold below the map's point spacing.
             threshold: AdaptiveThreshold::new(params.initial_threshold_m, 0.1, params.max_range_m),
@@ -327,6 +330,20 @@ impl PoseRefiner {
     /// The parameters.
     pub fn params(&self) -> &RefineParams {
         &self.params
+    }
+
+    /// `world_from_map`: the offset between the map's own frame and the world, as the last
+    /// [`PoseRefiner::insert`] left it. A scan that joined the map was placed in the world at
+    /// `world_from_map · map_from_sensor`, so two such scans of one map place a static point
+    /// apart by the change of this offset between them, plus their registrations' errors.
+    pub fn world_from_map(&self) -> &Isometry3<f64> {
+        &self.world_from_map
+    }
+
+    /// Maps started so far, the first included: it grows when the map is started again after
+    /// refusals in a row, whose frame is new (offsets of two maps are not comparable).
+    pub fn map_starts(&self) -> usize {
+        self.map_starts
     }
 
     /// Voxels in the local map.
@@ -538,6 +555,9 @@ impl PoseRefiner {
         }
         // A restarted map starts from this scan at its given pose.
         let restarted = self.map.is_none();
+        if restarted {
+            self.map_starts += 1;
+        }
         let pose = if restarted {
             &refinement.world_from_sensor
         } else {
@@ -795,11 +815,18 @@ mod tests {
         };
         let prior = level(0.2, 0.0, 0.0);
         let scan = planar_scan((0.0, 0.0, 0.0));
+        let x = |r: &Refinement| r.world_from_sensor.translation.x;
         let free = build(0.0).refine(&scan, &prior, 0.0);
         let half = build(0.5).refine(&scan, &prior, 0.0);
+        // The pull moves the map's frame, not the scan in it: the scan joins the map at its
+        // registered pose, and `world_from_map` carries it to the pose used.
+        let mut pulled = build(0.5);
+        assert_eq!(*pulled.world_from_map(), Isometry3::identity());
+        pulled.insert(&half);
+        let frame_x = pulled.world_from_map().translation.x;
+        assert!((frame_x - (x(&half) - x(&free))).abs() < 1e-3, "{frame_x}");
         let kept = build(1.0).refine(&scan, &prior, 0.0);
         assert_eq!(half.outcome, RefineOutcome::Refined);
-        let x = |r: &Refinement| r.world_from_sensor.translation.x;
         assert!(x(&free).abs() < 0.02, "{}", x(&free));
         assert!(
             (x(&half) - 0.5 * (x(&free) + 0.2)).abs() < 1e-3,
@@ -836,7 +863,9 @@ mod tests {
         })
         .expect("valid");
         let scan = planar_scan((0.0, 0.0, 0.0));
+        assert_eq!(refiner.map_starts(), 0);
         refiner.refine_and_insert(&scan, &level(0.0, 0.0, 0.0), 0.0);
+        assert_eq!(refiner.map_starts(), 1);
         let voxels = refiner.map_voxels();
         // The given pose jumps 0.3 m for good (a relocalised GNSS): refused, left out.
         let jumped = level(0.3, 0.0, 0.0);
@@ -848,8 +877,12 @@ mod tests {
             );
             assert_eq!(refiner.map_voxels(), voxels);
         }
-        // The last refusal in a row restarts the map from the given pose, which then holds.
+        assert_eq!(refiner.map_starts(), 1);
+        // The last refusal in a row restarts the map from the given pose, which then holds:
+        // a second map, whose frame is the world's again.
         refiner.refine_and_insert(&scan, &jumped, 0.0);
+        assert_eq!(refiner.map_starts(), 2);
+        assert_eq!(*refiner.world_from_map(), Isometry3::identity());
         let next = refiner.refine(&scan, &jumped, 0.0);
         assert_eq!(next.outcome, RefineOutcome::Refined);
         assert!(next.correction.translation.vector.norm() < 0.02);

@@ -792,6 +792,38 @@ fn a_centre_just_in_front_of_the_surface_is_occupied_within_the_pose_error() {
 }
 
 #[test]
+fn the_default_pose_tolerance_is_a_sixteenth_of_the_pose_error() {
+    // As above, σ = 0.2 m: the default 0.0625 σ is 0.0125 m. A wall x = 5.55 leaves cell
+    // (5, 0)'s centre 0.05 m in front of it: free now (0.375 σ = 0.075 m, the default before,
+    // took it in); a wall x = 5.51, 0.01 m in front: occupied.
+    let window = small_window();
+    let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
+    let sigmas = crate::MotionParams::default().surface_pose_sigmas;
+    assert_eq!(sigmas, 0.0625);
+    let occupied = |sigmas: f64, wall_x: f64| {
+        let points: Vec<[f32; 3]> = (-10..=20)
+            .map(|k| {
+                [
+                    (wall_x - 0.5) as f32,
+                    (f64::from(k) * 0.1 - 0.5) as f32,
+                    0.0,
+                ]
+            })
+            .collect();
+        let mut model = SensorModel::new(planar_params());
+        model.set_return_depth_m(0.5);
+        model.set_placed_by_surface(true, 1.0, sigmas, false, false);
+        let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
+        model.build(&points, &pose, &window, &mut spec);
+        model.build_placed(&window, (0.2, 0.0), &mut placed);
+        at(&window, placed.m_occupied(), 5.5, 0.5) > 0.0
+    };
+    assert!(!occupied(sigmas, 5.55));
+    assert!(occupied(0.375, 5.55));
+    assert!(occupied(sigmas, 5.51));
+}
+
+#[test]
 fn a_cell_radially_behind_a_silhouettes_last_return_is_not_occupied_placed_by_surface() {
     // A face x = 5.6 (world) from y = −1.0 to 0.47, a return every 0.1 m and the last at
     // 0.47; the sensor at (0.5, 0.5), 1 m cells, depth 1 m, no pose tolerance. Cell (6, 0)'s
