@@ -893,10 +893,11 @@ pub struct MotionParams {
     /// pose's estimated error ([`FrontEnd::pose_sigma`](crate::FrontEnd::pose_sigma), at the
     /// cell's range: √(σ² + (r·σ_θ)²)) in front of the surface is still occupied, since the
     /// truth lies in the world's frame and the scan is placed with the pose used. By default
-    /// 0.0625, chosen again on the tuning drives once the pose was refined by the information
-    /// filter (the largest moving IoU whose dynamic accuracy stays within 0.02 of the default's,
-    /// among 0, 0.0625, 0.125, 0.1875, 0.25 and 0.375; `docs/motion.md`, "The surface's pose
-    /// tolerance under pose error"); 0.375 before, 0.25 before that.
+    /// 0.09375, chosen again on the tuning drives once the pose was refined by the information
+    /// filter and the object layer labelled moving tracks' cells (the largest moving IoU whose
+    /// dynamic accuracy stays within 0.02 of the default's, among 0.0625, 0.09375, 0.125,
+    /// 0.1875 and 0.375; `docs/motion.md`, "The surface's pose tolerance under pose error");
+    /// 0.375 before, 0.25 before that.
     pub surface_pose_sigmas: f64,
     /// With `placed_by_surface`: past the last return of a silhouette (the ray's neighbour on
     /// the other side farther, or none: that ray went past the object), a face square to the
@@ -984,7 +985,7 @@ impl Default for MotionParams {
             return_depth_cells: 0.6,
             placed_by_surface: true,
             surface_depth_cells: 3.0,
-            surface_pose_sigmas: 0.0625,
+            surface_pose_sigmas: 0.09375,
             surface_silhouette_faces: false,
             surface_convex_corners: false,
             surface_register_on_returns: true,

@@ -792,14 +792,14 @@ fn a_centre_just_in_front_of_the_surface_is_occupied_within_the_pose_error() {
 }
 
 #[test]
-fn the_default_pose_tolerance_is_a_sixteenth_of_the_pose_error() {
-    // As above, σ = 0.2 m: the default 0.0625 σ is 0.0125 m. A wall x = 5.55 leaves cell
+fn the_default_pose_tolerance_is_three_32nds_of_the_pose_error() {
+    // As above, σ = 0.2 m: the default 0.09375 σ is 0.01875 m. A wall x = 5.55 leaves cell
     // (5, 0)'s centre 0.05 m in front of it: free now (0.375 σ = 0.075 m, the default before,
     // took it in); a wall x = 5.51, 0.01 m in front: occupied.
     let window = small_window();
     let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
     let sigmas = crate::MotionParams::default().surface_pose_sigmas;
-    assert_eq!(sigmas, 0.0625);
+    assert_eq!(sigmas, 0.09375);
     let occupied = |sigmas: f64, wall_x: f64| {
         let points: Vec<[f32; 3]> = (-10..=20)
             .map(|k| {
