@@ -16,6 +16,9 @@
 //! the grid placed by the surface holds it, where the truth-M cells among its neighbours lie
 //! seen along its own ray (behind it, in front of it, beside it), and how many cells nearer on
 //! its ray the first return lies.
+//! With `DIAGNOSE_DETAIL` set, the truth-M cells that the object layer labelled outside a
+//! track's rectangle (`OutsideObject`) in one of the previous [`OUTSIDE_FRAMES`] frames are
+//! also counted as hits or misses "after outside": what the outside label costs later frames.
 
 mod common;
 
@@ -23,6 +26,10 @@ use std::collections::BTreeMap;
 
 use eval::{Variant, evaluate_observed};
 use evigrid::Label;
+use evigrid::motion::CellMotion;
+
+/// Frames back in which an `OutsideObject` label counts for the "after outside" tally.
+const OUTSIDE_FRAMES: usize = 3;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let common::Inputs {
@@ -34,6 +41,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let detail = std::env::var_os("DIAGNOSE_DETAIL").is_some();
     let geometry = std::env::var_os("DIAGNOSE_GEOMETRY").is_some();
     let mut counts: BTreeMap<String, u64> = BTreeMap::new();
+    // The storage indices labelled `OutsideObject`, one set per frame, newest last.
+    let mut outside_before: std::collections::VecDeque<std::collections::HashSet<u32>> =
+        std::collections::VecDeque::new();
     evaluate_observed(
         &map,
         &scenario,
@@ -55,6 +65,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .motion()
                 .map(|m| m.cell_states().iter().map(|r| (r.idx, *r)).collect())
                 .unwrap_or_default();
+            if detail {
+                for idx in 0..window.len() {
+                    let outside = outside_before.iter().any(|s| s.contains(&(idx as u32)));
+                    if !outside || f.truth[idx] != Label::M {
+                        continue;
+                    }
+                    if m_occupied[idx] <= 0.0 && m_free[idx] <= 0.0 {
+                        continue;
+                    }
+                    let key = if decisions[idx] == Label::M {
+                        "after outside: hit M".to_owned()
+                    } else {
+                        format!("after outside: missed M decided {:?}", decisions[idx])
+                    };
+                    *counts.entry(key).or_default() += 1;
+                }
+                outside_before.push_back(
+                    states
+                        .values()
+                        .filter(|r| r.state == CellMotion::OutsideObject)
+                        .map(|r| r.idx)
+                        .collect(),
+                );
+                if outside_before.len() > OUTSIDE_FRAMES {
+                    outside_before.pop_front();
+                }
+            }
             for idx in 0..window.len() {
                 let seen = if m_occupied[idx] > 0.0 {
                     "return"

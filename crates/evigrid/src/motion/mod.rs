@@ -769,7 +769,12 @@ impl MotionStage {
                 }
                 let mut m = perception.cell_masses(idx);
                 combine(&mut m, mass, self.residual);
-                write_cell(perception, idx, &m);
+                // The outside label, unfused, is this frame's decision only: the grid keeps
+                // the step's masses, and the car that covers the cell next frame meets no
+                // static mass there.
+                if cell_state != CellMotion::OutsideObject || self.params.object_outside_fused {
+                    write_cell(perception, idx, &m);
+                }
                 decisions[idx] = decide(&m, perception.seen()[idx] != 0, self.unknown_threshold);
             }
         }
@@ -986,6 +991,80 @@ mod tests {
             0,
             "held back: one frame moving"
         );
+    }
+
+    #[test]
+    fn a_cell_outside_the_rectangle_in_one_frame_is_moving_when_the_car_covers_it_the_next() {
+        // The car of `driving_away` over three frames (face columns 10, 11, 12), seen wider
+        // in the third: rows 10-14 there, 10-13 before. In the second frame two more placed
+        // cells beside it, (12, 14) and (13, 14) (centre y 7.25), lie outside its rectangle
+        // (across it between the returns at y 5.05 and 6.95); in the third the car covers
+        // row 14 (returns up to y 7.45), and (13, 14), explained by the shift from (12, 14),
+        // takes the moving evidence. Fused, the outside label's m(Ω∖{M}) = 0.9 is still in
+        // the grid there: against m({M}) = 0.8 the cell is not decided M (issue 30). Unfused,
+        // it was only the second frame's decision: M.
+        let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
+        let (w, h) = (window.width(), window.height());
+        let at = |col: i64, row: i64| window.storage_index(col, row).unwrap_or(0);
+        let x = at(13, 14);
+        let run = |fused: bool| {
+            let mut params = crate::Params::default();
+            params.motion.object_heading_max_deg = 40.0;
+            params.motion.object_heading_fit_deg = 0.0;
+            params.motion.object_outside_fused = fused;
+            let mut stage = MotionStage::new(&params, w, h);
+            let mut perception = PerceptionGrid::new(w, h);
+            let mut decisions = vec![Label::Unknown; w * h];
+            let mut states = Vec::new();
+            for t in 0..3 {
+                let (mut returns, mut placed) = driving_away(t, &window);
+                let face = 10 + t;
+                let xm = 0.5 * face as f64;
+                let mut far_y = 6.95;
+                if t == 1 {
+                    placed.set_occupied(at(12, 14), 0.8);
+                    placed.set_occupied(at(13, 14), 0.8);
+                }
+                if t == 2 {
+                    returns.set_occupied(at(face, 14), 0.8);
+                    for col in face..face + 5 {
+                        placed.set_occupied(at(col, 14), 0.8);
+                    }
+                    far_y = 7.45;
+                }
+                let points = [
+                    (at(face, 10), [xm + 0.05, 5.05]),
+                    (at(face, 13 + i64::from(t == 2)), [xm + 0.05, far_y]),
+                    (at(face - 1, 10), [xm - 0.4, 5.3]),
+                ];
+                stage.set_pose(1.0, 6.0, 0.0, 0.0);
+                stage.set_returns(points.into_iter());
+                stage.update_registering(
+                    &window,
+                    &placed,
+                    &returns,
+                    0.1 * t as f64,
+                    0.1,
+                    &mut perception,
+                    &mut decisions,
+                );
+                let state = stage
+                    .cell_states()
+                    .iter()
+                    .find(|r| r.idx as usize == x)
+                    .map(|r| r.state);
+                states.push((state, decisions[x]));
+            }
+            states
+        };
+        let (fused, unfused) = (run(true), run(false));
+        for states in [&fused, &unfused] {
+            assert_eq!(states[1].0, Some(CellMotion::OutsideObject), "{states:?}");
+            assert_ne!(states[1].1, Label::M, "{states:?}");
+            assert_eq!(states[2].0, Some(CellMotion::Moving), "{states:?}");
+        }
+        assert_ne!(fused[2].1, Label::M, "{fused:?}");
+        assert_eq!(unfused[2].1, Label::M, "{unfused:?}");
     }
 
     #[test]
