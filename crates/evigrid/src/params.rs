@@ -942,10 +942,11 @@ pub struct MotionParams {
     /// mostly M: the free→occupied conflict). 0.9, the default, is `mu_static`.
     pub object_outside_static: f64,
     /// With `object_layer`: whether `object_outside_static` is fused into the perception grid
-    /// (`true`, the default: it persists into later frames) or only decides the cell this
-    /// frame (`false`: the grid keeps what the SPEC §5 step made of it, so a later frame's
-    /// moving evidence there meets no static mass; `docs/motion.md`, "The outside label as
-    /// this frame's decision").
+    /// (`true`: it persists into later frames, where the car that covers the cell next meets
+    /// it and takes frames to be M there) or only decides the cell this frame (`false`, the
+    /// default: the grid keeps what the SPEC §5 step made of it; chosen on the tuning drives,
+    /// adopted on validation, `docs/motion.md`, "The outside label as this frame's
+    /// decision").
     pub object_outside_fused: bool,
     /// With `object_layer`: the heading is taken from the track's velocity only when its
     /// uncertainty, √(σx² + σy²) over the speed, is at most the tangent of this angle, degrees.
@@ -998,7 +999,7 @@ impl Default for MotionParams {
             pose_gate_sigmas: 0.0,
             object_layer: true,
             object_outside_static: 0.9,
-            object_outside_fused: true,
+            object_outside_fused: false,
             object_heading_max_deg: 40.0,
             object_heading_fit_deg: 15.0,
             object_max_length_m: 10.0,
