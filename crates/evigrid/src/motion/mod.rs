@@ -1001,8 +1001,9 @@ mod tests {
         // (across it between the returns at y 5.05 and 6.95); in the third the car covers
         // row 14 (returns up to y 7.45), and (13, 14), explained by the shift from (12, 14),
         // takes the moving evidence. Fused, the outside label's m(Ω∖{M}) = 0.9 is still in
-        // the grid there: against m({M}) = 0.8 the cell is not decided M (issue 30). Unfused,
-        // it was only the second frame's decision: M.
+        // the grid there: against m({M}) = 0.8 (conflict 0.72; m({M}) 0.08 against
+        // m(Ω∖{M}) 0.18) the cell is not decided M (issue 30). Unfused, it was only the
+        // second frame's decision: m({M}) = 0.8, M.
         let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
         let (w, h) = (window.width(), window.height());
         let at = |col: i64, row: i64| window.storage_index(col, row).unwrap_or(0);
@@ -1014,6 +1015,8 @@ mod tests {
             params.motion.object_outside_fused = fused;
             let mut stage = MotionStage::new(&params, w, h);
             let mut perception = PerceptionGrid::new(w, h);
+            // Every cell seen (the step would have marked them), so that a cell is decided.
+            perception.seen_mut().fill(1);
             let mut decisions = vec![Label::Unknown; w * h];
             let mut states = Vec::new();
             for t in 0..3 {
