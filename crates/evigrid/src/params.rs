@@ -1519,6 +1519,94 @@ unknown_threshold = 0.7
         assert_eq!(Params::from_toml_str(&text)?, p);
         Ok(())
     }
+
+    /// The rows of the parameter table of `docs/motion.md` headed `## Parameters (`[section]`)`:
+    /// each key of the first column (several may share a row, comma-separated, as may their
+    /// defaults) with its documented default, the first word of the second column.
+    fn documented_defaults(doc: &str, section: &str) -> Vec<(String, String)> {
+        let heading = format!("## Parameters (`[{section}]`)");
+        let mut rows = Vec::new();
+        let Some(start) = doc.find(&heading) else {
+            return rows;
+        };
+        let table = doc[start + heading.len()..]
+            .lines()
+            .skip_while(|line| !line.starts_with('|'))
+            .take_while(|line| line.starts_with('|'))
+            .skip(2);
+        for row in table {
+            let columns: Vec<&str> = row.split('|').map(str::trim).collect();
+            let (Some(keys), Some(defaults)) = (columns.get(1), columns.get(2)) else {
+                continue;
+            };
+            let keys = keys.split(',').map(|key| key.trim().trim_matches('`'));
+            let defaults = defaults.split(',').map(|value| {
+                value
+                    .split_whitespace()
+                    .next()
+                    .unwrap_or_default()
+                    .to_string()
+            });
+            rows.extend(keys.map(str::to_string).zip(defaults));
+        }
+        rows
+    }
+
+    /// Every key of `value` (a section's defaults, serialised) is in the table with its default,
+    /// and the table names no key the section does not have.
+    fn check_table(doc: &str, section: &str, value: toml::Value) {
+        let toml::Value::Table(defaults) = value else {
+            panic!("[{section}] does not serialise to a table");
+        };
+        let rows = documented_defaults(doc, section);
+        assert!(!rows.is_empty(), "docs/motion.md has no [{section}] table");
+        for (key, documented) in &rows {
+            let Some(default) = defaults.get(key) else {
+                panic!("docs/motion.md documents [{section}] {key}, which params.rs has not");
+            };
+            let same = match default {
+                toml::Value::Float(x) => documented.parse::<f64>().ok() == Some(*x),
+                toml::Value::Integer(n) => documented.parse::<i64>().ok() == Some(*n),
+                toml::Value::Boolean(b) => documented.parse::<bool>().ok() == Some(*b),
+                toml::Value::String(text) => documented.trim_matches('"') == text,
+                other => panic!("[{section}] {key} = {other}: no rule to compare it"),
+            };
+            assert!(
+                same,
+                "docs/motion.md: [{section}] {key} documented {documented}, default {default}"
+            );
+        }
+        for key in defaults.keys() {
+            assert!(
+                rows.iter().any(|(row, _)| row == key),
+                "[{section}] {key} is missing from docs/motion.md's table"
+            );
+        }
+    }
+
+    #[test]
+    fn the_parameter_tables_of_the_docs_hold_every_key_with_its_default() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/motion.md");
+        let doc = std::fs::read_to_string(path).expect("docs/motion.md is readable");
+        let motion = toml::Value::try_from(MotionParams::default()).expect("serialises");
+        check_table(&doc, "motion", motion);
+        let localisation =
+            toml::Value::try_from(LocalisationParams::default()).expect("serialises");
+        check_table(&doc, "localisation", localisation);
+    }
+
+    #[test]
+    fn the_table_check_reads_a_table_and_its_shared_rows() {
+        let doc = "## Parameters (`[motion]`)\n\ntext\n\n| key | default |\n|---|---|\n\
+                   | `a` | 0 (off) | x |\n| `b`, `c` | 10, 3 | y |\n\nafter\n| `d` | 1 |\n";
+        let rows = documented_defaults(doc, "motion");
+        let expected = [("a", "0"), ("b", "10"), ("c", "3")];
+        assert_eq!(rows.len(), expected.len());
+        for ((key, value), (want_key, want_value)) in rows.iter().zip(expected) {
+            assert_eq!((key.as_str(), value.as_str()), (want_key, want_value));
+        }
+        assert!(documented_defaults(doc, "localisation").is_empty());
+    }
 }
 
 /// Pose refinement (`[localisation]`): whether the front end trusts the pose it is given, or
