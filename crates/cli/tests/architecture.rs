@@ -1,6 +1,7 @@
-//! The layout rules ARCHITECTURE.md states, checked so that they do not drift: no import circle
-//! between the modules of any crate, and `evigrid run` kept as wiring (`run.rs` at most 300
-//! lines, no function of the command-line crate over 150).
+//! The layout rules ARCHITECTURE.md states, checked so that they do not drift: dependencies
+//! between the crates pointing down the layers only (`LAYERS`), no import circle between the
+//! modules of any crate, and `evigrid run` kept as wiring (`run.rs` at most 300 lines, no
+//! function of the command-line crate over 150).
 //!
 //! Modules are read from the source files (`lib.rs`/`main.rs` the root, `mod.rs` its folder,
 //! `a/b.rs` module `a::b`); an import is a `crate::…` or `super::…` path outside `#[cfg(test)]`
@@ -277,4 +278,115 @@ fn the_length_check_measures_a_function_to_its_closing_brace() {
     std::fs::write(&file, format!("pub fn five() {{\n{body}}}\nfn one();\n")).unwrap();
     assert_eq!(long_functions(&file, 5), Vec::<String>::new());
     assert_eq!(long_functions(&file, 4).len(), 1);
+}
+
+/// The layers of ARCHITECTURE.md, bottom first: a crate may depend only on crates of a lower
+/// layer (so none of the input crates on another, and `bench` on `session` and `output` but not
+/// on `cli`). Folder names under `crates/`.
+const LAYERS: [&[&str]; 6] = [
+    &["belief", "geodata", "drive", "ground", "odometry"],
+    &["evigrid"],
+    &["output", "sim"],
+    &["eval", "session"],
+    &["bench", "fuzz"],
+    &["cli", "python"],
+];
+
+fn layer_of(folder: &str) -> Option<usize> {
+    LAYERS.iter().position(|layer| layer.contains(&folder))
+}
+
+/// The workspace's own crates a manifest's `[dependencies]` and `[build-dependencies]` name, as
+/// folders under `crates/`; `folder_of` maps a dependency's key to its folder.
+fn workspace_dependencies(manifest: &str, folder_of: &BTreeMap<String, String>) -> Vec<String> {
+    let mut section = "";
+    let mut found = Vec::new();
+    for line in manifest.lines().map(str::trim) {
+        if line.starts_with('[') {
+            section = line;
+            continue;
+        }
+        if section != "[dependencies]" && section != "[build-dependencies]" {
+            continue;
+        }
+        let key = line
+            .split(|c: char| c == '=' || c == '.')
+            .next()
+            .unwrap_or_default()
+            .trim();
+        if let Some(folder) = folder_of.get(key) {
+            found.push(folder.clone());
+        }
+    }
+    found
+}
+
+/// Each `crate → dependency` edge that does not point to a lower layer, or names a crate of no
+/// layer.
+fn layering_violations(edges: &[(String, String)]) -> Vec<String> {
+    edges
+        .iter()
+        .filter(|(from, to)| match (layer_of(from), layer_of(to)) {
+            (Some(from), Some(to)) => to >= from,
+            _ => true,
+        })
+        .map(|(from, to)| format!("{from} → {to}"))
+        .collect()
+}
+
+#[test]
+fn crate_dependencies_point_down_the_layers() {
+    let root = std::fs::read_to_string(workspace().join("Cargo.toml")).unwrap();
+    let folder_of: BTreeMap<String, String> = root
+        .lines()
+        .filter_map(|line| {
+            let (key, rest) = line.split_once('=')?;
+            let path = rest.split("path = \"crates/").nth(1)?;
+            let folder = path.split('"').next()?;
+            Some((key.trim().to_string(), folder.to_string()))
+        })
+        .collect();
+    assert!(folder_of.len() >= 10, "workspace dependencies not found");
+    let mut edges = Vec::new();
+    for entry in std::fs::read_dir(workspace().join("crates")).unwrap() {
+        let dir = entry.unwrap().path();
+        let Ok(manifest) = std::fs::read_to_string(dir.join("Cargo.toml")) else {
+            continue;
+        };
+        let folder = dir.file_name().unwrap().to_string_lossy().into_owned();
+        for dependency in workspace_dependencies(&manifest, &folder_of) {
+            edges.push((folder.clone(), dependency));
+        }
+    }
+    assert!(
+        edges.iter().any(|(from, to)| from == "bench" && to == "session"),
+        "the reader missed bench → session: {edges:?}"
+    );
+    let wrong = layering_violations(&edges);
+    assert!(
+        wrong.is_empty(),
+        "dependencies that do not point down:\n{}",
+        wrong.join("\n")
+    );
+}
+
+#[test]
+fn the_layering_check_refuses_an_upward_or_sideways_edge() {
+    let folder_of: BTreeMap<String, String> = [("evigrid-bench", "bench"), ("session", "session")]
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .into_iter()
+        .collect();
+    let manifest = "[dependencies]\nsession = { workspace = true }\nserde.workspace = true\n\
+                    [dev-dependencies]\nevigrid-bench.workspace = true\n";
+    assert_eq!(workspace_dependencies(manifest, &folder_of), ["session"]);
+    let edge = |from: &str, to: &str| (from.to_string(), to.to_string());
+    assert!(layering_violations(&[edge("bench", "session"), edge("evigrid", "belief")]).is_empty());
+    assert_eq!(
+        layering_violations(&[
+            edge("session", "bench"),
+            edge("drive", "odometry"),
+            edge("new", "evigrid"),
+        ]),
+        ["session → bench", "drive → odometry", "new → evigrid"]
+    );
 }
