@@ -359,7 +359,9 @@ fn crate_dependencies_point_down_the_layers() {
         }
     }
     assert!(
-        edges.iter().any(|(from, to)| from == "bench" && to == "session"),
+        edges
+            .iter()
+            .any(|(from, to)| from == "bench" && to == "session"),
         "the reader missed bench → session: {edges:?}"
     );
     let wrong = layering_violations(&edges);

@@ -384,222 +384,28 @@ impl MotionStage {
         let cell_size_m = window.cell_size_m();
         let split = !std::ptr::eq(sensor, returns);
 
-        // 1. The scan's occupied and free cells, only in the blocks the sensor model wrote:
-        // the occupied cells of `returns` (registered on) and of `sensor` (labelled), one list
-        // unless `split`, and the free cells of `returns`.
-        self.occupied.clear();
-        self.registered_on.clear();
-        self.free.clear();
+        // 1. The scan's occupied and free cells, only in the blocks the sensor model wrote.
+        self.collect_scan_cells(sensor, returns, split);
         let (m_free, m_occupied) = (returns.m_free(), returns.m_occupied());
-        let registered_on = if split {
-            &mut self.registered_on
-        } else {
-            &mut self.occupied
-        };
-        for cells in returns.written_cells() {
-            for idx in cells {
-                if m_occupied[idx] > 0.0 {
-                    registered_on.push(idx as u32);
-                } else if m_free[idx] > 0.0 {
-                    self.free.push(idx as u32);
-                }
-            }
-        }
         let labelled = sensor.m_occupied();
-        if split {
-            for cells in sensor.written_cells() {
-                self.occupied.extend(
-                    cells
-                        .filter(|&idx| labelled[idx] > 0.0)
-                        .map(|idx| idx as u32),
-                );
-            }
-        }
         // The history keeps these; the list grows by the labelled cells for the clustering.
         let registered_len = self.registered_on.len();
         // Whether a cluster cell is registered on (occupied in `returns`), and whether it is
         // given evidence (occupied in `sensor`): both, unless `split`.
         let registers = |c: &clusters::Cell| !split || m_occupied[c.idx as usize] > 0.0;
         let labels = |c: &clusters::Cell| !split || labelled[c.idx as usize] > 0.0;
-        for &idx in &self.clear_list {
-            if let Some(c) = self.clear_now.get_mut(idx as usize) {
-                *c = false;
-            }
-        }
-        self.clear_list.clear();
-        // They hold no mass (the sensor model lists them after the masses); a cell may repeat.
-        for &idx in returns.clear_cells() {
-            if let Some(c) = self.clear_now.get_mut(idx as usize)
-                && !*c
-            {
-                *c = true;
-                self.clear_list.push(idx);
-                self.free.push(idx);
-            }
-        }
 
-        // 2-3. Clusters, each registered against the past frames: independent searches, run
-        // in parallel over a few contiguous runs of clusters of about equal cell counts, each
-        // with its own scratch, writing its own part of the outputs.
-        if split {
-            // Both lists, a cell possibly in each: the labelling takes a cell once.
-            self.registered_on.extend_from_slice(&self.occupied);
-            self.clusters.label(window, &self.registered_on);
-        } else {
-            self.clusters.label(window, &self.occupied);
-        }
-        let n_clusters = self.clusters.len();
-        let total_cells: usize = (0..n_clusters)
-            .map(|k| self.clusters.cluster(k).len())
-            .sum();
-        self.moved.clear();
-        self.moved.resize(total_cells, false);
-        self.registrations.clear();
-        self.registrations.resize(n_clusters, None);
-        // The prior of a moving track's prediction, per cluster (off: none).
-        self.prior_centroids.clear();
-        if self.params.prior_after_moving_frames > 0 {
-            for k in 0..n_clusters {
-                let (mut sx, mut sy, mut n) = (0.0, 0.0, 0usize);
-                for c in self.clusters.cluster(k).iter().filter(|c| registers(c)) {
-                    sx += c.col as f64 + 0.5;
-                    sy += c.row as f64 + 0.5;
-                    n += 1;
-                }
-                let n = n.max(1) as f64;
-                self.prior_centroids
-                    .push([sx / n * cell_size_m, sy / n * cell_size_m]);
-            }
-        }
-        self.tracks.predictions(
-            &self.prior_centroids,
-            time_s,
-            dt_s,
-            &self.params,
-            &mut self.predictions,
-        );
-        let parts = rayon::current_num_threads().clamp(1, 64);
-        if self.registrars.len() < parts {
-            self.registrars.resize_with(parts, Registrar::default);
-        }
-        {
-            let (clusters, history, params) = (&self.clusters, &self.history, &self.params);
-            let predictions = &self.predictions[..];
-            let clear_now = &self.clear_now[..];
-            let sensor_cell = (
-                self.sensor_xy_m[0] / cell_size_m,
-                self.sensor_xy_m[1] / cell_size_m,
-            );
-            let (pose_sigma_cells, pose_sigma_rad) =
-                (self.pose_sigma_m / cell_size_m, self.pose_sigma_rad);
-            let mut runs = Vec::with_capacity(parts);
-            let (mut moved, mut registrations) = (&mut self.moved[..], &mut self.registrations[..]);
-            let mut registrars = self.registrars.iter_mut();
-            let (mut k, mut done_cells) = (0, 0);
-            for part in 0..parts {
-                let target = total_cells * (part + 1) / parts;
-                let start = k;
-                let mut cells_in_run = 0;
-                while k < n_clusters && (done_cells + cells_in_run < target || part + 1 == parts) {
-                    cells_in_run += clusters.cluster(k).len();
-                    k += 1;
-                }
-                done_cells += cells_in_run;
-                let (run_moved, rest_moved) = std::mem::take(&mut moved).split_at_mut(cells_in_run);
-                let (run_regs, rest_regs) =
-                    std::mem::take(&mut registrations).split_at_mut(k - start);
-                (moved, registrations) = (rest_moved, rest_regs);
-                if let Some(registrar) = registrars.next() {
-                    runs.push((start..k, run_moved, run_regs, registrar));
-                }
-            }
-            runs.into_par_iter()
-                .for_each(|(range, run_moved, run_regs, registrar)| {
-                    let mut first = 0;
-                    for (k, slot) in range.zip(run_regs.iter_mut()) {
-                        let cells = clusters.cluster(k);
-                        let now = Now {
-                            time_s,
-                            clusters,
-                            cluster: k as u32,
-                            m_free,
-                            clear_now,
-                            sensor_cell,
-                            pose_sigma_cells,
-                            pose_sigma_rad,
-                            predicted_cells_per_s: predictions
-                                .get(k)
-                                .copied()
-                                .flatten()
-                                .map(|[vx, vy]| (vx / cell_size_m, vy / cell_size_m)),
-                        };
-                        *slot = if split {
-                            let mut own = std::mem::take(&mut registrar.own_cells);
-                            own.clear();
-                            own.extend(cells.iter().filter(|c| registers(c)));
-                            let registration =
-                                registrar.register(&own, window, history, now, params);
-                            registrar.own_cells = own;
-                            registration
-                        } else {
-                            registrar.register(cells, window, history, now, params)
-                        };
-                        for (flag, c) in run_moved[first..first + cells.len()].iter_mut().zip(cells)
-                        {
-                            *flag = slot.is_none() || registrar.moved(c);
-                        }
-                        first += cells.len();
-                    }
-                });
-        }
-        self.observations.clear();
-        self.cluster_frames.clear();
-        let mut registered = 0;
-        for k in 0..n_clusters {
-            let cells = self.clusters.cluster(k);
-            let (mut sx, mut sy, mut n) = (0.0, 0.0, 0usize);
-            for c in cells.iter().filter(|c| registers(c)) {
-                sx += c.col as f64 + 0.5;
-                sy += c.row as f64 + 0.5;
-                n += 1;
-            }
-            let n = n.max(1) as f64;
-            let registration = self.registrations[k];
-            self.cluster_frames
-                .push(registration.map_or(0, |r| r.frames as u32));
-            // A registration that implies a speed above `max_speed_mps` is refused: no
-            // velocity measured this frame (the search's per-axis reach lets a diagonal shift
-            // exceed it, and two shifts from different pasts can too).
-            let centroid_m = [sx / n * cell_size_m, sy / n * cell_size_m];
-            let velocity = registration
-                .map(|r| {
-                    let sigma =
-                        r.variance_cells(self.params.shift_sigma_cells).sqrt() * cell_size_m;
-                    let (vx, vy) = r.velocity_cells_per_s;
-                    ([vx * cell_size_m, vy * cell_size_m], sigma * sigma)
-                })
-                .filter(|([vx, vy], _)| vx.hypot(*vy) <= self.params.max_speed_mps);
-            registered += usize::from(velocity.is_some());
-            self.observations.push(Observation {
-                centroid_m,
-                velocity,
-            });
-        }
+        // 2-3. Clusters, each registered against the past frames, then observed: a centroid
+        // and, when the registration is believable, a velocity.
+        self.register_clusters(window, m_free, &registers, split, time_s, dt_s);
+        let registered = self.observe_clusters(&registers, cell_size_m);
 
         // 4. Tracks.
         self.tracks
             .update(&self.observations, time_s, dt_s, &self.params);
 
         // 5. Evidence into the grid, the decision again, the velocity planes.
-        for &idx in &self.velocity_cells {
-            if let Some(v) = self.velocity_east.get_mut(idx as usize) {
-                *v = 0.0;
-            }
-            if let Some(v) = self.velocity_north.get_mut(idx as usize) {
-                *v = 0.0;
-            }
-        }
-        self.velocity_cells.clear();
+        self.clear_velocities();
         self.cell_states.clear();
         self.moving_objects.clear();
         let (mut moving_cells, mut static_cells) = (0, 0);
@@ -659,18 +465,7 @@ impl MotionStage {
             // The object layer: a moving track's rectangle, fitted to its returns.
             let fitted = match mass {
                 MotionMass::Moving(_) if object_layer => {
-                    let centroid = self.observations[k].centroid_m;
-                    let range_m = (centroid[0] - self.sensor_xy_m[0])
-                        .hypot(centroid[1] - self.sensor_xy_m[1]);
-                    let pose_m = self.pose_sigma_m.hypot(range_m * self.pose_sigma_rad);
-                    let limits = objects::Limits {
-                        heading_tan: self.params.object_heading_max_deg.to_radians().tan(),
-                        heading_search_deg: self.params.object_heading_fit_deg,
-                        max_length_m: self.params.object_max_length_m,
-                        max_width_m: self.params.object_max_width_m,
-                        margin_m: self.params.object_margin_m
-                            + self.params.surface_pose_sigmas * pose_m,
-                    };
+                    let limits = self.object_limits(self.observations[k].centroid_m);
                     let motion = objects::Motion {
                         id: track.id,
                         velocity_mps: track.velocity.map(|v| v.mean_mps),
@@ -779,22 +574,7 @@ impl MotionStage {
             }
         }
 
-        // The map says a cell beside a building holds the façade or free space, not a mobile
-        // object. The SPEC §5 step puts a cell's free→occupied conflict on {M} whatever its
-        // prior, and there the conflict is the façade: rays cross the cell, then end in it, as
-        // the ego moves. The prior's "no mobile object" (β_B on Ω∖{M}) is applied to those
-        // cells after the step, to every cell that could have gained {M} (occupied now).
-        let edge = MotionMass::Static(self.edge_not_moving);
-        for &idx in &self.occupied {
-            let idx = idx as usize;
-            if self.gis.context.get(idx) != Some(&MapContext::BuildingEdge) {
-                continue;
-            }
-            let mut m = perception.cell_masses(idx);
-            combine(&mut m, edge, self.residual);
-            write_cell(perception, idx, &m);
-            decisions[idx] = decide(&m, perception.seen()[idx] != 0, self.unknown_threshold);
-        }
+        self.keep_building_edges_not_moving(perception, decisions);
 
         merge_pieces(&mut self.moving_objects, self.params.gate_m);
         if object_layer {
@@ -816,6 +596,282 @@ impl MotionStage {
             moving_cells,
             static_cells,
             ms: start.elapsed().as_secs_f64() * 1e3,
+        }
+    }
+
+    /// Step 1 of [`MotionStage::update_registering`]: the occupied cells of `returns`
+    /// (registered on) and of `sensor` (labelled), one list unless `split`, the free cells of
+    /// `returns`, and the cells its rays crossed without a return (`clear_now`).
+    fn collect_scan_cells(&mut self, sensor: &SensorGrid, returns: &SensorGrid, split: bool) {
+        self.occupied.clear();
+        self.registered_on.clear();
+        self.free.clear();
+        let (m_free, m_occupied) = (returns.m_free(), returns.m_occupied());
+        let registered_on = if split {
+            &mut self.registered_on
+        } else {
+            &mut self.occupied
+        };
+        for cells in returns.written_cells() {
+            for idx in cells {
+                if m_occupied[idx] > 0.0 {
+                    registered_on.push(idx as u32);
+                } else if m_free[idx] > 0.0 {
+                    self.free.push(idx as u32);
+                }
+            }
+        }
+        let labelled = sensor.m_occupied();
+        if split {
+            for cells in sensor.written_cells() {
+                self.occupied.extend(
+                    cells
+                        .filter(|&idx| labelled[idx] > 0.0)
+                        .map(|idx| idx as u32),
+                );
+            }
+        }
+        for &idx in &self.clear_list {
+            if let Some(c) = self.clear_now.get_mut(idx as usize) {
+                *c = false;
+            }
+        }
+        self.clear_list.clear();
+        // They hold no mass (the sensor model lists them after the masses); a cell may repeat.
+        for &idx in returns.clear_cells() {
+            if let Some(c) = self.clear_now.get_mut(idx as usize)
+                && !*c
+            {
+                *c = true;
+                self.clear_list.push(idx);
+                self.free.push(idx);
+            }
+        }
+    }
+
+    /// Steps 2-3: the clusters labelled, each registered against the past frames
+    /// (`registrations`, and per cell whether it `moved`): independent searches, run in
+    /// parallel over a few contiguous runs of clusters of about equal cell counts, each with its
+    /// own scratch, writing its own part of the outputs. With `split`, a cluster is registered
+    /// on its cells that `registers`.
+    fn register_clusters(
+        &mut self,
+        window: &Window,
+        m_free: &[f32],
+        registers: &(impl Fn(&clusters::Cell) -> bool + Sync),
+        split: bool,
+        time_s: f64,
+        dt_s: f64,
+    ) {
+        let cell_size_m = window.cell_size_m();
+        if split {
+            // Both lists, a cell possibly in each: the labelling takes a cell once.
+            self.registered_on.extend_from_slice(&self.occupied);
+            self.clusters.label(window, &self.registered_on);
+        } else {
+            self.clusters.label(window, &self.occupied);
+        }
+        let n_clusters = self.clusters.len();
+        let total_cells: usize = (0..n_clusters)
+            .map(|k| self.clusters.cluster(k).len())
+            .sum();
+        self.moved.clear();
+        self.moved.resize(total_cells, false);
+        self.registrations.clear();
+        self.registrations.resize(n_clusters, None);
+        // The prior of a moving track's prediction, per cluster (off: none).
+        self.prior_centroids.clear();
+        if self.params.prior_after_moving_frames > 0 {
+            for k in 0..n_clusters {
+                let centroid_m =
+                    Self::registered_centroid_m(self.clusters.cluster(k), registers, cell_size_m);
+                self.prior_centroids.push(centroid_m);
+            }
+        }
+        self.tracks.predictions(
+            &self.prior_centroids,
+            time_s,
+            dt_s,
+            &self.params,
+            &mut self.predictions,
+        );
+        let parts = rayon::current_num_threads().clamp(1, 64);
+        if self.registrars.len() < parts {
+            self.registrars.resize_with(parts, Registrar::default);
+        }
+        {
+            let (clusters, history, params) = (&self.clusters, &self.history, &self.params);
+            let predictions = &self.predictions[..];
+            let clear_now = &self.clear_now[..];
+            let sensor_cell = (
+                self.sensor_xy_m[0] / cell_size_m,
+                self.sensor_xy_m[1] / cell_size_m,
+            );
+            let (pose_sigma_cells, pose_sigma_rad) =
+                (self.pose_sigma_m / cell_size_m, self.pose_sigma_rad);
+            let mut runs = Vec::with_capacity(parts);
+            let (mut moved, mut registrations) = (&mut self.moved[..], &mut self.registrations[..]);
+            let mut registrars = self.registrars.iter_mut();
+            let (mut k, mut done_cells) = (0, 0);
+            for part in 0..parts {
+                let target = total_cells * (part + 1) / parts;
+                let start = k;
+                let mut cells_in_run = 0;
+                while k < n_clusters && (done_cells + cells_in_run < target || part + 1 == parts) {
+                    cells_in_run += clusters.cluster(k).len();
+                    k += 1;
+                }
+                done_cells += cells_in_run;
+                let (run_moved, rest_moved) = std::mem::take(&mut moved).split_at_mut(cells_in_run);
+                let (run_regs, rest_regs) =
+                    std::mem::take(&mut registrations).split_at_mut(k - start);
+                (moved, registrations) = (rest_moved, rest_regs);
+                if let Some(registrar) = registrars.next() {
+                    runs.push((start..k, run_moved, run_regs, registrar));
+                }
+            }
+            runs.into_par_iter()
+                .for_each(|(range, run_moved, run_regs, registrar)| {
+                    let mut first = 0;
+                    for (k, slot) in range.zip(run_regs.iter_mut()) {
+                        let cells = clusters.cluster(k);
+                        let now = Now {
+                            time_s,
+                            clusters,
+                            cluster: k as u32,
+                            m_free,
+                            clear_now,
+                            sensor_cell,
+                            pose_sigma_cells,
+                            pose_sigma_rad,
+                            predicted_cells_per_s: predictions
+                                .get(k)
+                                .copied()
+                                .flatten()
+                                .map(|[vx, vy]| (vx / cell_size_m, vy / cell_size_m)),
+                        };
+                        *slot = if split {
+                            let mut own = std::mem::take(&mut registrar.own_cells);
+                            own.clear();
+                            own.extend(cells.iter().filter(|c| registers(c)));
+                            let registration =
+                                registrar.register(&own, window, history, now, params);
+                            registrar.own_cells = own;
+                            registration
+                        } else {
+                            registrar.register(cells, window, history, now, params)
+                        };
+                        for (flag, c) in run_moved[first..first + cells.len()].iter_mut().zip(cells)
+                        {
+                            *flag = slot.is_none() || registrar.moved(c);
+                        }
+                        first += cells.len();
+                    }
+                });
+        }
+    }
+
+    /// The centroid, metres, of the cells of `cells` that `registers` (the registration's own).
+    fn registered_centroid_m(
+        cells: &[clusters::Cell],
+        registers: &impl Fn(&clusters::Cell) -> bool,
+        cell_size_m: f64,
+    ) -> [f64; 2] {
+        let (mut sx, mut sy, mut n) = (0.0, 0.0, 0usize);
+        for c in cells.iter().filter(|c| registers(c)) {
+            sx += c.col as f64 + 0.5;
+            sy += c.row as f64 + 0.5;
+            n += 1;
+        }
+        let n = n.max(1) as f64;
+        [sx / n * cell_size_m, sy / n * cell_size_m]
+    }
+
+    /// Each cluster's observation for the tracks: its centroid and, when it was registered at
+    /// a believable speed, its velocity. Returns how many clusters have a velocity.
+    fn observe_clusters(
+        &mut self,
+        registers: &impl Fn(&clusters::Cell) -> bool,
+        cell_size_m: f64,
+    ) -> usize {
+        self.observations.clear();
+        self.cluster_frames.clear();
+        let mut registered = 0;
+        for k in 0..self.clusters.len() {
+            let centroid_m =
+                Self::registered_centroid_m(self.clusters.cluster(k), registers, cell_size_m);
+            let registration = self.registrations[k];
+            self.cluster_frames
+                .push(registration.map_or(0, |r| r.frames as u32));
+            // A registration that implies a speed above `max_speed_mps` is refused: no
+            // velocity measured this frame (the search's per-axis reach lets a diagonal shift
+            // exceed it, and two shifts from different pasts can too).
+            let velocity = registration
+                .map(|r| {
+                    let sigma =
+                        r.variance_cells(self.params.shift_sigma_cells).sqrt() * cell_size_m;
+                    let (vx, vy) = r.velocity_cells_per_s;
+                    ([vx * cell_size_m, vy * cell_size_m], sigma * sigma)
+                })
+                .filter(|([vx, vy], _)| vx.hypot(*vy) <= self.params.max_speed_mps);
+            registered += usize::from(velocity.is_some());
+            self.observations.push(Observation {
+                centroid_m,
+                velocity,
+            });
+        }
+        registered
+    }
+
+    /// The object layer's limits for an object centred at `centroid_m`: the `[motion]
+    /// object_*` keys, the margin widened by `surface_pose_sigmas` times the pose's error at
+    /// the object's range.
+    fn object_limits(&self, centroid_m: [f64; 2]) -> objects::Limits {
+        let range_m =
+            (centroid_m[0] - self.sensor_xy_m[0]).hypot(centroid_m[1] - self.sensor_xy_m[1]);
+        let pose_m = self.pose_sigma_m.hypot(range_m * self.pose_sigma_rad);
+        objects::Limits {
+            heading_tan: self.params.object_heading_max_deg.to_radians().tan(),
+            heading_search_deg: self.params.object_heading_fit_deg,
+            max_length_m: self.params.object_max_length_m,
+            max_width_m: self.params.object_max_width_m,
+            margin_m: self.params.object_margin_m + self.params.surface_pose_sigmas * pose_m,
+        }
+    }
+
+    /// Zeroes the velocity planes where the last frame wrote them.
+    fn clear_velocities(&mut self) {
+        for &idx in &self.velocity_cells {
+            if let Some(v) = self.velocity_east.get_mut(idx as usize) {
+                *v = 0.0;
+            }
+            if let Some(v) = self.velocity_north.get_mut(idx as usize) {
+                *v = 0.0;
+            }
+        }
+        self.velocity_cells.clear();
+    }
+
+    /// The map says a cell beside a building holds the façade or free space, not a mobile
+    /// object. The SPEC §5 step puts a cell's free→occupied conflict on {M} whatever its prior,
+    /// and there the conflict is the façade: rays cross the cell, then end in it, as the ego
+    /// moves. The prior's "no mobile object" (β_B on Ω∖{M}) is applied to those cells after the
+    /// step, to every cell that could have gained {M} (occupied now).
+    fn keep_building_edges_not_moving(
+        &self,
+        perception: &mut PerceptionGrid,
+        decisions: &mut [Label],
+    ) {
+        let edge = MotionMass::Static(self.edge_not_moving);
+        for &idx in &self.occupied {
+            let idx = idx as usize;
+            if self.gis.context.get(idx) != Some(&MapContext::BuildingEdge) {
+                continue;
+            }
+            let mut m = perception.cell_masses(idx);
+            combine(&mut m, edge, self.residual);
+            write_cell(perception, idx, &m);
+            decisions[idx] = decide(&m, perception.seen()[idx] != 0, self.unknown_threshold);
         }
     }
 }

@@ -145,81 +145,9 @@ impl Registrar {
             (c0, c1) = (c0.min(c.col), c1.max(c.col));
             (r0, r1) = (r0.min(c.row), r1.max(c.row));
         }
-        // The history around the cluster, `radius` cells beyond its bounding box.
-        let pw = (c1 - c0 + 1 + 2 * radius) as usize;
-        let ph = (r1 - r0 + 1 + 2 * radius) as usize;
-        for plane in [&mut self.patch, &mut self.free, &mut self.left] {
-            plane.clear();
-            plane.resize(pw * ph, 0);
-        }
-        self.patch_origin = (pw, c0 - radius, r0 - radius);
-        self.last = LastShift::default();
-        for (pr, row) in (r0 - radius..=r1 + radius).enumerate() {
-            for (pc, col) in (c0 - radius..=c1 + radius).enumerate() {
-                let Some(idx) = window.storage_index(col, row) else {
-                    continue;
-                };
-                let p = pr * pw + pc;
-                self.free[p] = history.free_bits(idx);
-                match now.clusters.label_of(idx) {
-                    // Another cluster occupies it now: that object is still there, so this
-                    // one did not come from it.
-                    Some(l) if l != now.cluster => {}
-                    Some(_) => self.patch[p] = history.bits(idx),
-                    None => {
-                        self.patch[p] = history.bits(idx);
-                        if now.m_free.get(idx).is_some_and(|&f| f > 0.0)
-                            || now.clear_now.get(idx) == Some(&true)
-                        {
-                            self.left[p] = 0xff;
-                        }
-                    }
-                }
-            }
-        }
-
-        // n_k(d) for every shift d and past frame k at once.
-        let stride = cells.len().div_ceil(MAX_COUNTED_CELLS);
-        let counted = cells.len().div_ceil(stride) as u32;
+        let pw = self.copy_history_around(window, history, &now, (c0, c1, r0, r1), radius);
+        let counted = self.count_matches(cells, (c0, r0), radius, pw);
         let side = 2 * radius + 1;
-        for counts in [&mut self.counts, &mut self.seen_counts] {
-            counts.clear();
-            counts.resize((side * side) as usize, [0; SLOTS]);
-        }
-        self.heres.clear();
-        self.heres.extend(
-            cells
-                .iter()
-                .step_by(stride)
-                .map(|c| (c.row - r0 + radius) as usize * pw + (c.col - c0 + radius) as usize),
-        );
-        for (s, (count, seen_count)) in self
-            .counts
-            .iter_mut()
-            .zip(self.seen_counts.iter_mut())
-            .enumerate()
-        {
-            let (dx, dy) = (s as i64 % side - radius, s as i64 / side - radius);
-            // Patch index of the cell a shift d came from: here − (dy·pw + dx), always inside
-            // the patch (it reaches `radius` beyond the cluster).
-            let offset = (dy * pw as i64 + dx) as isize;
-            let (mut lanes, mut seen_lanes) = (0u64, 0u64);
-            for chunk in self.heres.chunks(255) {
-                for &here in chunk {
-                    let from = here.wrapping_sub_signed(offset);
-                    let came_from = self.patch[from];
-                    lanes += SPREAD[usize::from(came_from)];
-                    // The move is seen where the cell it came from is seen empty now, or where
-                    // this cell was seen free then.
-                    let seen = self.free[here] | self.left[from];
-                    seen_lanes += SPREAD[usize::from(came_from & seen)];
-                }
-                // A byte lane holds up to 255.
-                flush(&mut lanes, count);
-                flush(&mut seen_lanes, seen_count);
-            }
-        }
-
         let zero = (radius * side + radius) as usize;
         // The shortest shift the pose's error does not explain: the apparent shift of a static
         // cluster between two scans has, per axis, twice the variance of one pose's error at
@@ -362,6 +290,105 @@ impl Registrar {
             sum_span: sum_t,
             frames,
         })
+    }
+
+    /// Copies the history around the cluster, `radius` cells beyond its bounding box
+    /// `(c0, c1, r0, r1)` (cells), into the patch planes: the frames' occupied bits, their free
+    /// bits, and whether each cell is seen empty now (`left`). Returns the patch's width.
+    fn copy_history_around(
+        &mut self,
+        window: &Window,
+        history: &OccupancyHistory,
+        now: &Now<'_>,
+        (c0, c1, r0, r1): (i64, i64, i64, i64),
+        radius: i64,
+    ) -> usize {
+        let pw = (c1 - c0 + 1 + 2 * radius) as usize;
+        let ph = (r1 - r0 + 1 + 2 * radius) as usize;
+        for plane in [&mut self.patch, &mut self.free, &mut self.left] {
+            plane.clear();
+            plane.resize(pw * ph, 0);
+        }
+        self.patch_origin = (pw, c0 - radius, r0 - radius);
+        self.last = LastShift::default();
+        for (pr, row) in (r0 - radius..=r1 + radius).enumerate() {
+            for (pc, col) in (c0 - radius..=c1 + radius).enumerate() {
+                let Some(idx) = window.storage_index(col, row) else {
+                    continue;
+                };
+                let p = pr * pw + pc;
+                self.free[p] = history.free_bits(idx);
+                match now.clusters.label_of(idx) {
+                    // Another cluster occupies it now: that object is still there, so this
+                    // one did not come from it.
+                    Some(l) if l != now.cluster => {}
+                    Some(_) => self.patch[p] = history.bits(idx),
+                    None => {
+                        self.patch[p] = history.bits(idx);
+                        if now.m_free.get(idx).is_some_and(|&f| f > 0.0)
+                            || now.clear_now.get(idx) == Some(&true)
+                        {
+                            self.left[p] = 0xff;
+                        }
+                    }
+                }
+            }
+        }
+        pw
+    }
+
+    /// n_k(d), and the same counted only where the move is seen, for every shift d within
+    /// `radius` and past frame k at once, over the cluster's cells (at most
+    /// `MAX_COUNTED_CELLS`, sampled evenly); the patch starts at `(c0, r0)` less `radius` and
+    /// is `pw` wide. Returns how many cells were counted.
+    fn count_matches(
+        &mut self,
+        cells: &[Cell],
+        (c0, r0): (i64, i64),
+        radius: i64,
+        pw: usize,
+    ) -> u32 {
+        let stride = cells.len().div_ceil(MAX_COUNTED_CELLS);
+        let counted = cells.len().div_ceil(stride) as u32;
+        let side = 2 * radius + 1;
+        for counts in [&mut self.counts, &mut self.seen_counts] {
+            counts.clear();
+            counts.resize((side * side) as usize, [0; SLOTS]);
+        }
+        self.heres.clear();
+        self.heres.extend(
+            cells
+                .iter()
+                .step_by(stride)
+                .map(|c| (c.row - r0 + radius) as usize * pw + (c.col - c0 + radius) as usize),
+        );
+        for (s, (count, seen_count)) in self
+            .counts
+            .iter_mut()
+            .zip(self.seen_counts.iter_mut())
+            .enumerate()
+        {
+            let (dx, dy) = (s as i64 % side - radius, s as i64 / side - radius);
+            // Patch index of the cell a shift d came from: here − (dy·pw + dx), always inside
+            // the patch (it reaches `radius` beyond the cluster).
+            let offset = (dy * pw as i64 + dx) as isize;
+            let (mut lanes, mut seen_lanes) = (0u64, 0u64);
+            for chunk in self.heres.chunks(255) {
+                for &here in chunk {
+                    let from = here.wrapping_sub_signed(offset);
+                    let came_from = self.patch[from];
+                    lanes += SPREAD[usize::from(came_from)];
+                    // The move is seen where the cell it came from is seen empty now, or where
+                    // this cell was seen free then.
+                    let seen = self.free[here] | self.left[from];
+                    seen_lanes += SPREAD[usize::from(came_from & seen)];
+                }
+                // A byte lane holds up to 255.
+                flush(&mut lanes, count);
+                flush(&mut seen_lanes, seen_count);
+            }
+        }
+        counted
     }
 }
 
