@@ -342,6 +342,19 @@ fn positive(name: &'static str, value: f64) -> Result<(), ParamsError> {
     }
 }
 
+/// A finite value ≥ 0; a negative one, NaN or ∞ is reported as below the minimum 0.
+fn non_negative(name: &'static str, value: f64) -> Result<(), ParamsError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(ParamsError::BelowMinimum {
+            name,
+            value,
+            min: 0.0,
+        })
+    }
+}
+
 /// The largest `sensor.min_neighbourhood_returns`: nine cells of 65,535 returns each.
 const MAX_NEIGHBOURHOOD_RETURNS: usize = 9 * u16::MAX as usize;
 
@@ -1066,31 +1079,14 @@ impl MotionParams {
             self.object_heading_fit_deg,
             45.0,
         )?;
-        if self.object_heading_fit_deg.is_nan() || self.object_heading_fit_deg < 0.0 {
-            return Err(ParamsError::BelowMinimum {
-                name: "motion.object_heading_fit_deg",
-                value: self.object_heading_fit_deg,
-                min: 0.0,
-            });
-        }
+        // NaN and ∞ are refused by the bound above.
+        non_negative("motion.object_heading_fit_deg", self.object_heading_fit_deg)?;
         positive("motion.object_max_length_m", self.object_max_length_m)?;
         positive("motion.object_max_width_m", self.object_max_width_m)?;
-        if !(self.object_margin_m.is_finite() && self.object_margin_m >= 0.0) {
-            return Err(ParamsError::BelowMinimum {
-                name: "motion.object_margin_m",
-                value: self.object_margin_m,
-                min: 0.0,
-            });
-        }
+        non_negative("motion.object_margin_m", self.object_margin_m)?;
         positive("motion.surface_depth_cells", self.surface_depth_cells)?;
         at_most_f64("motion.surface_depth_cells", self.surface_depth_cells, 8.0)?;
-        if !(self.surface_pose_sigmas.is_finite() && self.surface_pose_sigmas >= 0.0) {
-            return Err(ParamsError::BelowMinimum {
-                name: "motion.surface_pose_sigmas",
-                value: self.surface_pose_sigmas,
-                min: 0.0,
-            });
-        }
+        non_negative("motion.surface_pose_sigmas", self.surface_pose_sigmas)?;
         // 0 turns the gate off; otherwise positive and finite.
         if self.pose_gate_sigmas != 0.0 {
             positive("motion.pose_gate_sigmas", self.pose_gate_sigmas)?;

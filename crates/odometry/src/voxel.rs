@@ -312,15 +312,7 @@ impl VoxelMap {
         let margin = SKIP_MARGIN_M * (1.0 + point.amax() / 1000.0);
         let reach_sq = (radius + margin) * (radius + margin);
         for offset in &NEIGHBOURS {
-            let mut bound_sq = 0.0;
-            for axis in 0..3 {
-                let gap = match offset[axis] {
-                    -1 => inside[axis],
-                    1 => self.voxel_size - inside[axis],
-                    _ => 0.0,
-                };
-                bound_sq += gap * gap;
-            }
+            let bound_sq = box_distance_sq(offset, inside, self.voxel_size);
             if bound_sq > reach_sq {
                 continue;
             }
@@ -408,15 +400,7 @@ impl VoxelMap {
             }
             // Distance from the query to the neighbour voxel's box: a lower bound on any of its
             // points' distances.
-            let mut bound_sq = 0.0;
-            for axis in 0..3 {
-                let gap = match offset[axis] {
-                    -1 => inside[axis],
-                    1 => self.voxel_size - inside[axis],
-                    _ => 0.0,
-                };
-                bound_sq += gap * gap;
-            }
+            let bound_sq = box_distance_sq(offset, inside, self.voxel_size);
             // `others_sq >= best_sq` always (a point that does not become the nearest is at
             // least as far, and a replaced nearest was farther than its successor), so this
             // skips no voxel the plain search visits.
@@ -518,6 +502,22 @@ pub(crate) struct Neighbourhood {
     centre: Option<VoxelKey>,
     ranges: [(u32, u32); 27],
     kept: Option<Kept>,
+}
+
+/// Squared distance from a point at `inside` (metres from its voxel's lower corner, per axis)
+/// to the box of the neighbouring voxel at `offset`: a lower bound on the squared distance of
+/// any of that voxel's points.
+fn box_distance_sq(offset: &[i32; 3], inside: [f64; 3], voxel_size: f64) -> f64 {
+    let mut bound_sq = 0.0;
+    for axis in 0..3 {
+        let gap = match offset[axis] {
+            -1 => inside[axis],
+            1 => voxel_size - inside[axis],
+            _ => 0.0,
+        };
+        bound_sq += gap * gap;
+    }
+    bound_sq
 }
 
 #[cfg(test)]
