@@ -230,6 +230,18 @@ pub struct MapFrame {
 }
 
 impl MapFrame {
+    /// The frame of `refiner`'s current map: its `world_from_map`, in the plane.
+    fn of_current_map(refiner: &odometry::PoseRefiner) -> Self {
+        let frame = refiner.world_from_map();
+        let rotation = frame.rotation.to_rotation_matrix();
+        Self {
+            map: refiner.map_starts(),
+            east_m: frame.translation.x,
+            north_m: frame.translation.y,
+            heading_rad: rotation[(1, 0)].atan2(rotation[(0, 0)]),
+        }
+    }
+
     /// Where the point `(x, y)` (world metres) placed in the frame `from` is placed in this
     /// frame: `self · from⁻¹ · (x, y)`.
     pub fn moved_from(&self, from: &MapFrame, x: f64, y: f64) -> (f64, f64) {
@@ -466,14 +478,7 @@ impl FrontEnd {
                 odometry::RefineOutcome::Refined | odometry::RefineOutcome::First
             ) || refiner.map_starts() != maps;
             if joined {
-                let frame = refiner.world_from_map();
-                let rotation = frame.rotation.to_rotation_matrix();
-                self.map_frame = Some(MapFrame {
-                    map: refiner.map_starts(),
-                    east_m: frame.translation.x,
-                    north_m: frame.translation.y,
-                    heading_rad: rotation[(1, 0)].atan2(rotation[(0, 0)]),
-                });
+                self.map_frame = Some(MapFrame::of_current_map(refiner));
             }
         }
         self.world_from_sensor = *world_from_sensor;
