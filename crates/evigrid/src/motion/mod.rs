@@ -522,10 +522,7 @@ impl MotionStage {
                     age_s: (time_s - track.first_seen_s) as f32,
                     hits: track.hits,
                     existence_probability: track.existence_probability() as f32,
-                    held_back: state == CellMotion::EnteredSeenFree
-                        || track.measurements == 0
-                        || (track.moving_frames as usize) < self.params.report_after_moving_frames
-                        || (track.existence_probability() as f32) < REPORT_MIN_EXISTENCE,
+                    held_back: is_held_back(track, state, &self.params),
                     cells: cells_moving,
                     extent: fitted.map(|(_, extent)| extent),
                 };
@@ -874,6 +871,17 @@ impl MotionStage {
             decisions[idx] = decide(&m, perception.seen()[idx] != 0, self.unknown_threshold);
         }
     }
+}
+
+/// Whether a track judged moving is held back from the moving-object list (`docs/motion.md`,
+/// "The moving-object list"): judged moving only because it entered space seen free, never
+/// registered, judged moving in fewer than `report_after_moving_frames` frames, or of an
+/// existence probability below [`REPORT_MIN_EXISTENCE`].
+fn is_held_back(track: &tracks::Track, state: CellMotion, params: &MotionParams) -> bool {
+    state == CellMotion::EnteredSeenFree
+        || track.measurements == 0
+        || (track.moving_frames as usize) < params.report_after_moving_frames
+        || (track.existence_probability() as f32) < REPORT_MIN_EXISTENCE
 }
 
 /// Merges the objects that are pieces of one (centroids within `gate_m`, velocities within
