@@ -309,11 +309,7 @@ fn workspace_dependencies(manifest: &str, folder_of: &BTreeMap<String, String>) 
         if section != "[dependencies]" && section != "[build-dependencies]" {
             continue;
         }
-        let key = line
-            .split(|c: char| c == '=' || c == '.')
-            .next()
-            .unwrap_or_default()
-            .trim();
+        let key = line.split(['=', '.']).next().unwrap_or_default().trim();
         if let Some(folder) = folder_of.get(key) {
             found.push(folder.clone());
         }
