@@ -508,30 +508,7 @@ impl MotionStage {
                     _ => (mass, state),
                 })
             };
-            if let MotionMass::Moving(_) = mass {
-                let cells_moving = cells
-                    .iter()
-                    .zip(moved)
-                    .filter(|&(c, &m)| matches!(of_cell(c, m), Some((MotionMass::Moving(_), _))))
-                    .count() as u32;
-                let object = MovingObject {
-                    id: track.id,
-                    position_m: self.observations[k].centroid_m,
-                    velocity_mps: [vx, vy],
-                    sigma_mps,
-                    age_s: (time_s - track.first_seen_s) as f32,
-                    hits: track.hits,
-                    existence_probability: track.existence_probability() as f32,
-                    held_back: is_held_back(track, state, &self.params),
-                    cells: cells_moving,
-                    extent: fitted.map(|(_, extent)| extent),
-                };
-                let fast = f64::from(vx.hypot(vy)) > self.params.max_speed_mps;
-                if cells_moving > 0 && !fast && (!object.held_back || self.params.report_held_back)
-                {
-                    self.moving_objects.push(object);
-                }
-            }
+            let moving_before = moving_cells;
             let labelled_cells = cells.iter().filter(|c| labels(c)).count() as u32;
             for (c, &moved) in cells.iter().zip(moved) {
                 // A cell only of the grid registered on takes no evidence.
@@ -568,6 +545,26 @@ impl MotionStage {
                     write_cell(perception, idx, &m);
                 }
                 decisions[idx] = decide(&m, perception.seen()[idx] != 0, self.unknown_threshold);
+            }
+            if let MotionMass::Moving(_) = mass {
+                let cells_moving = (moving_cells - moving_before) as u32;
+                let object = MovingObject {
+                    id: track.id,
+                    position_m: self.observations[k].centroid_m,
+                    velocity_mps: [vx, vy],
+                    sigma_mps,
+                    age_s: (time_s - track.first_seen_s) as f32,
+                    hits: track.hits,
+                    existence_probability: track.existence_probability() as f32,
+                    held_back: is_held_back(track, state, &self.params),
+                    cells: cells_moving,
+                    extent: fitted.map(|(_, extent)| extent),
+                };
+                let fast = f64::from(vx.hypot(vy)) > self.params.max_speed_mps;
+                if cells_moving > 0 && !fast && (!object.held_back || self.params.report_held_back)
+                {
+                    self.moving_objects.push(object);
+                }
             }
         }
 

@@ -84,6 +84,8 @@ pub(crate) struct Tracks {
     taken: Vec<bool>,
     /// After [`Tracks::update`], the track of each observation.
     assigned: Vec<u32>,
+    /// After [`Tracks::predictions`], the track predicting into each cluster.
+    predicting: Vec<u32>,
     /// The id the next track gets.
     next_id: u64,
 }
@@ -151,16 +153,13 @@ impl Tracks {
                 .cmp(&tentative(b.1))
                 .then(a.0.total_cmp(&b.0))
         });
-        self.taken.clear();
-        self.taken.resize(self.tracks.len(), false);
-        self.assigned.clear();
-        self.assigned.resize(observations.len(), u32::MAX);
-        for &(_, ti, oi) in &self.pairs {
-            if !self.taken[ti as usize] && self.assigned[oi as usize] == u32::MAX {
-                self.taken[ti as usize] = true;
-                self.assigned[oi as usize] = ti;
-            }
-        }
+        pair_in_order(
+            &self.pairs,
+            self.tracks.len(),
+            observations.len(),
+            &mut self.taken,
+            &mut self.assigned,
+        );
 
         // Update the tracks observed; start one for each observation left.
         let unknown_variance = params.max_speed_mps * params.max_speed_mps;
@@ -256,14 +255,39 @@ impl Tracks {
             }
         }
         self.pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-        self.taken.clear();
-        self.taken.resize(self.tracks.len(), false);
-        for &(_, ti, ci) in &self.pairs {
-            let (ti, ci) = (ti as usize, ci as usize);
-            if !self.taken[ti] && out[ci].is_none() {
-                self.taken[ti] = true;
-                out[ci] = Some(self.tracks[ti].velocity.map(|v| v.mean_mps));
+        pair_in_order(
+            &self.pairs,
+            self.tracks.len(),
+            centroids_m.len(),
+            &mut self.taken,
+            &mut self.predicting,
+        );
+        for (prediction, &ti) in out.iter_mut().zip(&self.predicting) {
+            if let Some(track) = self.tracks.get(ti as usize) {
+                *prediction = Some(track.velocity.map(|v| v.mean_mps));
             }
+        }
+    }
+}
+
+/// Pairs each track with at most one observation and each observation with at most one track,
+/// taking `pairs` (distance², track, observation) in their order: `assigned[o]` is the track
+/// paired with observation `o` (`u32::MAX`: none), `taken[t]` whether track `t` was paired.
+fn pair_in_order(
+    pairs: &[(f64, u32, u32)],
+    tracks: usize,
+    observations: usize,
+    taken: &mut Vec<bool>,
+    assigned: &mut Vec<u32>,
+) {
+    taken.clear();
+    taken.resize(tracks, false);
+    assigned.clear();
+    assigned.resize(observations, u32::MAX);
+    for &(_, ti, oi) in pairs {
+        if !taken[ti as usize] && assigned[oi as usize] == u32::MAX {
+            taken[ti as usize] = true;
+            assigned[oi as usize] = ti;
         }
     }
 }
