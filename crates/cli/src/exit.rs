@@ -53,6 +53,9 @@ pub fn report(result: anyhow::Result<()>) -> ExitCode {
         Some(failure) => Err(anyhow::anyhow!(failure)),
         None => Ok(()),
     });
+    // Once a second signal is ending the process, the ending exits, with the signal's status
+    // (the error may be its own refusal to create a file).
+    crate::interrupt::wait_if_ending();
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {

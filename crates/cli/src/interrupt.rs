@@ -31,6 +31,9 @@ static RECEIVED: AtomicI32 = AtomicI32::new(0);
 /// Raised with [`RECEIVED`]: the stop flag the libraries poll between frames.
 static STOP: AtomicBool = AtomicBool::new(false);
 
+/// Raised when a second signal starts ending the process ([`end_now`]).
+static ENDING: AtomicBool = AtomicBool::new(false);
+
 /// Output folders whose temporary files are removed when the process ends on a signal, each
 /// with the marker (if any) that then says the run was interrupted.
 static FOLDERS: Mutex<Vec<(PathBuf, Option<PathBuf>)>> = Mutex::new(Vec::new());
@@ -45,6 +48,15 @@ pub fn interrupted_exit() -> u8 {
     match RECEIVED.load(Ordering::Relaxed) {
         0 => exit_status(SIGINT),
         signal => exit_status(signal),
+    }
+}
+
+/// Waits, if a second signal is ending the process, for [`end_now`] to finish: it removes the
+/// temporaries and exits 128 + the signal. A command whose last write that ending refused
+/// must not exit first, with its own status and the temporaries still there.
+pub fn wait_if_ending() {
+    while ENDING.load(Ordering::SeqCst) {
+        std::thread::park_timeout(std::time::Duration::from_millis(100));
     }
 }
 
@@ -107,6 +119,7 @@ fn listen() {
 /// Ends the process on `signal`: waits for the record being written, removes the registered
 /// folders' temporary files, marks the folders interrupted, exits 128 + `signal`.
 fn end_now(signal: i32) -> ! {
+    ENDING.store(true, Ordering::SeqCst);
     // Waits for the record being written; none is started after it.
     output::stop_records();
     // Then no thread (the demo's encoder) creates a temporary after they are removed.
