@@ -129,6 +129,10 @@ pub struct SensorModel {
     last: Option<LastScan>,
 }
 
+/// The ground model gave no ground, so no point of the scan is trusted.
+#[derive(Clone, Copy, Debug)]
+struct NoGround;
+
 /// What [`SensorModel::build`] keeps of a scan, besides the sectors, to fill a grid again.
 #[derive(Clone, Copy, Debug)]
 struct LastScan {
@@ -211,13 +215,62 @@ impl SensorModel {
             stats.dropped_non_finite = points_in_sensor.len();
             return stats;
         }
-        let (min_range_m, max_range_m) = (self.params.min_range_m, self.params.max_range_m);
         let sectors = self.sector_count();
         let sectors_per_radian = sectors as f64 / std::f64::consts::TAU;
         // A planar scanner's ray that returned beyond the range limit, or not at all, crossed
         // the whole range without meeting an obstacle (a 3-D lidar's beam may pass over one).
         let note_empty =
             self.params.ground_model == GroundModel::None && self.params.empty_without_return;
+        let returns = self.level(
+            points_in_sensor,
+            world_from_sensor,
+            (sectors, sectors_per_radian),
+            note_empty,
+            &mut stats,
+        );
+        let Ok(plane) = self.fit_ground(&mut stats) else {
+            return stats;
+        };
+        let [sensor_x, sensor_y, _]: [f64; 3] = world_from_sensor.translation.vector.into();
+        let classify = self.classifier(
+            plane.as_ref(),
+            window,
+            (sensor_x, sensor_y),
+            (sectors, sectors_per_radian),
+        );
+        self.classify(&classify);
+        self.merge_ground(sectors, &mut stats);
+        self.mark_stray(window);
+        self.merge_obstacles(sectors, classify.fine_sectors, &mut stats);
+        if note_empty {
+            mark_gaps(&self.any_return, returns, &mut self.empty_sector);
+        }
+        self.last = Some(LastScan {
+            origin: (
+                sensor_x / window.cell_size_m(),
+                sensor_y / window.cell_size_m(),
+            ),
+            note_empty,
+        });
+        let (free_cells, occupied_cells) = self.fill(window, 0.0, (0.0, 0.0), out);
+        stats.free_cells = free_cells;
+        stats.occupied_cells = occupied_cells;
+        stats
+    }
+
+    /// Moves the scan's finite points within range into the levelled frame (`self.levelled`),
+    /// counting the others; with `note_empty`, notes per sector (of `sectors`, with
+    /// `sectors_per_radian`) whether any return lay in it and whether one lay beyond the range
+    /// limit. Returns the finite points so noted.
+    fn level(
+        &mut self,
+        points_in_sensor: &[[f32; 3]],
+        world_from_sensor: &IsometryMatrix3,
+        (sectors, sectors_per_radian): (usize, f64),
+        note_empty: bool,
+        stats: &mut SensorStats,
+    ) -> usize {
+        let (min_range_m, max_range_m) = (self.params.min_range_m, self.params.max_range_m);
         let mut returns = 0usize;
         self.empty_sector.clear();
         self.empty_sector.resize(sectors, false);
@@ -246,8 +299,16 @@ impl SensorModel {
             }
             self.levelled.push(q);
         }
-        let plane = match self.params.ground_model {
-            GroundModel::None => None,
+        returns
+    }
+
+    /// Runs the ground model on the levelled points: the fitted plane for
+    /// [`GroundModel::Plane`] (also noted in `stats`), the labels per point (`self.labels`) for
+    /// [`GroundModel::Local`], nothing for [`GroundModel::None`]. `Err` when the model gave no
+    /// ground, so that no point can be trusted (every levelled point is counted unclassified).
+    fn fit_ground(&mut self, stats: &mut SensorStats) -> Result<Option<GroundPlane>, NoGround> {
+        match self.params.ground_model {
+            GroundModel::None => Ok(None),
             GroundModel::Local => {
                 self.levelled_f32.clear();
                 self.levelled_f32
@@ -257,15 +318,15 @@ impl SensorModel {
                     Some(segmenter) => {
                         let segmentation = segmenter.segment(&self.levelled_f32);
                         self.labels.extend_from_slice(segmentation.labels());
+                        Ok(None)
                     }
                     // Parameters the ground crate refuses (not validated by the caller): no
                     // ground model, so no point is trusted.
                     None => {
                         stats.unclassified_points = self.levelled.len();
-                        return stats;
+                        Err(NoGround)
                     }
                 }
-                None
             }
             GroundModel::Plane => {
                 let plane = self
@@ -274,33 +335,47 @@ impl SensorModel {
                 stats.ground_plane = plane;
                 if plane.is_none() {
                     stats.unclassified_points = self.levelled.len();
-                    return stats;
+                    return Err(NoGround);
                 }
-                plane
+                Ok(plane)
             }
-        };
+        }
+    }
 
-        // Points are classified in fixed chunks, in parallel, and the chunks merged in order:
-        // ranges by min/max, cells in point order, so the result does not depend on the number
-        // of threads.
-        let [sensor_x, sensor_y, _]: [f64; 3] = world_from_sensor.translation.vector.into();
-        let local_labels = (self.params.ground_model == GroundModel::Local).then_some(&self.labels);
-        let classify = PointClassifier {
-            plane: plane.as_ref(),
+    /// How this model tells the points of a scan apart, with the scan's ground `plane`, the
+    /// sensor at `sensor_xy` (world, m) and `sectors` (with `sectors_per_radian`).
+    fn classifier<'a>(
+        &self,
+        plane: Option<&'a GroundPlane>,
+        window: &'a Window,
+        sensor_xy: (f64, f64),
+        (sectors, sectors_per_radian): (usize, f64),
+    ) -> PointClassifier<'a> {
+        PointClassifier {
+            plane,
             ground_band_m: self.params.ground_band_m,
             obstacle_heights_m: self.params.min_obstacle_height_m
                 ..=self.params.max_obstacle_height_m,
             sectors,
             sectors_per_radian,
             window,
-            sensor_xy: (sensor_x, sensor_y),
+            sensor_xy,
             return_depth_m: self.return_depth_m,
             fine_sectors: if self.placed_by_surface {
                 surface::sector_count()
             } else {
                 0
             },
-        };
+        }
+    }
+
+    /// Classifies the levelled points into `self.classified`.
+    ///
+    /// Points are classified in fixed chunks, in parallel, and the chunks merged in order:
+    /// ranges by min/max, cells in point order, so the result does not depend on the number of
+    /// threads.
+    fn classify(&mut self, classify: &PointClassifier) {
+        let local_labels = (self.params.ground_model == GroundModel::Local).then_some(&self.labels);
         let chunk_count = self.levelled.len().div_ceil(CLASSIFY_CHUNK);
         self.classified
             .resize_with(chunk_count, Classified::default);
@@ -317,6 +392,11 @@ impl SensorModel {
                 .zip(self.classified.par_iter_mut())
                 .for_each(|(points, out)| classify.chunk(points, None, out)),
         }
+    }
+
+    /// The chunks' ground returns: each sector's farthest (`self.ground_range`, of `sectors`)
+    /// and the counts in `stats`.
+    fn merge_ground(&mut self, sectors: usize, stats: &mut SensorStats) {
         self.ground_range.clear();
         self.ground_range.resize(sectors, 0.0);
         for chunk in &self.classified {
@@ -327,7 +407,11 @@ impl SensorModel {
                 *all = all.max(*this);
             }
         }
-        // Stray returns (`stray`) neither occupy their cell nor stop their sector's rays.
+    }
+
+    /// Marks the cells that hold only stray returns (`stray`), which neither occupy their cell
+    /// nor stop their sector's rays (3-D ground models only).
+    fn mark_stray(&mut self, window: &Window) {
         let min_returns = match self.params.ground_model {
             GroundModel::None => 1,
             GroundModel::Plane | GroundModel::Local => self.params.min_neighbourhood_returns,
@@ -337,9 +421,15 @@ impl SensorModel {
             self.stray
                 .mark(window, returns.map(|&(idx, _, _)| idx), min_returns);
         }
+    }
+
+    /// The chunks' obstacle returns that are not stray: each sector's nearest
+    /// (`self.obstacle_range`, of `sectors`), with `fine_sectors` (the surface placement) each
+    /// fine sector's nearest and its position (`self.surface_range`, `self.nearest_xy`), and
+    /// the counts in `stats`.
+    fn merge_obstacles(&mut self, sectors: usize, fine_sectors: usize, stats: &mut SensorStats) {
         self.obstacle_range.clear();
         self.obstacle_range.resize(sectors, f64::INFINITY);
-        let fine_sectors = classify.fine_sectors;
         self.surface_range.clear();
         self.surface_range.resize(fine_sectors, f64::INFINITY);
         self.nearest_xy.clear();
@@ -364,21 +454,6 @@ impl SensorModel {
                 }
             }
         }
-
-        if note_empty {
-            mark_gaps(&self.any_return, returns, &mut self.empty_sector);
-        }
-        self.last = Some(LastScan {
-            origin: (
-                sensor_x / window.cell_size_m(),
-                sensor_y / window.cell_size_m(),
-            ),
-            note_empty,
-        });
-        let (free_cells, occupied_cells) = self.fill(window, 0.0, (0.0, 0.0), out);
-        stats.free_cells = free_cells;
-        stats.occupied_cells = occupied_cells;
-        stats
     }
 
     /// How far along its ray, m, [`SensorModel::build_placed`] moves each return before taking
@@ -472,8 +547,40 @@ impl SensorModel {
         let Some(last) = self.last else {
             return (0, 0);
         };
-        let mu_free = self.params.mu_free as f32;
-        let mu_occupied = self.params.mu_occupied as f32;
+        let masses = Masses {
+            free: self.params.mu_free as f32,
+            occupied: self.params.mu_occupied as f32,
+        };
+        let mut free_cells = self.fill_free(window, last.origin, depth_m, masses.free, out);
+        // Occupied cells are taken back from the free ones (SPEC §3: a cell both crossed and
+        // holding a return is occupied).
+        let by_surface = self.placed_by_surface && depth_m > 0.0 && !self.surface_range.is_empty();
+        let mut occupied = self.occupy_returns(window, depth_m, by_surface, masses, out);
+        if by_surface {
+            let behind = self.occupy_behind_surface(window, last.origin, pose_sigma, masses, out);
+            occupied.add(behind);
+        }
+        free_cells -= occupied.were_free;
+        // Sectors whose rays met nothing within the range limit: seen empty up to it, outside
+        // the SensorGrid's mass (SPEC §3 leaves them vacuous).
+        if last.note_empty {
+            self.note_empty_sectors(window, last.origin, out);
+        }
+        (free_cells, occupied.cells)
+    }
+
+    /// Gives m(F) = `mu_free` to the free space of the last scan: each sector's rays from
+    /// `origin` (cells) up to its nearest obstacle plus `depth_m` (the cells crossed whole), or
+    /// without one up to its farthest ground return; and each ground return's own cell within
+    /// its sector's free range. Returns the cells made free.
+    fn fill_free(
+        &self,
+        window: &Window,
+        origin: (f64, f64),
+        depth_m: f64,
+        mu_free: f32,
+        out: &mut SensorGrid,
+    ) -> usize {
         let sectors = self.obstacle_range.len();
         let mut free_cells = 0usize;
         for s in 0..sectors {
@@ -485,19 +592,11 @@ impl SensorModel {
             if limit_m <= 0.0 {
                 continue;
             }
-            walk_sector(
-                window,
-                last.origin,
-                s,
-                sectors,
-                limit_m,
-                whole_cells,
-                |idx| {
-                    // Counted on the first visit: rays of a sector overlap near the sensor.
-                    free_cells += usize::from(out.m_free()[idx] != mu_free);
-                    out.set_free(idx, mu_free);
-                },
-            );
+            walk_sector(window, origin, s, sectors, limit_m, whole_cells, |idx| {
+                // Counted on the first visit: rays of a sector overlap near the sensor.
+                free_cells += usize::from(out.m_free()[idx] != mu_free);
+                out.set_free(idx, mu_free);
+            });
         }
         // A ground return's own cell was seen free, if it lies within its sector's free range
         // (a ray may enter that cell just after the return's range, or miss its corner).
@@ -509,16 +608,21 @@ impl SensorModel {
                 out.set_free(idx, mu_free);
             }
         }
-        let mut occupied_cells = 0;
-        let mut occupy = |out: &mut SensorGrid, idx: usize| {
-            if out.m_occupied()[idx] != mu_occupied {
-                occupied_cells += 1;
-                free_cells -= usize::from(out.m_free()[idx] == mu_free && mu_free != 0.0);
-            }
-            out.set_free(idx, 0.0);
-            out.set_occupied(idx, mu_occupied);
-        };
-        let by_surface = self.placed_by_surface && depth_m > 0.0 && !self.surface_range.is_empty();
+        free_cells
+    }
+
+    /// Occupies the cell of each obstacle return of the last scan that is not stray: its own
+    /// cell, or with `depth_m` its placed cell; with `by_surface`, the returns on the nearest
+    /// surface of their fine sector are left to [`SensorModel::occupy_behind_surface`].
+    fn occupy_returns(
+        &self,
+        window: &Window,
+        depth_m: f64,
+        by_surface: bool,
+        masses: Masses,
+        out: &mut SensorGrid,
+    ) -> Occupied {
+        let mut occupied = Occupied::default();
         let cell_size_m = window.cell_size_m();
         for chunk in &self.classified {
             let returns = chunk.obstacle_cells.iter().zip(&chunk.placed_cells);
@@ -527,7 +631,8 @@ impl SensorModel {
                     continue;
                 }
                 // A return on the nearest surface of its fine sector is placed by that surface
-                // (below). (`by_surface` implies the fine sectors of the last `build`.)
+                // (`occupy_behind_surface`). (`by_surface` implies the fine sectors of the last
+                // `build`.)
                 if by_surface
                     && chunk
                         .obstacle_fine_sector
@@ -540,45 +645,98 @@ impl SensorModel {
                 let Some(idx) = (if depth_m == 0.0 { Some(idx) } else { placed }) else {
                     continue;
                 };
-                occupy(out, idx);
+                masses.occupy(out, idx, &mut occupied);
             }
         }
-        if by_surface {
-            let origin_m = (last.origin.0 * cell_size_m, last.origin.1 * cell_size_m);
-            surface::for_each_cell_behind(
-                &self.surface_range,
-                &self.nearest_xy,
-                std::f64::consts::PI / sectors as f64,
-                window,
-                origin_m,
-                surface::Band {
-                    depth_m: self.surface_depth_m,
-                    pose_tolerance: (
-                        self.surface_pose_sigmas * pose_sigma.0,
-                        self.surface_pose_sigmas * pose_sigma.1,
-                    ),
-                    silhouette_faces: self.surface_silhouette_faces,
-                    convex_corners: self.surface_convex_corners,
-                },
-                |idx| occupy(out, idx),
-            );
-        }
-        // Sectors whose rays met nothing within the range limit: seen empty up to it, outside
-        // the SensorGrid's mass (SPEC §3 leaves them vacuous).
-        if last.note_empty {
-            for s in 0..sectors {
-                if !self.empty_sector[s] || self.obstacle_range[s].is_finite() {
-                    continue;
+        occupied
+    }
+
+    /// Occupies the cells behind the surface drawn through the nearest returns of the fine
+    /// sectors, seen from `origin` (cells), with `pose_sigma` the pose's estimated error
+    /// ([`SensorModel::set_placed_by_surface`]).
+    fn occupy_behind_surface(
+        &self,
+        window: &Window,
+        origin: (f64, f64),
+        pose_sigma: (f64, f64),
+        masses: Masses,
+        out: &mut SensorGrid,
+    ) -> Occupied {
+        let mut occupied = Occupied::default();
+        let cell_size_m = window.cell_size_m();
+        let sectors = self.obstacle_range.len();
+        let origin_m = (origin.0 * cell_size_m, origin.1 * cell_size_m);
+        surface::for_each_cell_behind(
+            &self.surface_range,
+            &self.nearest_xy,
+            std::f64::consts::PI / sectors as f64,
+            window,
+            origin_m,
+            surface::Band {
+                depth_m: self.surface_depth_m,
+                pose_tolerance: (
+                    self.surface_pose_sigmas * pose_sigma.0,
+                    self.surface_pose_sigmas * pose_sigma.1,
+                ),
+                silhouette_faces: self.surface_silhouette_faces,
+                convex_corners: self.surface_convex_corners,
+            },
+            |idx| masses.occupy(out, idx, &mut occupied),
+        );
+        occupied
+    }
+
+    /// Lists as seen empty (without mass) the cells still vacuous along the rays, from
+    /// `origin` (cells) to the range limit, of the sectors whose rays met nothing.
+    fn note_empty_sectors(&self, window: &Window, origin: (f64, f64), out: &mut SensorGrid) {
+        let sectors = self.obstacle_range.len();
+        for s in 0..sectors {
+            if !self.empty_sector[s] || self.obstacle_range[s].is_finite() {
+                continue;
+            }
+            let max_range_m = self.params.max_range_m;
+            walk_sector(window, origin, s, sectors, max_range_m, true, |idx| {
+                if out.m_free()[idx] == 0.0 && out.m_occupied()[idx] == 0.0 {
+                    out.push_clear(idx);
                 }
-                let max_range_m = self.params.max_range_m;
-                walk_sector(window, last.origin, s, sectors, max_range_m, true, |idx| {
-                    if out.m_free()[idx] == 0.0 && out.m_occupied()[idx] == 0.0 {
-                        out.push_clear(idx);
-                    }
-                });
-            }
+            });
         }
-        (free_cells, occupied_cells)
+    }
+}
+
+/// The sensor's masses μ_F and μ_O as the grid stores them.
+#[derive(Clone, Copy, Debug)]
+struct Masses {
+    free: f32,
+    occupied: f32,
+}
+
+/// Cells newly occupied, and how many of them had been counted free.
+#[derive(Clone, Copy, Debug, Default)]
+struct Occupied {
+    cells: usize,
+    were_free: usize,
+}
+
+impl Occupied {
+    /// Adds the counts of `other`.
+    fn add(&mut self, other: Occupied) {
+        self.cells += other.cells;
+        self.were_free += other.were_free;
+    }
+}
+
+impl Masses {
+    /// Gives cell `idx` m(O) = μ_O and takes back its m(F), counting it in `occupied` on the
+    /// first visit.
+    #[inline(always)]
+    fn occupy(self, out: &mut SensorGrid, idx: usize, occupied: &mut Occupied) {
+        if out.m_occupied()[idx] != self.occupied {
+            occupied.cells += 1;
+            occupied.were_free += usize::from(out.m_free()[idx] == self.free && self.free != 0.0);
+        }
+        out.set_free(idx, 0.0);
+        out.set_occupied(idx, self.occupied);
     }
 }
 
