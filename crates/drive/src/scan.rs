@@ -303,20 +303,113 @@ impl PcdField {
 ///
 /// Any [`ScanError`] but `Io`, naming `path`.
 pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
-    let header_error = |message: String| ScanError::Header {
+    let header = read_pcd_header(bytes, path)?;
+    let layout = header.layout(path)?;
+    let (Some(fx), Some(fy), Some(fz)) = (
+        layout.field("x", true, path)?,
+        layout.field("y", true, path)?,
+        layout.field("z", true, path)?,
+    ) else {
+        // `field` with `required` never returns Ok(None).
+        return Err(ScanError::MissingField {
+            path: path.to_path_buf(),
+            field: "x",
+        });
+    };
+    let fi = layout.field("intensity", false, path)?;
+    let data = &bytes[header.data_start..];
+    // What the data can hold at most, so that no header number sizes an allocation: a binary
+    // record is `record_len` bytes (at least 12: x, y, z are 4 or 8 bytes); an ascii point is a
+    // line of at least `column` (at least 3) numbers, each followed by a separator.
+    let capacity = match header.encoding.as_str() {
+        "binary" => data.len() / layout.record_len.max(1),
+        _ => data.len() / layout.column.saturating_mul(2).max(1) + 1,
+    }
+    .min(layout.expected);
+    let mut scan = Scan {
+        points_in_sensor: Vec::with_capacity(capacity),
+        intensity: Vec::with_capacity(if fi.is_some() { capacity } else { 0 }),
+    };
+    let fields = PcdPointFields {
+        xyz: [fx, fy, fz],
+        intensity: fi,
+    };
+    match header.encoding.as_str() {
+        "binary" => decode_pcd_binary(data, &layout, &fields, &mut scan, path)?,
+        "ascii" => decode_pcd_ascii(data, header.lines, &layout, &fields, &mut scan, path)?,
+        other => {
+            return Err(ScanError::UnsupportedEncoding {
+                path: path.to_path_buf(),
+                encoding: other.to_string(),
+            });
+        }
+    }
+    Ok(scan)
+}
+
+/// A PCD header as written: its keys' values, the data's encoding and where the data starts.
+#[derive(Debug)]
+struct PcdHeader {
+    names: Vec<String>,
+    sizes: Vec<usize>,
+    kinds: Vec<char>,
+    counts: Vec<usize>,
+    width: Option<usize>,
+    height: usize,
+    points: Option<usize>,
+    /// The `DATA` line's first word, lower case (`binary`, `ascii`, or unsupported).
+    encoding: String,
+    /// Byte offset of the data: just after the `DATA` line.
+    data_start: usize,
+    /// Lines up to and including the `DATA` line.
+    lines: usize,
+}
+
+/// What the PCD header of `path` says its records are: its fields' sizes and offsets, the
+/// record's length and the values of an ascii line, and how many points follow.
+#[derive(Debug)]
+struct PcdLayout {
+    fields: Vec<PcdField>,
+    /// Bytes of a binary record.
+    record_len: usize,
+    /// Values of an ascii line.
+    column: usize,
+    /// Points the data holds.
+    expected: usize,
+}
+
+/// The fields a point is read from: x, y, z and, if the file has it, intensity.
+struct PcdPointFields {
+    xyz: [PcdField; 3],
+    intensity: Option<PcdField>,
+}
+
+/// The error for a bad header of `path`.
+fn pcd_header_error(path: &Path, message: String) -> ScanError {
+    ScanError::Header {
         path: path.to_path_buf(),
         message,
+    }
+}
+
+/// Reads the header lines of a PCD file up to its `DATA` line.
+fn read_pcd_header(bytes: &[u8], path: &Path) -> Result<PcdHeader, ScanError> {
+    let header_error = |message: String| pcd_header_error(path, message);
+    let mut header = PcdHeader {
+        names: Vec::new(),
+        sizes: Vec::new(),
+        kinds: Vec::new(),
+        counts: Vec::new(),
+        width: None,
+        height: 1,
+        points: None,
+        encoding: String::new(),
+        data_start: 0,
+        lines: 0,
     };
-    let mut names: Vec<String> = Vec::new();
-    let mut sizes: Vec<usize> = Vec::new();
-    let mut kinds: Vec<char> = Vec::new();
-    let mut counts: Vec<usize> = Vec::new();
-    let mut width: Option<usize> = None;
-    let mut height: usize = 1;
-    let mut points: Option<usize> = None;
     let mut cursor = 0usize;
     let mut line_number = 0usize;
-    let encoding = loop {
+    header.encoding = loop {
         let Some(rel_end) = bytes[cursor..].iter().position(|&b| b == b'\n') else {
             return Err(header_error("no DATA line".into()));
         };
@@ -330,15 +423,7 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
         let mut words = line.split_whitespace();
         let key = words.next().unwrap_or_default().to_ascii_uppercase();
         let values: Vec<&str> = words.collect();
-        let parse_all = |what: &str| -> Result<Vec<usize>, ScanError> {
-            values
-                .iter()
-                .map(|v| {
-                    v.parse::<usize>()
-                        .map_err(|_| header_error(format!("line {line_number}: bad {what} `{v}`")))
-                })
-                .collect()
-        };
+        let parse_all = |what: &str| parse_pcd_counts(&values, what, line_number, path);
         let parse_one = |what: &str| -> Result<usize, ScanError> {
             match parse_all(what)?.as_slice() {
                 [v] => Ok(*v),
@@ -349,21 +434,13 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
         };
         match key.as_str() {
             "VERSION" | "VIEWPOINT" => {}
-            "FIELDS" => names = values.iter().map(|s| s.to_string()).collect(),
-            "SIZE" => sizes = parse_all("SIZE")?,
-            "COUNT" => counts = parse_all("COUNT")?,
-            "TYPE" => {
-                kinds = values
-                    .iter()
-                    .map(|v| match v.chars().collect::<Vec<_>>().as_slice() {
-                        [c @ ('F' | 'U' | 'I')] => Ok(*c),
-                        _ => Err(header_error(format!("line {line_number}: bad TYPE `{v}`"))),
-                    })
-                    .collect::<Result<_, _>>()?
-            }
-            "WIDTH" => width = Some(parse_one("WIDTH")?),
-            "HEIGHT" => height = parse_one("HEIGHT")?,
-            "POINTS" => points = Some(parse_one("POINTS")?),
+            "FIELDS" => header.names = values.iter().map(|s| s.to_string()).collect(),
+            "SIZE" => header.sizes = parse_all("SIZE")?,
+            "COUNT" => header.counts = parse_all("COUNT")?,
+            "TYPE" => header.kinds = parse_pcd_types(&values, line_number, path)?,
+            "WIDTH" => header.width = Some(parse_one("WIDTH")?),
+            "HEIGHT" => header.height = parse_one("HEIGHT")?,
+            "POINTS" => header.points = Some(parse_one("POINTS")?),
             "DATA" => {
                 break values
                     .first()
@@ -377,65 +454,132 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
             }
         }
     };
-    if counts.is_empty() {
-        counts = vec![1; names.len()];
-    }
-    if names.is_empty()
-        || sizes.len() != names.len()
-        || kinds.len() != names.len()
-        || counts.len() != names.len()
-    {
-        return Err(header_error(format!(
-            "FIELDS ({}), SIZE ({}), TYPE ({}) and COUNT ({}) disagree",
-            names.len(),
-            sizes.len(),
-            kinds.len(),
-            counts.len()
-        )));
-    }
-    let organised = match width {
-        Some(w) => Some(
-            w.checked_mul(height)
-                .ok_or_else(|| header_error(format!("WIDTH {w} x HEIGHT {height} overflows")))?,
-        ),
-        None => None,
-    };
-    let expected = match (points, organised) {
-        (Some(p), Some(wh)) if p != wh => {
+    header.data_start = cursor;
+    header.lines = line_number;
+    Ok(header)
+}
+
+/// The numbers of a `SIZE`, `COUNT`, `WIDTH`, `HEIGHT` or `POINTS` line (`what`).
+fn parse_pcd_counts(
+    values: &[&str],
+    what: &str,
+    line_number: usize,
+    path: &Path,
+) -> Result<Vec<usize>, ScanError> {
+    values
+        .iter()
+        .map(|v| {
+            v.parse::<usize>().map_err(|_| {
+                pcd_header_error(path, format!("line {line_number}: bad {what} `{v}`"))
+            })
+        })
+        .collect()
+}
+
+/// The kinds of a `TYPE` line: `F`, `U` or `I`.
+fn parse_pcd_types(
+    values: &[&str],
+    line_number: usize,
+    path: &Path,
+) -> Result<Vec<char>, ScanError> {
+    values
+        .iter()
+        .map(|v| match v.chars().collect::<Vec<_>>().as_slice() {
+            [c @ ('F' | 'U' | 'I')] => Ok(*c),
+            _ => Err(pcd_header_error(
+                path,
+                format!("line {line_number}: bad TYPE `{v}`"),
+            )),
+        })
+        .collect()
+}
+
+impl PcdHeader {
+    /// The record layout this header declares, checked: the keys agree on the number of
+    /// fields, on the number of points, and no size overflows.
+    fn layout(&self, path: &Path) -> Result<PcdLayout, ScanError> {
+        let header_error = |message: String| pcd_header_error(path, message);
+        let names = &self.names;
+        let (sizes, kinds) = (&self.sizes, &self.kinds);
+        let counts = if self.counts.is_empty() {
+            vec![1; names.len()]
+        } else {
+            self.counts.clone()
+        };
+        if names.is_empty()
+            || sizes.len() != names.len()
+            || kinds.len() != names.len()
+            || counts.len() != names.len()
+        {
             return Err(header_error(format!(
-                "POINTS {p} disagrees with WIDTH x HEIGHT = {wh}"
+                "FIELDS ({}), SIZE ({}), TYPE ({}) and COUNT ({}) disagree",
+                names.len(),
+                sizes.len(),
+                kinds.len(),
+                counts.len()
             )));
         }
-        (Some(p), _) => p,
-        (None, Some(wh)) => wh,
-        (None, None) => return Err(header_error("neither POINTS nor WIDTH given".into())),
-    };
-    let mut fields = Vec::with_capacity(names.len());
-    let (mut offset, mut column) = (0usize, 0usize);
-    for i in 0..names.len() {
-        fields.push(PcdField {
-            name: names[i].clone(),
-            kind: kinds[i],
-            size: sizes[i],
-            count: counts[i],
-            offset,
-            column,
-        });
-        let overflow = || {
-            header_error(format!(
-                "field `{}`: SIZE {} x COUNT {} makes the record size overflow",
-                names[i], sizes[i], counts[i]
-            ))
+        let height = self.height;
+        let organised =
+            match self.width {
+                Some(w) => Some(w.checked_mul(height).ok_or_else(|| {
+                    header_error(format!("WIDTH {w} x HEIGHT {height} overflows"))
+                })?),
+                None => None,
+            };
+        let expected = match (self.points, organised) {
+            (Some(p), Some(wh)) if p != wh => {
+                return Err(header_error(format!(
+                    "POINTS {p} disagrees with WIDTH x HEIGHT = {wh}"
+                )));
+            }
+            (Some(p), _) => p,
+            (None, Some(wh)) => wh,
+            (None, None) => return Err(header_error("neither POINTS nor WIDTH given".into())),
         };
-        offset = sizes[i]
-            .checked_mul(counts[i])
-            .and_then(|len| offset.checked_add(len))
-            .ok_or_else(overflow)?;
-        column = column.checked_add(counts[i]).ok_or_else(overflow)?;
+        let mut fields = Vec::with_capacity(names.len());
+        let (mut offset, mut column) = (0usize, 0usize);
+        for i in 0..names.len() {
+            fields.push(PcdField {
+                name: names[i].clone(),
+                kind: kinds[i],
+                size: sizes[i],
+                count: counts[i],
+                offset,
+                column,
+            });
+            let overflow = || {
+                header_error(format!(
+                    "field `{}`: SIZE {} x COUNT {} makes the record size overflow",
+                    names[i], sizes[i], counts[i]
+                ))
+            };
+            offset = sizes[i]
+                .checked_mul(counts[i])
+                .and_then(|len| offset.checked_add(len))
+                .ok_or_else(overflow)?;
+            column = column.checked_add(counts[i]).ok_or_else(overflow)?;
+        }
+        Ok(PcdLayout {
+            fields,
+            record_len: offset,
+            column,
+            expected,
+        })
     }
-    let record_len = offset;
-    let find = |name: &'static str, required: bool| -> Result<Option<PcdField>, ScanError> {
-        let Some(field) = fields.iter().find(|f| f.name == name) else {
+}
+
+impl PcdLayout {
+    /// The field `name`, if its kind and size can be read (one element; x, y and z floats,
+    /// intensity a float or an integer of 1, 2 or 4 bytes); `Ok(None)` when it is missing and
+    /// not `required`.
+    fn field(
+        &self,
+        name: &'static str,
+        required: bool,
+        path: &Path,
+    ) -> Result<Option<PcdField>, ScanError> {
+        let Some(field) = self.fields.iter().find(|f| f.name == name) else {
             return if required {
                 Err(ScanError::MissingField {
                     path: path.to_path_buf(),
@@ -462,105 +606,91 @@ pub fn parse_pcd(bytes: &[u8], path: &Path) -> Result<Scan, ScanError> {
             });
         }
         Ok(Some(field.clone()))
-    };
-    let (Some(fx), Some(fy), Some(fz)) = (find("x", true)?, find("y", true)?, find("z", true)?)
-    else {
-        // `find` with `required` never returns Ok(None).
-        return Err(ScanError::MissingField {
-            path: path.to_path_buf(),
-            field: "x",
-        });
-    };
-    let fi = find("intensity", false)?;
-    let data = &bytes[cursor..];
-    // What the data can hold at most, so that no header number sizes an allocation: a binary
-    // record is `record_len` bytes (at least 12: x, y, z are 4 or 8 bytes); an ascii point is a
-    // line of at least `column` (at least 3) numbers, each followed by a separator.
-    let capacity = match encoding.as_str() {
-        "binary" => data.len() / record_len.max(1),
-        _ => data.len() / column.saturating_mul(2).max(1) + 1,
     }
-    .min(expected);
-    let mut scan = Scan {
-        points_in_sensor: Vec::with_capacity(capacity),
-        intensity: Vec::with_capacity(if fi.is_some() { capacity } else { 0 }),
-    };
-    match encoding.as_str() {
-        "binary" => {
-            let found = data.len() / record_len.max(1);
-            let needed = expected.checked_mul(record_len);
-            if needed.is_none_or(|n| n > data.len()) || record_len == 0 {
-                return Err(ScanError::Truncated {
-                    path: path.to_path_buf(),
-                    expected,
-                    found,
-                });
-            }
-            for record in data.chunks_exact(record_len).take(expected) {
-                scan.points_in_sensor.push([
-                    fx.decode(record),
-                    fy.decode(record),
-                    fz.decode(record),
-                ]);
-                if let Some(fi) = &fi {
-                    scan.intensity.push(fi.decode(record));
-                }
-            }
+}
+
+/// Reads the points of binary PCD `data` into `scan`.
+fn decode_pcd_binary(
+    data: &[u8],
+    layout: &PcdLayout,
+    fields: &PcdPointFields,
+    scan: &mut Scan,
+    path: &Path,
+) -> Result<(), ScanError> {
+    let (record_len, expected) = (layout.record_len, layout.expected);
+    let [fx, fy, fz] = &fields.xyz;
+    let found = data.len() / record_len.max(1);
+    let needed = expected.checked_mul(record_len);
+    if needed.is_none_or(|n| n > data.len()) || record_len == 0 {
+        return Err(ScanError::Truncated {
+            path: path.to_path_buf(),
+            expected,
+            found,
+        });
+    }
+    for record in data.chunks_exact(record_len).take(expected) {
+        scan.points_in_sensor
+            .push([fx.decode(record), fy.decode(record), fz.decode(record)]);
+        if let Some(fi) = &fields.intensity {
+            scan.intensity.push(fi.decode(record));
         }
-        "ascii" => {
-            let text = String::from_utf8_lossy(data);
-            let mut values: Vec<f32> = Vec::with_capacity(column.min(64));
-            for (i, line) in text.lines().enumerate() {
-                if scan.points_in_sensor.len() == expected {
-                    break;
-                }
-                let line = line.trim();
-                if line.is_empty() {
-                    continue;
-                }
-                let number = line_number + i + 1;
-                values.clear();
-                for word in line.split_whitespace() {
-                    // PCD writes non-finite values as `nan`; Rust parses `nan`/`inf` as such.
-                    let v: f64 = word.parse().map_err(|_| ScanError::AsciiData {
-                        path: path.to_path_buf(),
-                        line: number,
-                        message: format!("`{word}` is not a number"),
-                    })?;
-                    values.push(v as f32);
-                }
-                if values.len() < column {
-                    return Err(ScanError::AsciiData {
-                        path: path.to_path_buf(),
-                        line: number,
-                        message: format!("{} values, header declares {column}", values.len()),
-                    });
-                }
-                scan.points_in_sensor.push([
-                    values[fx.column],
-                    values[fy.column],
-                    values[fz.column],
-                ]);
-                if let Some(fi) = &fi {
-                    scan.intensity.push(values[fi.column]);
-                }
-            }
-            if scan.points_in_sensor.len() < expected {
-                return Err(ScanError::Truncated {
-                    path: path.to_path_buf(),
-                    expected,
-                    found: scan.points_in_sensor.len(),
-                });
-            }
+    }
+    Ok(())
+}
+
+/// Reads the points of ascii PCD `data`, which starts after line `header_lines`, into `scan`.
+fn decode_pcd_ascii(
+    data: &[u8],
+    header_lines: usize,
+    layout: &PcdLayout,
+    fields: &PcdPointFields,
+    scan: &mut Scan,
+    path: &Path,
+) -> Result<(), ScanError> {
+    let (column, expected) = (layout.column, layout.expected);
+    let [fx, fy, fz] = &fields.xyz;
+    let text = String::from_utf8_lossy(data);
+    let mut values: Vec<f32> = Vec::with_capacity(column.min(64));
+    for (i, line) in text.lines().enumerate() {
+        if scan.points_in_sensor.len() == expected {
+            break;
         }
-        other => {
-            return Err(ScanError::UnsupportedEncoding {
+        let line = line.trim();
+        if line.is_empty() {
+            continue;
+        }
+        let number = header_lines + i + 1;
+        values.clear();
+        for word in line.split_whitespace() {
+            // PCD writes non-finite values as `nan`; Rust parses `nan`/`inf` as such.
+            let v: f64 = word.parse().map_err(|_| ScanError::AsciiData {
                 path: path.to_path_buf(),
-                encoding: other.to_string(),
+                line: number,
+                message: format!("`{word}` is not a number"),
+            })?;
+            values.push(v as f32);
+        }
+        if values.len() < column {
+            return Err(ScanError::AsciiData {
+                path: path.to_path_buf(),
+                line: number,
+                message: format!("{} values, header declares {column}", values.len()),
             });
         }
+        scan.points_in_sensor
+            .push([values[fx.column], values[fy.column], values[fz.column]]);
+        if let Some(fi) = &fields.intensity {
+            scan.intensity.push(values[fi.column]);
+        }
     }
-    Ok(scan)
+    if scan.points_in_sensor.len() < expected {
+        return Err(ScanError::Truncated {
+            path: path.to_path_buf(),
+            expected,
+            found: scan.points_in_sensor.len(),
+        });
+    }
+    Ok(())
 }
 
 #[cfg(test)]
