@@ -317,26 +317,10 @@ struct Wanted {
     fixes: Option<Option<String>>,
 }
 
-fn wants(filter: &Option<Option<String>>, topic: &str) -> bool {
-    match filter {
-        None => false,
-        Some(None) => true,
-        Some(Some(t)) => t == topic,
-    }
-}
-
-impl BagDrive {
-    /// Opens a recording: one streaming pass that lists topics, checks the clouds' headers and
-    /// gathers the poses of `options.pose_source`.
-    ///
-    /// # Errors
-    ///
-    /// [`BagError`]: unreadable or malformed file, unknown or ambiguous topic (the error lists
-    /// the topics), a topic of the wrong type, a malformed message (topic and index), or poses
-    /// that cannot be built from the chosen source.
-    pub fn open(path: &Path, options: &BagOptions) -> Result<Self, BagError> {
-        let path = &recording_file(path)?;
-        let wanted = match &options.pose_source {
+impl Wanted {
+    /// What the poses of `source` need gathered.
+    fn for_source(source: &PoseSource) -> Self {
+        match source {
             PoseSource::Auto => Wanted {
                 tf: true,
                 odometry: Some(None),
@@ -363,7 +347,81 @@ impl BagDrive {
                 odometry: None,
                 fixes: None,
             },
-        };
+        }
+    }
+}
+
+/// The poses of the clouds (in `cloud_frame`) from `source`, built from what was gathered
+/// (`g`, `topics`), and the source's description.
+fn bag_poses(
+    path: &Path,
+    g: &Gathered,
+    topics: &[TopicInfo],
+    cloud_frame: &str,
+    source: &PoseSource,
+) -> Result<(BagPoses, String), BagError> {
+    let poses_error = |message: String| BagError::Poses {
+        path: path.to_path_buf(),
+        message,
+    };
+    Ok(match source {
+        PoseSource::None => (BagPoses::None, "none".to_owned()),
+        PoseSource::Tf { fixed_frame } => {
+            let fixed = fixed_frame
+                .clone()
+                .unwrap_or_else(|| g.tf.root_of(cloud_frame));
+            let track = g.tf.track(&fixed, cloud_frame).map_err(poses_error)?;
+            (
+                BagPoses::Local(track),
+                format!("tf {fixed} -> {cloud_frame}"),
+            )
+        }
+        PoseSource::Odometry { topic } => {
+            let topic = pick_topic(
+                path,
+                topics,
+                topic.as_deref(),
+                ODOMETRY,
+                "an odometry topic",
+            )?;
+            let track = odometry_track(g, &topic, cloud_frame).map_err(poses_error)?;
+            (BagPoses::Local(track), format!("odometry {topic}"))
+        }
+        PoseSource::NavSatFix { topic } => {
+            let topic = pick_topic(
+                path,
+                topics,
+                topic.as_deref(),
+                NAVSATFIX,
+                "a NavSatFix topic",
+            )?;
+            let track = fix_track(path, g, &topic, cloud_frame).map_err(poses_error)?;
+            (BagPoses::Wgs84(track), format!("navsatfix {topic}"))
+        }
+        PoseSource::Auto => auto_poses(path, g, topics, cloud_frame),
+    })
+}
+
+fn wants(filter: &Option<Option<String>>, topic: &str) -> bool {
+    match filter {
+        None => false,
+        Some(None) => true,
+        Some(Some(t)) => t == topic,
+    }
+}
+
+impl BagDrive {
+    /// Opens a recording: one streaming pass that lists topics, checks the clouds' headers and
+    /// gathers the poses of `options.pose_source`.
+    ///
+    /// # Errors
+    ///
+    /// [`BagError`]: unreadable or malformed file, unknown or ambiguous topic (the error lists
+    /// the topics), a topic of the wrong type, a malformed message (topic and index), or poses
+    /// that cannot be built from the chosen source.
+    pub fn open(path: &Path, options: &BagOptions) -> Result<Self, BagError> {
+        let path = &recording_file(path)?;
+        let wanted = Wanted::for_source(&options.pose_source);
         let mut g = Gathered::default();
         for (seen, message) in (0u64..).zip(reader(path)?) {
             let message = message.map_err(|e| mcap_error(path, seen, e))?;
@@ -387,46 +445,8 @@ impl BagDrive {
                 available: available(&topics),
             });
         };
-        let poses_error = |message: String| BagError::Poses {
-            path: path.to_path_buf(),
-            message,
-        };
-        let (poses, pose_source) = match &options.pose_source {
-            PoseSource::None => (BagPoses::None, "none".to_owned()),
-            PoseSource::Tf { fixed_frame } => {
-                let fixed = fixed_frame
-                    .clone()
-                    .unwrap_or_else(|| g.tf.root_of(&cloud_frame));
-                let track = g.tf.track(&fixed, &cloud_frame).map_err(poses_error)?;
-                (
-                    BagPoses::Local(track),
-                    format!("tf {fixed} -> {cloud_frame}"),
-                )
-            }
-            PoseSource::Odometry { topic } => {
-                let topic = pick_topic(
-                    path,
-                    &topics,
-                    topic.as_deref(),
-                    ODOMETRY,
-                    "an odometry topic",
-                )?;
-                let track = odometry_track(&g, &topic, &cloud_frame).map_err(poses_error)?;
-                (BagPoses::Local(track), format!("odometry {topic}"))
-            }
-            PoseSource::NavSatFix { topic } => {
-                let topic = pick_topic(
-                    path,
-                    &topics,
-                    topic.as_deref(),
-                    NAVSATFIX,
-                    "a NavSatFix topic",
-                )?;
-                let track = fix_track(path, &g, &topic, &cloud_frame).map_err(poses_error)?;
-                (BagPoses::Wgs84(track), format!("navsatfix {topic}"))
-            }
-            PoseSource::Auto => auto_poses(path, &g, &topics, &cloud_frame),
-        };
+        let (poses, pose_source) =
+            bag_poses(path, &g, &topics, &cloud_frame, &options.pose_source)?;
         Ok(Self {
             path: path.to_path_buf(),
             topics,
