@@ -157,6 +157,21 @@ pub fn figure(
     scale: u32,
 ) -> Result<RgbImage, OutputError> {
     let scale = scale.max(1);
+    check_panels(window, panels, overlay)?;
+    let layout = FigureLayout::new(window, panels.len(), legend, scale)?;
+    let mut canvas = RgbImage::from_pixel(layout.width, layout.height, PAPER);
+    draw_panels(&mut canvas, window, panels, overlay, &layout);
+    draw_legend(&mut canvas, legend, overlay, &layout);
+    draw_scale_bar(&mut canvas, window, &layout);
+    Ok(canvas)
+}
+
+/// Checks that every panel, and the overlay's GISGrid, has one cell per cell of `window`.
+fn check_panels(
+    window: &Window,
+    panels: &[(&str, &RgbImage)],
+    overlay: &Overlay<'_>,
+) -> Result<(), OutputError> {
     let (w, h) = (window.width() as u32, window.height() as u32);
     for (_, panel) in panels {
         if panel.dimensions() != (w, h) {
@@ -170,105 +185,157 @@ pub fn figure(
     if let Some(gis) = overlay.gis {
         check_len("GISGrid", gis.len(), window)?;
     }
-    // A panel's size in u64 first: a large window times a large scale must be an error, not an
-    // overflow.
-    let (pw64, ph64) = (
-        u64::from(w) * u64::from(scale),
-        u64::from(h) * u64::from(scale),
-    );
-    let too_large = OutputError::FigureTooLarge {
-        width: pw64 * panels.len().max(1) as u64,
-        height: ph64,
-    };
-    if (pw64 * panels.len().max(1) as u64).saturating_mul(ph64) > MAX_FIGURE_PIXELS {
-        return Err(too_large);
-    }
-    let (pw, ph) = (pw64 as u32, ph64 as u32);
-    let title_h = line_height(TITLE_PX) + 8;
-    let label_h = line_height(LABEL_PX);
-    let swatch = label_h;
-    let legend_w = legend
-        .entries
-        .iter()
-        .map(|(_, name)| swatch + 8 + text_width(name, LABEL_PX))
-        .chain([text_width(&legend.note, LABEL_PX * 0.85)])
-        .max()
-        .unwrap_or(0)
-        .max(120);
-    let n = panels.len().max(1) as u32;
-    let footer_h = label_h * 2 + 16;
-    let width = MARGIN + n * (pw + MARGIN) + legend_w + MARGIN;
-    let legend_h = (legend.entries.len() as u32 + 6) * (label_h + 6) + 140;
-    let height = MARGIN + title_h + ph.max(legend_h) + footer_h + MARGIN;
-    let mut canvas = RgbImage::from_pixel(width, height, PAPER);
+    Ok(())
+}
 
+/// Where the parts of a figure go, pixels: the panels in a row under their titles, the legend
+/// to their right, the scale bar under them.
+struct FigureLayout {
+    /// The enlargement of a cell.
+    scale: u32,
+    /// A panel's width and height.
+    panel_px: (u32, u32),
+    /// The panels' top edge (under the titles).
+    top: u32,
+    /// The legend's left edge.
+    legend_x: u32,
+    /// A legend line's height, also a swatch's side.
+    label_h: u32,
+    /// The whole figure's width and height.
+    width: u32,
+    height: u32,
+}
+
+impl FigureLayout {
+    /// The layout of `panel_count` panels of `window` enlarged `scale` times, beside `legend`.
+    ///
+    /// # Errors
+    ///
+    /// [`OutputError::FigureTooLarge`] if the panels hold more than [`MAX_FIGURE_PIXELS`].
+    fn new(
+        window: &Window,
+        panel_count: usize,
+        legend: &Legend,
+        scale: u32,
+    ) -> Result<Self, OutputError> {
+        let (w, h) = (window.width() as u32, window.height() as u32);
+        // A panel's size in u64 first: a large window times a large scale must be an error,
+        // not an overflow.
+        let (pw64, ph64) = (
+            u64::from(w) * u64::from(scale),
+            u64::from(h) * u64::from(scale),
+        );
+        let too_large = OutputError::FigureTooLarge {
+            width: pw64 * panel_count.max(1) as u64,
+            height: ph64,
+        };
+        if (pw64 * panel_count.max(1) as u64).saturating_mul(ph64) > MAX_FIGURE_PIXELS {
+            return Err(too_large);
+        }
+        let (pw, ph) = (pw64 as u32, ph64 as u32);
+        let title_h = line_height(TITLE_PX) + 8;
+        let label_h = line_height(LABEL_PX);
+        let swatch = label_h;
+        let legend_w = legend
+            .entries
+            .iter()
+            .map(|(_, name)| swatch + 8 + text_width(name, LABEL_PX))
+            .chain([text_width(&legend.note, LABEL_PX * 0.85)])
+            .max()
+            .unwrap_or(0)
+            .max(120);
+        let n = panel_count.max(1) as u32;
+        let footer_h = label_h * 2 + 16;
+        let legend_h = (legend.entries.len() as u32 + 6) * (label_h + 6) + 140;
+        Ok(Self {
+            scale,
+            panel_px: (pw, ph),
+            top: MARGIN + title_h,
+            legend_x: MARGIN + n * (pw + MARGIN),
+            label_h,
+            width: MARGIN + n * (pw + MARGIN) + legend_w + MARGIN,
+            height: MARGIN + title_h + ph.max(legend_h) + footer_h + MARGIN,
+        })
+    }
+}
+
+/// Each panel enlarged in its place, under its title, with the overlay drawn over it.
+fn draw_panels(
+    canvas: &mut RgbImage,
+    window: &Window,
+    panels: &[(&str, &RgbImage)],
+    overlay: &Overlay<'_>,
+    layout: &FigureLayout,
+) {
+    let (w, h) = (window.width() as u32, window.height() as u32);
+    let (scale, top) = (layout.scale, layout.top);
     let context = overlay.gis.map(|g| context_north_up(window, g));
-    let top = MARGIN + title_h;
     for (k, (title, panel)) in panels.iter().enumerate() {
-        let left = MARGIN + k as u32 * (pw + MARGIN);
+        let left = MARGIN + k as u32 * (layout.panel_px.0 + MARGIN);
         draw_text(
-            &mut canvas,
+            canvas,
             i64::from(left),
             i64::from(MARGIN),
             title,
             TITLE_PX,
             INK,
         );
-        enlarge_into(&mut canvas, panel, (left, top), scale);
+        enlarge_into(canvas, panel, (left, top), scale);
         if let Some(context) = &context {
-            draw_outlines(&mut canvas, (left, top), (w, h), scale, context);
+            draw_outlines(canvas, (left, top), (w, h), scale, context);
         }
-        draw_path(&mut canvas, window, (left, top), scale, overlay.path);
-        draw_velocities(&mut canvas, window, (left, top), scale, overlay.velocities);
+        draw_path(canvas, window, (left, top), scale, overlay.path);
+        draw_velocities(canvas, window, (left, top), scale, overlay.velocities);
     }
+}
 
-    // Legend: swatches, the overlay's lines, the note, then the north arrow.
-    let lx = MARGIN + n * (pw + MARGIN);
-    let mut y = top;
+/// The legend right of the panels: swatches, the overlay's lines, the note, then the north
+/// arrow.
+fn draw_legend(
+    canvas: &mut RgbImage,
+    legend: &Legend,
+    overlay: &Overlay<'_>,
+    layout: &FigureLayout,
+) {
+    let (lx, label_h) = (layout.legend_x, layout.label_h);
+    let swatch = label_h;
+    let mut y = layout.top;
     for (colour, name) in &legend.entries {
-        fill(&mut canvas, lx, y, swatch, swatch, INK);
-        fill(
-            &mut canvas,
-            lx + 1,
-            y + 1,
-            swatch - 2,
-            swatch - 2,
-            Rgb(*colour),
-        );
-        legend_label(&mut canvas, lx + swatch + 8, y, name);
+        fill(canvas, lx, y, swatch, swatch, INK);
+        fill(canvas, lx + 1, y + 1, swatch - 2, swatch - 2, Rgb(*colour));
+        legend_label(canvas, lx + swatch + 8, y, name);
         y += label_h + 6;
     }
     y += 6;
     if overlay.gis.is_some() {
-        fill(&mut canvas, lx, y, swatch, swatch, Rgb([90, 90, 90]));
-        fill(&mut canvas, lx + 2, y + swatch / 2, swatch - 4, 1, OUTLINE);
+        fill(canvas, lx, y, swatch, swatch, Rgb([90, 90, 90]));
+        fill(canvas, lx + 2, y + swatch / 2, swatch - 4, 1, OUTLINE);
         let text = "map outline (buildings, roads)";
-        legend_label(&mut canvas, lx + swatch + 8, y, text);
+        legend_label(canvas, lx + swatch + 8, y, text);
         y += label_h + 6;
     }
+    let mid = |y: u32| f64::from(y + swatch / 2);
+    let (x0, x1) = (f64::from(lx + 2), f64::from(lx + swatch - 2));
+    let all = [0, 0, i64::from(layout.width), i64::from(layout.height)];
     if !overlay.path.is_empty() {
-        let mid = f64::from(y + swatch / 2);
-        let (x0, x1) = (f64::from(lx + 2), f64::from(lx + swatch - 2));
-        let all = [0, 0, i64::from(width), i64::from(height)];
-        stroke(&mut canvas, [x0, mid], [x1, mid], 2, INK, all);
-        stroke(&mut canvas, [x0, mid], [x1, mid], 1, PATH, all);
-        legend_label(&mut canvas, lx + swatch + 8, y, "ego path");
+        let mid = mid(y);
+        stroke(canvas, [x0, mid], [x1, mid], 2, INK, all);
+        stroke(canvas, [x0, mid], [x1, mid], 1, PATH, all);
+        legend_label(canvas, lx + swatch + 8, y, "ego path");
         y += label_h + 6;
     }
     if !overlay.velocities.is_empty() {
-        let mid = f64::from(y + swatch / 2);
-        let (x0, x1) = (f64::from(lx + 2), f64::from(lx + swatch - 2));
-        let all = [0, 0, i64::from(width), i64::from(height)];
-        stroke(&mut canvas, [x0, mid], [x1, mid], 1, INK, all);
-        stroke(&mut canvas, [x1 - 4.0, mid - 4.0], [x1, mid], 1, INK, all);
-        stroke(&mut canvas, [x1 - 4.0, mid + 4.0], [x1, mid], 1, INK, all);
-        legend_label(&mut canvas, lx + swatch + 8, y, "velocity (1 s of travel)");
+        let mid = mid(y);
+        stroke(canvas, [x0, mid], [x1, mid], 1, INK, all);
+        stroke(canvas, [x1 - 4.0, mid - 4.0], [x1, mid], 1, INK, all);
+        stroke(canvas, [x1 - 4.0, mid + 4.0], [x1, mid], 1, INK, all);
+        legend_label(canvas, lx + swatch + 8, y, "velocity (1 s of travel)");
         y += label_h + 6;
     }
     if !legend.note.is_empty() {
         y += 4;
         draw_text(
-            &mut canvas,
+            canvas,
             i64::from(lx),
             i64::from(y),
             &legend.note,
@@ -277,17 +344,22 @@ pub fn figure(
         );
         y += label_h + 6;
     }
-    draw_north_arrow(&mut canvas, lx + 30, y + 16);
+    draw_north_arrow(canvas, lx + 30, y + 16);
+}
 
-    // Scale bar under the first panel: a round length near a fifth of the panel's width.
+/// The scale bar under the first panel: a round length near a fifth of the panel's width,
+/// and what it and a cell measure.
+fn draw_scale_bar(canvas: &mut RgbImage, window: &Window, layout: &FigureLayout) {
+    let scale = layout.scale;
+    let (pw, ph) = layout.panel_px;
     let metres_per_px = window.cell_size_m() / f64::from(scale);
     let bar_m = round_length(f64::from(pw) * metres_per_px / 5.0);
     let bar_px = (bar_m / metres_per_px).round() as u32;
-    let by = top + ph + 10;
-    fill(&mut canvas, MARGIN, by, bar_px, 4, INK);
-    fill(&mut canvas, MARGIN, by - 4, 2, 12, INK);
+    let by = layout.top + ph + 10;
+    fill(canvas, MARGIN, by, bar_px, 4, INK);
+    fill(canvas, MARGIN, by - 4, 2, 12, INK);
     fill(
-        &mut canvas,
+        canvas,
         MARGIN + bar_px.saturating_sub(2),
         by - 4,
         2,
@@ -300,14 +372,13 @@ pub fn figure(
         format_metres(window.cell_size_m())
     );
     draw_text(
-        &mut canvas,
+        canvas,
         i64::from(MARGIN),
         i64::from(by + 10),
         &label,
         LABEL_PX,
         INK,
     );
-    Ok(canvas)
 }
 
 /// Nearest-neighbour enlargement of `panel` into `canvas` with its top-left corner at
