@@ -262,7 +262,13 @@ pub fn evaluate_until(
     }
     let params = config.params_for(scenario);
     params.validate().map_err(evigrid::PipelineError::from)?;
-    let len = params.window.width_cells * params.window.height_cells;
+    let evaluation = Evaluation {
+        map,
+        variants,
+        params: &params,
+        config,
+        stop,
+    };
     let mut totals: Vec<Runner> = Vec::new();
     let mut per_seed: Vec<Vec<SeedScores>> = vec![Vec::new(); variants.len()];
     let mut frames_per_seed = 0;
@@ -281,32 +287,13 @@ pub fn evaluate_until(
             seed,
             ..scenario.clone()
         };
-        let mut drive = Drive::new(map, &scenario)?;
-        frames_per_seed = drive.frame_count();
-        frame_period_s = drive.dt_s();
-        // The map is rasterised only if a variant fuses it.
-        let pipeline_map = variants
-            .iter()
-            .any(|v| v.uses_map())
-            .then(|| ContextRaster::new(drive.pipeline_map()));
-        let mut front_end = FrontEnd::new(&params, pipeline_map)?;
-        let mut runners = variants
-            .iter()
-            .map(|&v| Runner::new(v, &params, config, len))
-            .collect::<Result<Vec<_>, _>>()?;
-        let (seconds, frames) = run_drive(
-            &mut drive,
-            &mut front_end,
-            &mut runners,
-            (seed_index, seeds.len()),
-            stop,
-            progress,
-            observer,
-        )?;
-        simulation_s += seconds;
-        frames_run += frames;
-        complete &= frames == frames_per_seed;
-        for (k, r) in runners.into_iter().enumerate() {
+        let run = evaluation.run_seed(&scenario, (seed_index, seeds.len()), progress, observer)?;
+        frames_per_seed = run.frames_per_seed;
+        frame_period_s = run.frame_period_s;
+        simulation_s += run.simulation_s;
+        frames_run += run.frames;
+        complete &= run.frames == run.frames_per_seed;
+        for (k, r) in run.runners.into_iter().enumerate() {
             // Per seed, the headline mask: cells in view.
             let s = r.visible.scores();
             per_seed[k].push(SeedScores {
@@ -321,7 +308,92 @@ pub fn evaluate_until(
         }
     }
     let frames_total = frames_run.max(1) as f64;
-    let variants = totals
+    Ok(EvalReport {
+        scenario: scenario.clone(),
+        complete,
+        frames_run,
+        seeds: seeds_run,
+        frames_per_seed,
+        frame_period_s,
+        variants: variant_reports(totals, per_seed, frames_total),
+        simulation_ms_per_frame: simulation_s * 1000.0 / frames_total,
+    })
+}
+
+/// What every seed of an evaluation shares: the map, the variants, the parameters that run
+/// (checked), the configuration and the stop flag.
+struct Evaluation<'a> {
+    map: &'a LocalMap,
+    variants: &'a [Variant],
+    params: &'a Params,
+    config: &'a EvalConfig,
+    stop: &'a AtomicBool,
+}
+
+/// One seed's drive through every variant.
+struct SeedRun {
+    /// Each variant's runner, with its counts over the drive.
+    runners: Vec<Runner>,
+    /// Seconds spent simulating (scans and truth).
+    simulation_s: f64,
+    /// Frames run, and frames in the drive.
+    frames: usize,
+    frames_per_seed: usize,
+    /// Seconds between two frames.
+    frame_period_s: f64,
+}
+
+impl Evaluation<'_> {
+    /// Simulates `scenario`'s drive (its seed is the one run) and runs it through one shared
+    /// front end and a runner per variant, until its end or until `stop` is raised.
+    /// `(seed_index, seeds)`: where this seed is in the seed list.
+    fn run_seed(
+        &self,
+        scenario: &Scenario,
+        (seed_index, seeds): (usize, usize),
+        progress: &mut dyn FnMut(Progress),
+        observer: &mut dyn FnMut(FusionFrame<'_>),
+    ) -> Result<SeedRun, EvalError> {
+        let params = self.params;
+        let len = params.window.width_cells * params.window.height_cells;
+        let mut drive = Drive::new(self.map, scenario)?;
+        let frames_per_seed = drive.frame_count();
+        let frame_period_s = drive.dt_s();
+        // The map is rasterised only if a variant fuses it.
+        let pipeline_map = (self.variants.iter())
+            .any(|v| v.uses_map())
+            .then(|| ContextRaster::new(drive.pipeline_map()));
+        let mut front_end = FrontEnd::new(params, pipeline_map)?;
+        let mut runners = (self.variants.iter())
+            .map(|&v| Runner::new(v, params, self.config, len))
+            .collect::<Result<Vec<_>, _>>()?;
+        let (simulation_s, frames) = run_drive(
+            &mut drive,
+            &mut front_end,
+            &mut runners,
+            (seed_index, seeds),
+            self.stop,
+            progress,
+            observer,
+        )?;
+        Ok(SeedRun {
+            runners,
+            simulation_s,
+            frames,
+            frames_per_seed,
+            frame_period_s,
+        })
+    }
+}
+
+/// Each variant's report from its runner's counts over every seed and its scores per seed;
+/// times per frame over `frames_total` frames.
+fn variant_reports(
+    totals: Vec<Runner>,
+    per_seed: Vec<Vec<SeedScores>>,
+    frames_total: f64,
+) -> Vec<VariantReport> {
+    totals
         .into_iter()
         .zip(per_seed)
         .map(|(r, per_seed)| VariantReport {
@@ -339,17 +411,7 @@ pub fn evaluate_until(
             ms_per_frame: r.seconds * 1000.0 / frames_total,
             per_seed,
         })
-        .collect();
-    Ok(EvalReport {
-        scenario: scenario.clone(),
-        complete,
-        frames_run,
-        seeds: seeds_run,
-        frames_per_seed,
-        frame_period_s,
-        variants,
-        simulation_ms_per_frame: simulation_s * 1000.0 / frames_total,
-    })
+        .collect()
 }
 
 /// Feeds one drive to the front end, then every runner, until its end or until `stop` is
@@ -365,24 +427,7 @@ fn run_drive(
     observer: &mut dyn FnMut(FusionFrame<'_>),
 ) -> Result<(f64, usize), EvalError> {
     let mut simulation_s = 0.0;
-    let len = front_end.window().len();
-    let mut observed = vec![false; len];
-    let mut observed_now = vec![false; len];
-    let everywhere = vec![true; len];
-    let mut previous_world = Vec::new();
-    let mut previous_storage = vec![truth::IGNORED; len];
-    let mut outline_world = Vec::new();
-    let mut outline_storage = vec![false; len];
-    let mut centre_world = truth::CentreTruth::default();
-    let mut centre = truth::CentreTruth {
-        labels: vec![truth::IGNORED; len],
-        band: vec![false; len],
-        never_seen_moving: vec![false; len],
-    };
-    let mut never_seen_moving = NeverSeenMoving {
-        seen_free: vec![false; len],
-        ..NeverSeenMoving::default()
-    };
+    let mut truth = DriveTruth::new(front_end.window().len());
     let frames = drive.frame_count();
     let mut frames_run = 0;
     loop {
@@ -402,28 +447,184 @@ fn run_drive(
         let stats = front_end.process(&points, &pose, scan.time_s)?;
         // The pose the SensorGrid was built with: the estimated one, or its refinement.
         let pose = *front_end.world_from_sensor();
+        truth.observe(drive, &frame, front_end);
+        simulation_s += truth.label(drive, front_end.window());
+        // After the truth: the cells seen free up to this frame, for the next one's newcomers.
+        truth.note_seen_free(front_end);
+
+        // Every variant on the same front end.
+        for r in runners.iter_mut() {
+            r.process(front_end, &stats)?;
+            if let Method::Fusion(fusion) = &r.method {
+                observer(FusionFrame {
+                    variant: r.variant,
+                    seed_index,
+                    frame: frame.index,
+                    front_end,
+                    fusion,
+                    truth: &truth.centre.labels,
+                    outline: &truth.centre.band,
+                    ego_position: [pose.translation.x, pose.translation.y],
+                    points_in_sensor: &points,
+                    world_from_sensor: &pose,
+                    time_s: scan.time_s,
+                });
+            }
+            r.score(front_end, &truth, drive, &frame, &pose);
+        }
+        frames_run += 1;
+        progress(Progress {
+            seed_index,
+            seeds,
+            frame: frame.index + 1,
+            frames,
+        });
+    }
+    Ok((simulation_s, frames_run))
+}
+
+impl Runner {
+    /// Runs the variant's method on the front end's frame and decides every cell; its time is
+    /// charged with its share of the front end's (`stats`).
+    fn process(&mut self, front_end: &FrontEnd, stats: &FrontEndStats) -> Result<(), EvalError> {
+        let started = Instant::now();
+        let method = self.method.as_grid_method();
+        method.process(front_end)?;
+        method.decide(&mut self.predicted);
+        self.seconds += started.elapsed().as_secs_f64() + front_end_seconds(stats, self.variant);
+        Ok(())
+    }
+
+    /// Adds this frame's decisions to the counts: the confusion matrices of the observed cells,
+    /// the cells in view, every cell and the previous truth rule, the remanence and the
+    /// latency. `world_from_sensor`: the pose the frame's SensorGrid was built with.
+    fn score(
+        &mut self,
+        front_end: &FrontEnd,
+        truth: &DriveTruth,
+        drive: &Drive,
+        frame: &Frame,
+        world_from_sensor: &evigrid::IsometryMatrix3,
+    ) {
+        for span in front_end.new_cell_spans() {
+            for idx in span {
+                self.remanence.reset(idx);
+            }
+        }
+        let (centre, predicted) = (&truth.centre, &self.predicted);
+        self.confusion
+            .add_frame_centre(centre, predicted, &truth.observed);
+        self.visible
+            .add_frame_centre(centre, predicted, &truth.observed_now);
+        self.all
+            .add_frame_centre(centre, predicted, &truth.everywhere);
+        self.visible_previous.add_frame_with_outline(
+            &truth.previous_storage,
+            predicted,
+            &truth.observed_now,
+            &truth.outline_storage,
+        );
+        let frame_no = frame.index as u32;
+        let cells = centre.labels.iter().zip(predicted).zip(&truth.observed_now);
+        for (idx, ((&class, &decided), &now)) in cells.enumerate() {
+            self.remanence.update(idx, frame_no, class, decided, now);
+        }
+        let window = front_end.window();
+        update_latency(
+            &mut self.latency,
+            drive,
+            frame,
+            world_from_sensor,
+            window,
+            predicted,
+        );
+    }
+}
+
+/// What one drive's frames are scored against, in storage order, and what it is built from
+/// (the truth in world order, the cells observed so far, the never-seen-moving rule).
+struct DriveTruth {
+    /// Cells with sensor evidence at least once since they entered the window.
+    observed: Vec<bool>,
+    /// Cells with sensor evidence in this frame.
+    observed_now: Vec<bool>,
+    /// Every cell.
+    everywhere: Vec<bool>,
+    /// The truth by the previous rule, in world order and in storage order.
+    previous_world: Vec<Label>,
+    previous_storage: Vec<Label>,
+    /// The previous rule's object outlines, in world order and in storage order.
+    outline_world: Vec<bool>,
+    outline_storage: Vec<bool>,
+    /// The truth by the centre rule, in world order and in storage order.
+    centre_world: truth::CentreTruth,
+    centre: truth::CentreTruth,
+    never_seen_moving: NeverSeenMoving,
+}
+
+impl DriveTruth {
+    /// Nothing observed yet, over a window of `len` cells.
+    fn new(len: usize) -> Self {
+        Self {
+            observed: vec![false; len],
+            observed_now: vec![false; len],
+            everywhere: vec![true; len],
+            previous_world: Vec::new(),
+            previous_storage: vec![truth::IGNORED; len],
+            outline_world: Vec::new(),
+            outline_storage: vec![false; len],
+            centre_world: truth::CentreTruth::default(),
+            centre: truth::CentreTruth {
+                labels: vec![truth::IGNORED; len],
+                band: vec![false; len],
+                never_seen_moving: vec![false; len],
+            },
+            never_seen_moving: NeverSeenMoving {
+                seen_free: vec![false; len],
+                ..NeverSeenMoving::default()
+            },
+        }
+    }
+
+    /// Takes in the front end's frame: the cells that entered the window forget what was seen
+    /// there, the never-seen-moving passes take this frame's returns, and the cells with
+    /// sensor evidence are observed.
+    fn observe(&mut self, drive: &Drive, frame: &Frame, front_end: &FrontEnd) {
         let window = front_end.window();
         for span in front_end.new_cell_spans() {
-            observed[span.clone()].fill(false);
-            never_seen_moving.seen_free[span].fill(false);
+            self.observed[span.clone()].fill(false);
+            self.never_seen_moving.seen_free[span].fill(false);
         }
-        never_seen_moving.update(drive, &frame, window);
+        self.never_seen_moving.update(drive, frame, window);
         let sensor_grid = front_end.sensor_grid();
-        for ((o, now), (&f, &m)) in observed
+        for ((o, now), (&f, &m)) in self
+            .observed
             .iter_mut()
-            .zip(observed_now.iter_mut())
+            .zip(self.observed_now.iter_mut())
             .zip(sensor_grid.m_free().iter().zip(sensor_grid.m_occupied()))
         {
             *now = f > 0.0 || m > 0.0;
             *o |= *now;
         }
+    }
 
-        // Truth over the window, rearranged into storage order.
+    /// The truth over `window` by both rules, rearranged into storage order; returns the
+    /// seconds the simulator took to label it.
+    fn label(&mut self, drive: &Drive, window: &Window) -> f64 {
         let started = Instant::now();
         let cell_window = window.as_cell_window();
-        drive.truth_centre(&cell_window, &never_seen_moving.ids, &mut centre_world);
-        drive.truth_with_outline(&cell_window, &mut previous_world, &mut outline_world);
-        simulation_s += started.elapsed().as_secs_f64();
+        drive.truth_centre(
+            &cell_window,
+            &self.never_seen_moving.ids,
+            &mut self.centre_world,
+        );
+        drive.truth_with_outline(
+            &cell_window,
+            &mut self.previous_world,
+            &mut self.outline_world,
+        );
+        let seconds = started.elapsed().as_secs_f64();
+        let (centre_world, centre) = (&self.centre_world, &mut self.centre);
         let mut k = 0;
         for span in window.world_order_spans() {
             for idx in span {
@@ -438,74 +639,29 @@ fn run_drive(
                     .get(k)
                     .copied()
                     .unwrap_or(false);
-                previous_storage[idx] = previous_world.get(k).copied().unwrap_or(truth::IGNORED);
-                outline_storage[idx] = outline_world.get(k).copied().unwrap_or(false);
+                self.previous_storage[idx] = self
+                    .previous_world
+                    .get(k)
+                    .copied()
+                    .unwrap_or(truth::IGNORED);
+                self.outline_storage[idx] = self.outline_world.get(k).copied().unwrap_or(false);
                 k += 1;
             }
         }
-        // After the truth: the cells seen free up to this frame, for the next one's newcomers.
-        for (seen, &f) in never_seen_moving
+        seconds
+    }
+
+    /// Notes the cells the front end's SensorGrid saw free (for the never-seen-moving rule).
+    fn note_seen_free(&mut self, front_end: &FrontEnd) {
+        for (seen, &f) in self
+            .never_seen_moving
             .seen_free
             .iter_mut()
             .zip(front_end.sensor_grid().m_free())
         {
             *seen |= f > 0.0;
         }
-
-        // Every variant on the same front end.
-        for r in runners.iter_mut() {
-            let started = Instant::now();
-            let method = r.method.as_grid_method();
-            method.process(front_end)?;
-            method.decide(&mut r.predicted);
-            r.seconds += started.elapsed().as_secs_f64() + front_end_seconds(&stats, r.variant);
-            if let Method::Fusion(fusion) = &r.method {
-                observer(FusionFrame {
-                    variant: r.variant,
-                    seed_index,
-                    frame: frame.index,
-                    front_end,
-                    fusion,
-                    truth: &centre.labels,
-                    outline: &centre.band,
-                    ego_position: [pose.translation.x, pose.translation.y],
-                    points_in_sensor: &points,
-                    world_from_sensor: &pose,
-                    time_s: scan.time_s,
-                });
-            }
-            for span in front_end.new_cell_spans() {
-                for idx in span {
-                    r.remanence.reset(idx);
-                }
-            }
-            r.confusion
-                .add_frame_centre(&centre, &r.predicted, &observed);
-            r.visible
-                .add_frame_centre(&centre, &r.predicted, &observed_now);
-            r.all.add_frame_centre(&centre, &r.predicted, &everywhere);
-            r.visible_previous.add_frame_with_outline(
-                &previous_storage,
-                &r.predicted,
-                &observed_now,
-                &outline_storage,
-            );
-            let frame_no = frame.index as u32;
-            let cells = centre.labels.iter().zip(&r.predicted).zip(&observed_now);
-            for (idx, ((&truth, &predicted), &now)) in cells.enumerate() {
-                r.remanence.update(idx, frame_no, truth, predicted, now);
-            }
-            update_latency(&mut r.latency, drive, &frame, &pose, window, &r.predicted);
-        }
-        frames_run += 1;
-        progress(Progress {
-            seed_index,
-            seeds,
-            frame: frame.index + 1,
-            frames,
-        });
     }
-    Ok((simulation_s, frames_run))
 }
 
 /// Who the truth's never-seen-moving rule covers: road users standing since they came into
