@@ -230,15 +230,39 @@ pub fn per_class_iou_chart(series: &[(&str, [Option<f64>; 5])]) -> RgbImage {
     let legend_height = 10 + series.len() as u32 * LEGEND_STEP;
     let height = (axis_y + BOTTOM).max(TOP + legend_height);
     let mut image = RgbImage::from_pixel(width, height, BACKGROUND);
-    let small_h = i64::from(line_height(SMALL_PX));
     draw_text(&mut image, 16, 10, title, TITLE_PX, INK);
+    draw_iou_axis(&mut image, plot_right);
+    for (g, class) in TRUTH_NAMES.iter().enumerate() {
+        let group_left = LEFT + GROUP_GAP + g as u32 * (group_width + GROUP_GAP);
+        for (v, (_, ious)) in series.iter().enumerate() {
+            let x = group_left + v as u32 * (BAR_WIDTH + BAR_GAP);
+            draw_iou_bar(&mut image, x, ious[g], PALETTE[v % PALETTE.len()]);
+        }
+        draw_class_name(
+            &mut image,
+            group_left + group_width / 2,
+            class,
+            CLASS_NAMES[g],
+        );
+    }
+    let axis_title_y = i64::from(axis_y + BOTTOM) - i64::from(line_height(AXIS_PX)) - 6;
+    let plot_centre = i64::from((LEFT + plot_right) / 2);
+    draw_text_centred(&mut image, plot_centre, axis_title_y, "class", AXIS_PX, INK);
+    draw_chart_legend(&mut image, series, legend_left);
+    image
+}
 
-    // Grid lines and tick labels every 0.25.
+/// The IoU axis of the chart, its plot area ending at `plot_right`: grid lines and tick labels
+/// every 0.25, the axis line and its title.
+fn draw_iou_axis(image: &mut RgbImage, plot_right: u32) {
+    use chart_layout::*;
+    let axis_y = TOP + PLOT_HEIGHT;
+    let small_h = i64::from(line_height(SMALL_PX));
     for k in 0..=4u32 {
         let y = axis_y - k * PLOT_HEIGHT / 4;
         let colour = if k == 0 { INK } else { GRID_GREY };
         fill_rect(
-            &mut image,
+            image,
             i64::from(LEFT),
             i64::from(y),
             plot_right - LEFT,
@@ -247,17 +271,10 @@ pub fn per_class_iou_chart(series: &[(&str, [Option<f64>; 5])]) -> RgbImage {
         );
         let label = ["0", "0.25", "0.5", "0.75", "1"][k as usize];
         let x = i64::from(LEFT) - 8 - i64::from(text_width(label, SMALL_PX));
-        draw_text(
-            &mut image,
-            x,
-            i64::from(y) - small_h / 2,
-            label,
-            SMALL_PX,
-            INK,
-        );
+        draw_text(image, x, i64::from(y) - small_h / 2, label, SMALL_PX, INK);
     }
     fill_rect(
-        &mut image,
+        image,
         i64::from(LEFT),
         i64::from(TOP),
         1,
@@ -265,60 +282,69 @@ pub fn per_class_iou_chart(series: &[(&str, [Option<f64>; 5])]) -> RgbImage {
         INK,
     );
     let centre_y = i64::from(TOP + PLOT_HEIGHT / 2);
-    draw_text_vertical(&mut image, 14, centre_y, "IoU", AXIS_PX, INK);
+    draw_text_vertical(image, 14, centre_y, "IoU", AXIS_PX, INK);
+}
 
-    for (g, class) in TRUTH_NAMES.iter().enumerate() {
-        let group_left = LEFT + GROUP_GAP + g as u32 * (group_width + GROUP_GAP);
-        for (v, (_, ious)) in series.iter().enumerate() {
-            let x = group_left + v as u32 * (BAR_WIDTH + BAR_GAP);
-            let centre = i64::from(x + BAR_WIDTH / 2);
-            match ious[g] {
-                Some(iou) if iou.is_finite() => {
-                    let bar = (iou.clamp(0.0, 1.0) * f64::from(PLOT_HEIGHT)).round() as u32;
-                    fill_rect(
-                        &mut image,
-                        i64::from(x),
-                        i64::from(axis_y - bar),
-                        BAR_WIDTH,
-                        bar,
-                        PALETTE[v % PALETTE.len()],
-                    );
-                    let value = format!("{iou:.2}");
-                    let y = i64::from(axis_y - bar) - small_h - 2;
-                    draw_text_centred(&mut image, centre, y, &value, SMALL_PX, INK);
-                }
-                _ => {
-                    fill_rect(
-                        &mut image,
-                        i64::from(x),
-                        i64::from(axis_y + 2),
-                        BAR_WIDTH,
-                        STUB_HEIGHT,
-                        GRID_GREY,
-                    );
-                    let y = i64::from(axis_y) - small_h - 2;
-                    draw_text_centred(&mut image, centre, y, "n/a", SMALL_PX, INK);
-                }
-            }
+/// One bar with its left edge at `x`: the IoU's height in `colour` with its value above, or
+/// for an undefined IoU a grey stub below the axis marked "n/a".
+fn draw_iou_bar(image: &mut RgbImage, x: u32, iou: Option<f64>, colour: Rgb) {
+    use chart_layout::*;
+    let axis_y = TOP + PLOT_HEIGHT;
+    let small_h = i64::from(line_height(SMALL_PX));
+    let centre = i64::from(x + BAR_WIDTH / 2);
+    match iou {
+        Some(iou) if iou.is_finite() => {
+            let bar = (iou.clamp(0.0, 1.0) * f64::from(PLOT_HEIGHT)).round() as u32;
+            fill_rect(
+                image,
+                i64::from(x),
+                i64::from(axis_y - bar),
+                BAR_WIDTH,
+                bar,
+                colour,
+            );
+            let value = format!("{iou:.2}");
+            let y = i64::from(axis_y - bar) - small_h - 2;
+            draw_text_centred(image, centre, y, &value, SMALL_PX, INK);
         }
-        let centre = i64::from(group_left + group_width / 2);
-        let y = i64::from(axis_y + 2 + STUB_HEIGHT + 6);
-        draw_text_centred(&mut image, centre, y, class, LABEL_PX, INK);
-        // The name one word a line, so that long names do not run into the next group's.
-        let mut name_y = y + i64::from(line_height(LABEL_PX));
-        for word in CLASS_NAMES[g].split(' ') {
-            draw_text_centred(&mut image, centre, name_y, word, SMALL_PX, INK);
-            name_y += small_h;
+        _ => {
+            fill_rect(
+                image,
+                i64::from(x),
+                i64::from(axis_y + 2),
+                BAR_WIDTH,
+                STUB_HEIGHT,
+                GRID_GREY,
+            );
+            let y = i64::from(axis_y) - small_h - 2;
+            draw_text_centred(image, centre, y, "n/a", SMALL_PX, INK);
         }
     }
-    let axis_title_y = i64::from(axis_y + BOTTOM) - i64::from(line_height(AXIS_PX)) - 6;
-    let plot_centre = i64::from((LEFT + plot_right) / 2);
-    draw_text_centred(&mut image, plot_centre, axis_title_y, "class", AXIS_PX, INK);
+}
 
+/// A group's class under the axis, centred on `centre`: its letter, then its `name` one word a
+/// line, so that long names do not run into the next group's.
+fn draw_class_name(image: &mut RgbImage, centre: u32, letter: &str, name: &str) {
+    use chart_layout::*;
+    let axis_y = TOP + PLOT_HEIGHT;
+    let small_h = i64::from(line_height(SMALL_PX));
+    let centre = i64::from(centre);
+    let y = i64::from(axis_y + 2 + STUB_HEIGHT + 6);
+    draw_text_centred(image, centre, y, letter, LABEL_PX, INK);
+    let mut name_y = y + i64::from(line_height(LABEL_PX));
+    for word in name.split(' ') {
+        draw_text_centred(image, centre, name_y, word, SMALL_PX, INK);
+        name_y += small_h;
+    }
+}
+
+/// The legend at `legend_left`: a swatch of each variant's colour and its name.
+fn draw_chart_legend(image: &mut RgbImage, series: &[(&str, [Option<f64>; 5])], legend_left: u32) {
+    use chart_layout::*;
     for (v, (name, _)) in series.iter().enumerate() {
         let y = TOP + v as u32 * LEGEND_STEP;
         fill_rect(
-            &mut image,
+            image,
             i64::from(legend_left),
             i64::from(y),
             16,
@@ -326,7 +352,7 @@ pub fn per_class_iou_chart(series: &[(&str, [Option<f64>; 5])]) -> RgbImage {
             PALETTE[v % PALETTE.len()],
         );
         draw_text(
-            &mut image,
+            image,
             i64::from(legend_left + 24),
             i64::from(y),
             name,
@@ -334,7 +360,6 @@ pub fn per_class_iou_chart(series: &[(&str, [Option<f64>; 5])]) -> RgbImage {
             INK,
         );
     }
-    image
 }
 
 /// [`confusion_heatmap`] of a variant's confusion matrix over the cells in view (the headline
