@@ -60,6 +60,7 @@ use crate::geometry::Vec2;
 use crate::label::Label;
 use crate::world::World;
 use geodata::CellWindow;
+use std::ops::RangeInclusive;
 
 /// Truth of a cell excluded from scoring (under the ego, or under an object holding the sensor):
 /// it outranks every class.
@@ -153,24 +154,12 @@ pub fn label_window_with_outline(
 
     // Actors: test the samples of the cells under each footprint's bounding box.
     for a in actors {
-        let code = if unseen.contains(&a.id) {
-            IGNORED
-        } else {
-            actor_class(a)
-        };
-        let r = a.footprint.bounding_radius_m();
-        let p = a.pose.position_m;
-        let col_range = |v: f64| ((v - x0) / s).floor();
-        let row_range = |v: f64| ((v - y0) / s).floor();
-        let c0 = col_range(p.x - r).max(0.0);
-        let c1 = col_range(p.x + r).min(w as f64 - 1.0);
-        let r0 = row_range(p.y - r).max(0.0);
-        let r1 = row_range(p.y + r).min(h as f64 - 1.0);
-        if c1 < c0 || r1 < r0 {
+        let code = actor_code(a, unseen);
+        let Some((cols, rows)) = cells_under(a, window) else {
             continue;
-        }
-        for row in (r0 as usize)..=(r1 as usize) {
-            for col in (c0 as usize)..=(c1 as usize) {
+        };
+        for row in rows {
+            for col in cols.clone() {
                 let cx = x0 + col as f64 * s;
                 let cy = y0 + row as f64 * s;
                 let covered = (0..n * n).any(|q| {
@@ -192,7 +181,8 @@ pub fn label_window_with_outline(
             }
         }
         // The cell holding the centre, for objects thinner than the sample spacing.
-        let (cc, rc) = (col_range(p.x), row_range(p.y));
+        let p = a.pose.position_m;
+        let (cc, rc) = (((p.x - x0) / s).floor(), ((p.y - y0) / s).floor());
         if cc >= 0.0 && rc >= 0.0 && (cc as usize) < w && (rc as usize) < h {
             claim(&mut out[rc as usize * w + cc as usize], code);
         }
@@ -266,25 +256,13 @@ pub fn label_window_centre(
     let x0 = window.first_col as f64 * s;
     let y0 = window.first_row as f64 * s;
     for a in actors {
-        let code = if roles.unseen.contains(&a.id) {
-            IGNORED
-        } else {
-            actor_class(a)
-        };
+        let code = actor_code(a, roles.unseen);
         let parked = code == Label::S && roles.never_seen_moving.contains(&a.id);
-        let r = a.footprint.bounding_radius_m();
-        let p = a.pose.position_m;
-        let col_of = |v: f64| ((v - x0) / s).floor();
-        let row_of = |v: f64| ((v - y0) / s).floor();
-        let c0 = col_of(p.x - r).max(0.0);
-        let c1 = col_of(p.x + r).min(w as f64 - 1.0);
-        let r0 = row_of(p.y - r).max(0.0);
-        let r1 = row_of(p.y + r).min(h as f64 - 1.0);
-        if c1 < c0 || r1 < r0 {
+        let Some((cols, rows)) = cells_under(a, window) else {
             continue;
-        }
-        for row in (r0 as usize)..=(r1 as usize) {
-            for col in (c0 as usize)..=(c1 as usize) {
+        };
+        for row in rows {
+            for col in cols.clone() {
                 let k = row * w + col;
                 let min = Vec2::new(x0 + col as f64 * s, y0 + row as f64 * s);
                 let centre = Vec2::new(min.x + 0.5 * s, min.y + 0.5 * s);
@@ -308,6 +286,40 @@ pub fn label_window_centre(
         *in_band &= label == Label::F;
         *parked &= label == Label::S;
     }
+}
+
+/// The class an actor gives the cells it covers: its own ([`actor_class`]), or [`IGNORED`]
+/// when it is one of the `unseen`.
+fn actor_code(actor: &Actor, unseen: &[u32]) -> Label {
+    if unseen.contains(&actor.id) {
+        IGNORED
+    } else {
+        actor_class(actor)
+    }
+}
+
+/// The columns and rows of `window` under the bounding box of `actor`'s footprint (its
+/// bounding circle's square); `None` when that lies outside the window.
+fn cells_under(
+    actor: &Actor,
+    window: &CellWindow,
+) -> Option<(RangeInclusive<usize>, RangeInclusive<usize>)> {
+    let (w, h) = (window.width, window.height);
+    let s = window.cell_size_m;
+    let x0 = window.first_col as f64 * s;
+    let y0 = window.first_row as f64 * s;
+    let r = actor.footprint.bounding_radius_m();
+    let p = actor.pose.position_m;
+    let col_of = |v: f64| ((v - x0) / s).floor();
+    let row_of = |v: f64| ((v - y0) / s).floor();
+    let c0 = col_of(p.x - r).max(0.0);
+    let c1 = col_of(p.x + r).min(w as f64 - 1.0);
+    let r0 = row_of(p.y - r).max(0.0);
+    let r1 = row_of(p.y + r).min(h as f64 - 1.0);
+    if c1 < c0 || r1 < r0 {
+        return None;
+    }
+    Some(((c0 as usize)..=(c1 as usize), (r0 as usize)..=(r1 as usize)))
 }
 
 /// Claims, in `out` (row-major over `window`, already sized), the building class of every cell
@@ -598,6 +610,28 @@ mod tests {
         // Actor 0 is named and stopped; 1 is not named; 2 is named but moving (M, no pass).
         let flagged: Vec<usize> = (0..32).filter(|&k| truth.never_seen_moving[k]).collect();
         assert_eq!(flagged, vec![8 + 1]);
+    }
+
+    #[test]
+    fn cells_under_an_actor_are_its_bounding_square_clipped_to_the_window() {
+        // A bollard (r 0.1) at (2.05, 3.05): x ∈ [1.95, 2.15], y ∈ [2.95, 3.15], columns 1–2,
+        // rows 2–3.
+        let bollard = Actor::fixed(
+            1,
+            ActorKind::Bollard,
+            Pose2::new(Vec2::new(2.05, 3.05), 0.0),
+        );
+        assert_eq!(cells_under(&bollard, &window()), Some((1..=2, 2..=3)));
+        // A car 4.5 × 1.8 at (4.0, 1.85): bounding radius hypot(2.25, 0.9) = 2.4233, so
+        // x ∈ [1.577, 6.423] (columns 1–6) and y ∈ [−0.573, 4.273], rows −1–4 clipped to 0–3.
+        let car = Actor::fixed(0, ActorKind::Car, Pose2::new(Vec2::new(4.0, 1.85), 0.0));
+        assert_eq!(cells_under(&car, &window()), Some((1..=6, 0..=3)));
+        // Wholly east of the window (x ∈ [9.9, 10.1]): no cell.
+        let away = Actor::fixed(2, ActorKind::Bollard, Pose2::new(Vec2::new(10.0, 1.0), 0.0));
+        assert_eq!(cells_under(&away, &window()), None);
+        // The class an unseen actor gives is IGNORED, whatever its own.
+        assert_eq!(actor_code(&car, &[0]), IGNORED);
+        assert_eq!(actor_code(&car, &[1]), actor_class(&car));
     }
 
     #[test]
