@@ -319,99 +319,130 @@ pub fn advance(
     match &mut actor.motion {
         Motion::Fixed => actor.speed_mps = 0.0,
         Motion::Driving(d) => {
-            let mut v = actor.speed_mps;
-            if d.wait_left_s > 0.0 {
+            let mut v = if d.wait_left_s > 0.0 {
                 d.wait_left_s -= dt_s;
-                v = 0.0;
+                0.0
             } else {
-                // Decide about the next junction once it is within braking reach plus a margin.
-                if d.stop_at_m.is_none()
-                    && let Some(&j) = d.junctions_m.get(d.next_junction)
-                {
-                    let line = j - STOP_LINE_BEFORE_JUNCTION_M;
-                    let reach = v * v / (2.0 * BRAKE_MPS2) + 15.0;
-                    if line - d.s_m < reach {
-                        if d.stops && line > d.s_m && rng.random_bool(cfg.stop_probability) {
-                            d.stop_at_m = Some(line);
-                        } else {
-                            d.next_junction += 1;
-                        }
-                    }
-                }
-                let mut v_target = d.cruise_mps;
-                if let Some(line) = d.stop_at_m {
-                    let to_line = (line - d.s_m).max(0.0);
-                    v_target = v_target.min((2.0 * BRAKE_MPS2 * to_line).sqrt());
-                    if to_line < 0.5 && v < 0.3 {
-                        d.wait_left_s = uniform(rng, cfg.stop_duration_s);
-                        d.stop_at_m = None;
-                        d.next_junction += 1;
-                        v_target = 0.0;
-                    }
-                }
-                let free = (gap - STANDSTILL_GAP_M).max(0.0);
-                v_target = v_target.min((2.0 * BRAKE_MPS2 * free).sqrt());
-                v = if v_target >= v {
-                    (v + ACCEL_MPS2 * dt_s).min(v_target)
-                } else {
-                    (v - MAX_BRAKE_MPS2 * dt_s).max(v_target)
-                };
-                // Never drive into the leader, whatever the braking limit says.
-                if gap.is_finite() {
-                    v = v.min(((gap - 0.5).max(0.0)) / dt_s);
-                }
-            }
+                d.next_speed(actor.speed_mps, gap, dt_s, cfg, rng)
+            };
             d.s_m += v * dt_s;
-            if d.s_m >= d.lane.length_m() {
-                let end = d.lane.at(d.lane.length_m()).0;
-                match net.random_route_from(end, 150.0, 600.0, rng) {
-                    Some(route) if d.stops => {
-                        let next = Actor::driving_car(actor.id, &route, 0.0, d.cruise_mps, d.stops);
-                        if let Motion::Driving(nd) = next.motion {
-                            *d = nd;
-                        }
-                    }
-                    // The ego keeps its route and stops at its end; so does a car with nowhere to go.
-                    _ => {
-                        d.s_m = d.lane.length_m();
-                        v = 0.0;
-                    }
-                }
+            if d.s_m >= d.lane.length_m() && !d.take_next_route(actor.id, net, rng) {
+                // The ego keeps its route and stops at its end; so does a car with nowhere to
+                // go.
+                d.s_m = d.lane.length_m();
+                v = 0.0;
             }
             let (p, t) = d.lane.at(d.s_m);
             actor.pose = Pose2::new(p, t.y.atan2(t.x));
             actor.speed_mps = v;
         }
         Motion::Walking(w) => {
-            w.phase_left_s -= dt_s;
-            if w.phase_left_s <= 0.0 {
-                w.standing = !w.standing;
-                w.phase_left_s = uniform(
-                    rng,
-                    if w.standing {
-                        cfg.stand_duration_s
-                    } else {
-                        cfg.walk_duration_s
-                    },
-                );
-            }
-            let v = if w.standing { 0.0 } else { w.cruise_mps };
-            let len = w.path.length_m();
-            let mut s = w.s_m + if w.forward { v * dt_s } else { -v * dt_s };
-            // Turn around at the ends of the pavement stretch.
-            if s > len {
-                s = 2.0 * len - s;
-                w.forward = false;
-            } else if s < 0.0 {
-                s = -s;
-                w.forward = true;
-            }
-            w.s_m = s.clamp(0.0, len);
+            let v = w.walk(dt_s, cfg, rng);
             let (p, t) = w.path.at(w.s_m);
             let heading = t.y.atan2(t.x) + if w.forward { 0.0 } else { std::f64::consts::PI };
             actor.pose = Pose2::new(p, wrap_angle(heading));
             actor.speed_mps = v;
         }
+    }
+}
+
+impl Driving {
+    /// The speed after `dt_s` from `v` (m/s), `gap_m` behind the leader: deciding about the
+    /// next junction once it is within braking reach plus a margin, stopping at its line if
+    /// so decided (and waiting there), and never driving into the leader.
+    fn next_speed(
+        &mut self,
+        v: f64,
+        gap_m: f64,
+        dt_s: f64,
+        cfg: &TrafficConfig,
+        rng: &mut impl Rng,
+    ) -> f64 {
+        if self.stop_at_m.is_none()
+            && let Some(&j) = self.junctions_m.get(self.next_junction)
+        {
+            let line = j - STOP_LINE_BEFORE_JUNCTION_M;
+            let reach = v * v / (2.0 * BRAKE_MPS2) + 15.0;
+            if line - self.s_m < reach {
+                if self.stops && line > self.s_m && rng.random_bool(cfg.stop_probability) {
+                    self.stop_at_m = Some(line);
+                } else {
+                    self.next_junction += 1;
+                }
+            }
+        }
+        let mut v_target = self.cruise_mps;
+        if let Some(line) = self.stop_at_m {
+            let to_line = (line - self.s_m).max(0.0);
+            v_target = v_target.min((2.0 * BRAKE_MPS2 * to_line).sqrt());
+            if to_line < 0.5 && v < 0.3 {
+                self.wait_left_s = uniform(rng, cfg.stop_duration_s);
+                self.stop_at_m = None;
+                self.next_junction += 1;
+                v_target = 0.0;
+            }
+        }
+        let free = (gap_m - STANDSTILL_GAP_M).max(0.0);
+        v_target = v_target.min((2.0 * BRAKE_MPS2 * free).sqrt());
+        let mut v = if v_target >= v {
+            (v + ACCEL_MPS2 * dt_s).min(v_target)
+        } else {
+            (v - MAX_BRAKE_MPS2 * dt_s).max(v_target)
+        };
+        // Never drive into the leader, whatever the braking limit says.
+        if gap_m.is_finite() {
+            v = v.min(((gap_m - 0.5).max(0.0)) / dt_s);
+        }
+        v
+    }
+
+    /// At the end of the lane, a car that stops at junctions (not the ego) takes a new route
+    /// from `net` starting where it is, as car `id`; false when it does not (the ego, or no
+    /// route from there).
+    fn take_next_route(&mut self, id: u32, net: &RoadNetwork, rng: &mut impl Rng) -> bool {
+        let end = self.lane.at(self.lane.length_m()).0;
+        match net.random_route_from(end, 150.0, 600.0, rng) {
+            Some(route) if self.stops => {
+                let next = Actor::driving_car(id, &route, 0.0, self.cruise_mps, self.stops);
+                if let Motion::Driving(nd) = next.motion {
+                    *self = *nd;
+                }
+                true
+            }
+            _ => false,
+        }
+    }
+}
+
+impl Walking {
+    /// Walks `dt_s` along the pavement stretch, standing and walking in turns, turning around
+    /// at its ends; returns the speed, m/s.
+    fn walk(&mut self, dt_s: f64, cfg: &TrafficConfig, rng: &mut impl Rng) -> f64 {
+        self.phase_left_s -= dt_s;
+        if self.phase_left_s <= 0.0 {
+            self.standing = !self.standing;
+            self.phase_left_s = uniform(
+                rng,
+                if self.standing {
+                    cfg.stand_duration_s
+                } else {
+                    cfg.walk_duration_s
+                },
+            );
+        }
+        let v = if self.standing { 0.0 } else { self.cruise_mps };
+        let len = self.path.length_m();
+        let mut s = self.s_m + if self.forward { v * dt_s } else { -v * dt_s };
+        // Turn around at the ends of the pavement stretch.
+        if s > len {
+            s = 2.0 * len - s;
+            self.forward = false;
+        } else if s < 0.0 {
+            s = -s;
+            self.forward = true;
+        }
+        self.s_m = s.clamp(0.0, len);
+        v
     }
 }
 
@@ -427,40 +458,79 @@ pub fn populate(
     if net.anchor_count() == 0 {
         return actors;
     }
-    let far_from_cars = |actors: &[Actor], p: Vec2, min_m: f64| {
+    let place = Placement {
+        net,
+        cfg,
+        keep_clear,
+    };
+    for _ in 0..cfg.moving_cars {
+        if let Some(car) = place.moving_car(&actors, rng) {
+            actors.push(car);
+        }
+    }
+    for _ in 0..cfg.parked_cars {
+        if let Some(car) = place.parked_car(&actors, rng) {
+            actors.push(car);
+        }
+    }
+    for _ in 0..cfg.pedestrians {
+        if let Some(pedestrian) = place.pedestrian(&actors, rng) {
+            actors.push(pedestrian);
+        }
+    }
+    for _ in 0..cfg.infrastructure {
+        if let Some(furniture) = place.street_furniture(&actors, rng) {
+            actors.push(furniture);
+        }
+    }
+    actors
+}
+
+/// Where [`populate`] places actors: on `net`, with `cfg`'s speeds and durations, clear of
+/// `keep_clear`.
+struct Placement<'a> {
+    net: &'a RoadNetwork,
+    cfg: &'a TrafficConfig,
+    keep_clear: &'a [(Pose2, Footprint)],
+}
+
+impl Placement<'_> {
+    /// Whether no car of `actors` stands within `min_m` of `p`.
+    fn far_from_cars(actors: &[Actor], p: Vec2, min_m: f64) -> bool {
         actors
             .iter()
             .filter(|a| a.kind == ActorKind::Car)
             .all(|a| a.pose.position_m.minus(p).norm() >= min_m)
-    };
-    // A car placed on the ego (or over its sensor) would be one its sensor sits in and cannot
-    // see, while truth counts it.
-    let clear = |car: &Actor| {
-        keep_clear
+    }
+
+    /// Whether `car` is clear of the places to keep clear. A car placed on the ego (or over its
+    /// sensor) would be one its sensor sits in and cannot see, while truth counts it.
+    fn clear(&self, car: &Actor) -> bool {
+        self.keep_clear
             .iter()
             .all(|(pose, shape)| !car.footprint.overlaps(&car.pose, shape, pose))
-    };
-    // Moving cars.
-    for _ in 0..cfg.moving_cars {
+    }
+
+    /// A moving car on a random route, 10 m from every car (20 attempts).
+    fn moving_car<R: Rng>(&self, actors: &[Actor], rng: &mut R) -> Option<Actor> {
         for _attempt in 0..20 {
-            let Some(route) = net.random_route(150.0, 600.0, rng) else {
-                break;
-            };
+            let route = self.net.random_route(150.0, 600.0, rng)?;
             let start = rng.random_range(0.0..=route.path.length_m() * 0.5);
-            let cruise = uniform(rng, cfg.car_speed_mps);
+            let cruise = uniform(rng, self.cfg.car_speed_mps);
             let car = Actor::driving_car(actors.len() as u32, &route, start, cruise, true);
-            if far_from_cars(&actors, car.pose.position_m, 10.0) && clear(&car) {
-                actors.push(car);
-                break;
+            if Self::far_from_cars(actors, car.pose.position_m, 10.0) && self.clear(&car) {
+                return Some(car);
             }
         }
+        None
     }
-    // Parked cars along kerbs of roads wide enough to keep a lane free (half-width ≥ 4 m).
-    for _ in 0..cfg.parked_cars {
+
+    /// A parked car along the kerb of a road wide enough to keep a lane free (half-width
+    /// ≥ 4 m), wholly on the road, 5.5 m from every car (40 attempts).
+    fn parked_car<R: Rng>(&self, actors: &[Actor], rng: &mut R) -> Option<Actor> {
+        let net = self.net;
         for _attempt in 0..40 {
-            let Some(route) = net.random_route(10.0, 200.0, rng) else {
-                break;
-            };
+            let route = net.random_route(10.0, 200.0, rng)?;
             let s = rng.random_range(0.0..=route.path.length_m());
             let (p, t) = route.path.at(s);
             let hw = net.half_width_at(p);
@@ -480,34 +550,35 @@ pub fn populate(
                 .map(|(a, b)| pose.world_from_body(Vec2::new(a * CAR_HALF_LENGTH_M, b * 0.9)));
             let car = Actor::fixed(actors.len() as u32, ActorKind::Car, pose);
             if corners.iter().all(|&c| net.is_road(c))
-                && far_from_cars(&actors, centre, 5.5)
-                && clear(&car)
+                && Self::far_from_cars(actors, centre, 5.5)
+                && self.clear(&car)
             {
-                actors.push(car);
-                break;
+                return Some(car);
             }
         }
+        None
     }
-    // Pedestrians on a pavement 1.5 m beyond the kerb, where it is neither road nor building.
-    for _ in 0..cfg.pedestrians {
+
+    /// A pedestrian on a pavement 1.5 m beyond the kerb, where it is neither road nor building
+    /// (30 attempts).
+    fn pedestrian<R: Rng>(&self, actors: &[Actor], rng: &mut R) -> Option<Actor> {
         for _attempt in 0..30 {
-            let Some(route) = net.random_route(30.0, 150.0, rng) else {
-                break;
-            };
+            let route = self.net.random_route(30.0, 150.0, rng)?;
             let side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
             let path = route.path.offset(side * (route.half_width_m + 1.5));
-            if pavement_fraction(net, &path) >= 0.9 {
-                actors.push(Actor::pedestrian(actors.len() as u32, path, rng, cfg));
-                break;
+            if pavement_fraction(self.net, &path) >= 0.9 {
+                return Some(Actor::pedestrian(actors.len() as u32, path, rng, self.cfg));
             }
         }
+        None
     }
-    // Street furniture 0.6 m beyond the kerb.
-    for _ in 0..cfg.infrastructure {
+
+    /// Street furniture (a pole, tree, bin or bollard) 0.6 m beyond the kerb, off the road and
+    /// outside buildings (30 attempts).
+    fn street_furniture<R: Rng>(&self, actors: &[Actor], rng: &mut R) -> Option<Actor> {
+        let net = self.net;
         for _attempt in 0..30 {
-            let Some(route) = net.random_route(10.0, 200.0, rng) else {
-                break;
-            };
+            let route = net.random_route(10.0, 200.0, rng)?;
             let s = rng.random_range(0.0..=route.path.length_m());
             let (p, t) = route.path.at(s);
             let side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
@@ -520,16 +591,15 @@ pub fn populate(
                     ActorKind::Bollard,
                 ][rng.random_range(0..4)];
                 let heading = t.y.atan2(t.x);
-                actors.push(Actor::fixed(
+                return Some(Actor::fixed(
                     actors.len() as u32,
                     kind,
                     Pose2::new(q, heading),
                 ));
-                break;
             }
         }
+        None
     }
-    actors
 }
 
 /// Fraction of points every 2 m along `path` that are off the road and outside buildings.
