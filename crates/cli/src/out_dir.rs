@@ -87,6 +87,26 @@ impl OutDir {
         crate::interrupt::mark_received(&marker);
         Ok(())
     }
+
+    /// Finishes the folder of a command that ran to its end (`complete`: [`OutDir::finish`]),
+    /// or that a signal stopped ([`OutDir::finish_interrupted`], then the
+    /// [`Interrupted`](crate::interrupt::Interrupted) error with the context `stopped` words:
+    /// how far it got, where its outputs are).
+    ///
+    /// # Errors
+    /// If the marker cannot be written (naming it); [`Interrupted`](crate::interrupt::Interrupted)
+    /// when not `complete`.
+    pub fn finish_or_stopped(
+        &self,
+        complete: bool,
+        stopped: impl FnOnce() -> String,
+    ) -> Result<()> {
+        if !complete {
+            self.finish_interrupted()?;
+            return Err(anyhow::Error::new(crate::interrupt::Interrupted).context(stopped()));
+        }
+        self.finish()
+    }
 }
 
 impl Drop for OutDir {

@@ -157,17 +157,13 @@ pub fn run(args: EvalArgs) -> Result<()> {
         "evigrid eval",
         started.elapsed().as_secs_f64(),
     )?;
-    if !report.complete {
-        out_dir.finish_interrupted()?;
-        return Err(
-            anyhow::Error::new(crate::interrupt::Interrupted).context(format!(
-                "evaluation stopped after {} frames; outputs in {} (marked incomplete)",
-                report.frames_run,
-                args.out.display()
-            )),
-        );
-    }
-    out_dir.finish()?;
+    out_dir.finish_or_stopped(report.complete, || {
+        format!(
+            "evaluation stopped after {} frames; outputs in {} (marked incomplete)",
+            report.frames_run,
+            args.out.display()
+        )
+    })?;
 
     if args.json {
         crate::outln!("{json}");
