@@ -15,6 +15,7 @@ use std::fmt::Write as _;
 use std::fs;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -122,33 +123,7 @@ pub fn run(args: TuneArgs) -> Result<()> {
     let interrupt = crate::interrupt::Interrupt::install();
     let started = Instant::now();
     // Every input is checked before any work; nothing is written before the search succeeds.
-    if args.seeds == 0 {
-        return Err(BadInput::new("--seeds 0: at least one seed is needed"));
-    }
-    let max_seeds = crate::commands::eval::MAX_SEEDS;
-    for (flag, seeds) in [
-        ("--seeds", args.seeds),
-        ("--holdout-seeds", args.holdout_seeds),
-    ] {
-        if seeds > max_seeds {
-            return Err(BadInput::new(format!(
-                "{flag} {seeds}: at most {max_seeds} drives per scenario"
-            )));
-        }
-    }
-    if args.rounds == 0 || args.rounds > 100 {
-        return Err(BadInput::new(format!(
-            "--rounds {}: expected 1 to 100 rounds",
-            args.rounds
-        )));
-    }
-    if !args.holdout_scenario.is_empty() && args.holdout_seeds == 0 {
-        return Err(BadInput::new(
-            "--holdout-seeds 0: at least one seed is needed for the held-out scenarios",
-        ));
-    }
-    let variant = Variant::parse(args.variant.trim())
-        .map_err(|e| BadInput::new(format!("--variant: {e}")))?;
+    let variant = check_counts(&args)?;
     check_pairs(&args.map, &args.scenario, "--map", "--scenario")?;
     check_pairs(
         &args.holdout_map,
@@ -182,47 +157,15 @@ pub fn run(args: TuneArgs) -> Result<()> {
         variant,
         ..TuneOptions::default()
     };
-    // About two candidates per dimension per round; the bar grows if the search needs more.
-    let estimate = 1 + 2 * options.space.len() * options.rounds;
-    let bar = crate::progress::bar(estimate as u64, "tune");
-    let report = eval::tune::tune_until(
-        &start,
-        &tuning_sets,
-        &options,
-        interrupt.flag(),
-        &mut |p: TuneProgress| {
-            if p.candidates as u64 > bar.length().unwrap_or(0) {
-                bar.set_length(p.candidates as u64);
-            }
-            bar.set_position(p.candidates as u64);
-        },
-    )
-    .map_err(|e| search_error(e, &args))?;
-    bar.finish_and_clear();
+    let report = search(&start, &tuning_sets, &options, interrupt.flag(), &args)?;
     let mut stopped = !report.complete;
-
-    // Starting against tuned parameters, every variant, on both sets.
-    let mut comparison = Vec::new();
-    for (set_name, drive_sets) in [("tuning", &tuning_sets), ("held-out", &holdout_sets)] {
-        // A stopped search is not compared: that would be the long work the signal declined.
-        stopped |= interrupt.flag().load(std::sync::atomic::Ordering::Relaxed);
-        if drive_sets.is_empty() || stopped {
-            continue;
-        }
-        let w = options.moving_iou_weight;
-        let before = eval::tune::score_drives(&report.start, drive_sets, &Variant::ALL, w)
-            .map_err(|e| search_error(e, &args))?;
-        let after = eval::tune::score_drives(&report.best, drive_sets, &Variant::ALL, w)
-            .map_err(|e| search_error(e, &args))?;
-        for (start, tuned) in before.into_iter().zip(after) {
-            comparison.push(ComparisonRow {
-                set: set_name,
-                variant: start.variant,
-                start,
-                tuned,
-            });
-        }
-    }
+    let comparison = compare(
+        &report,
+        [("tuning", &tuning_sets), ("held-out", &holdout_sets)],
+        options.moving_iou_weight,
+        (interrupt.flag(), &mut stopped),
+        &args,
+    )?;
 
     let output = TuneOutput {
         tuning_drives: names_and_seeds(&tuning, &tuning_seeds),
@@ -232,17 +175,106 @@ pub fn run(args: TuneArgs) -> Result<()> {
     };
     let seconds = started.elapsed().as_secs_f64();
     let json = write_outputs(&args.out, &output, seconds)?;
-    if stopped {
-        out_dir.finish_interrupted()?;
-        return Err(
-            anyhow::Error::new(crate::interrupt::Interrupted).context(format!(
-                "search stopped after {} candidates, the best so far in {} (marked incomplete)",
-                output.search.candidates.len(),
-                args.out.join("tuned.toml").display()
-            )),
-        );
+    out_dir.finish_or_stopped(!stopped, || {
+        format!(
+            "search stopped after {} candidates, the best so far in {} (marked incomplete)",
+            output.search.candidates.len(),
+            args.out.join("tuned.toml").display()
+        )
+    })?;
+    print_result(&args, &output, &json, seconds)
+}
+
+/// Checks the counts of `args` (seeds, held-out seeds, rounds) and reads `--variant`.
+fn check_counts(args: &TuneArgs) -> Result<Variant> {
+    if args.seeds == 0 {
+        return Err(BadInput::new("--seeds 0: at least one seed is needed"));
     }
-    out_dir.finish()?;
+    let max_seeds = crate::commands::eval::MAX_SEEDS;
+    for (flag, seeds) in [
+        ("--seeds", args.seeds),
+        ("--holdout-seeds", args.holdout_seeds),
+    ] {
+        if seeds > max_seeds {
+            return Err(BadInput::new(format!(
+                "{flag} {seeds}: at most {max_seeds} drives per scenario"
+            )));
+        }
+    }
+    if args.rounds == 0 || args.rounds > 100 {
+        return Err(BadInput::new(format!(
+            "--rounds {}: expected 1 to 100 rounds",
+            args.rounds
+        )));
+    }
+    if !args.holdout_scenario.is_empty() && args.holdout_seeds == 0 {
+        return Err(BadInput::new(
+            "--holdout-seeds 0: at least one seed is needed for the held-out scenarios",
+        ));
+    }
+    Variant::parse(args.variant.trim()).map_err(|e| BadInput::new(format!("--variant: {e}")))
+}
+
+/// The search from `start` on the tuning drives, with a progress bar, until it ends or `stop`
+/// is raised.
+fn search(
+    start: &evigrid::Params,
+    tuning_sets: &[DriveSet<'_>],
+    options: &TuneOptions,
+    stop: &AtomicBool,
+    args: &TuneArgs,
+) -> Result<TuneReport> {
+    // About two candidates per dimension per round; the bar grows if the search needs more.
+    let estimate = 1 + 2 * options.space.len() * options.rounds;
+    let bar = crate::progress::bar(estimate as u64, "tune");
+    let report =
+        eval::tune::tune_until(start, tuning_sets, options, stop, &mut |p: TuneProgress| {
+            if p.candidates as u64 > bar.length().unwrap_or(0) {
+                bar.set_length(p.candidates as u64);
+            }
+            bar.set_position(p.candidates as u64);
+        })
+        .map_err(|e| search_error(e, args))?;
+    bar.finish_and_clear();
+    Ok(report)
+}
+
+/// Starting against tuned parameters, every variant, on each named set of drives (skipped
+/// when empty), the objective weighing moving IoU by `moving_iou_weight`. A stopped search
+/// is not compared: that would be the long work the signal declined; `stopped` notes a
+/// signal raised on `stop` meanwhile.
+fn compare(
+    report: &TuneReport,
+    named_sets: [(&'static str, &Vec<DriveSet<'_>>); 2],
+    moving_iou_weight: f64,
+    (stop, stopped): (&AtomicBool, &mut bool),
+    args: &TuneArgs,
+) -> Result<Vec<ComparisonRow>> {
+    let mut comparison = Vec::new();
+    for (set_name, drive_sets) in named_sets {
+        *stopped |= stop.load(std::sync::atomic::Ordering::Relaxed);
+        if drive_sets.is_empty() || *stopped {
+            continue;
+        }
+        let w = moving_iou_weight;
+        let before = eval::tune::score_drives(&report.start, drive_sets, &Variant::ALL, w)
+            .map_err(|e| search_error(e, args))?;
+        let after = eval::tune::score_drives(&report.best, drive_sets, &Variant::ALL, w)
+            .map_err(|e| search_error(e, args))?;
+        for (start, tuned) in before.into_iter().zip(after) {
+            comparison.push(ComparisonRow {
+                set: set_name,
+                variant: start.variant,
+                start,
+                tuned,
+            });
+        }
+    }
+    Ok(comparison)
+}
+
+/// Prints the result: its JSON with `--json`, else the best parameters and the tables.
+fn print_result(args: &TuneArgs, output: &TuneOutput, json: &str, seconds: f64) -> Result<()> {
     if args.json {
         crate::outln!("{json}");
     } else {
