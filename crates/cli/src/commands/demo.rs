@@ -18,6 +18,7 @@
 use std::fs;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
 use std::sync::mpsc;
 use std::time::Instant;
 
@@ -115,13 +116,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         },
     )
     .context("embedded demo map")?;
-    let mut scenario = Scenario::from_toml(SCENARIO_TOML).context("embedded demo scenario")?;
-    if let Some(frames) = args.frames
-        && frames < scenario.frame_count()
-    {
-        // frame_count() rounds duration × rate, so this gives exactly `frames` frames.
-        scenario.duration_s = frames as f64 / scenario.sensor.rate_hz;
-    }
+    let scenario = demo_scenario(args.frames)?;
     let frames = scenario.frame_count();
     let config = EvalConfig {
         params: Params::default(),
@@ -129,67 +124,20 @@ pub fn run(args: DemoArgs) -> Result<()> {
     };
     // Every input is built in: no file to protect.
     let out_dir = crate::out_dir::OutDir::prepare(&args.out, &[], args.force, "demo")?;
-    let delay_ms = (1000.0 / scenario.sensor.rate_hz).round() as u32;
-
-    // One pass over the drive: the evaluation runs the variants frame by frame, and the
-    // views are rendered from its `VIEWS_OF` method, not from a second run of it. Encoding the
-    // GIF is the other half of the work; it runs on its own thread, fed through a
-    // short queue (memory stays bounded), while the pipelines go on with the next frames.
     let bar = crate::progress::bar(frames as u64, "demo");
-    let (views_tx, views_rx) = mpsc::sync_channel::<FrameViews>(QUEUED_FRAMES);
-    let mut recorder = if args.no_mcap {
-        None
-    } else {
-        // Every frame's grid: the demo's frames are what it shows; zstd at the level that
-        // keeps them small.
-        Some(
-            McapRecorder::create_with_zstd_level(
-                &args.out.join("run.mcap"),
-                Some(&loaded.map),
-                EVERY_GRID_ZSTD_LEVEL,
-            )?
-            .with_grid_interval(0.0),
-        )
+    let mut recorder = demo_recorder(&args, &loaded.map)?;
+    let pass = DemoPass {
+        out: &args.out,
+        loaded: &loaded,
+        scenario: &scenario,
+        config: &config,
     };
-    // The MCAP frames and the final exports, written from the observer.
-    let mut recorded: Result<()> = Ok(());
-    let (report, rendered, encoded) = std::thread::scope(|scope| {
-        let out = &args.out;
-        let encoder = scope.spawn(move || encode_views(views_rx, out, delay_ms));
-        let mut rendered: Result<()> = Ok(());
-        // The ego's positions so far, for the path drawn over the views.
-        let mut path: Vec<[f64; 2]> = Vec::with_capacity(frames);
-        let period_s = 1.0 / scenario.sensor.rate_hz;
-        let report = eval::evaluate_until(
-            &loaded.map,
-            &scenario,
-            &VARIANTS,
-            &[scenario.seed],
-            &config,
-            interrupt.flag(),
-            &mut |p: Progress| bar.set_position(p.frame as u64),
-            &mut |f: FusionFrame<'_>| {
-                if f.variant != VIEWS_OF || rendered.is_err() {
-                    return;
-                }
-                path.push(f.ego_position);
-                let last = f.frame + 1 == frames;
-                rendered = render_views(&f, f.frame, &path, period_s, last).map(|views| {
-                    // A closed queue means the encoder failed; its error is reported below.
-                    let _ = views_tx.send(views);
-                });
-                if recorded.is_ok() {
-                    recorded = record_frame(&f, recorder.as_mut(), frames, &args.out, &loaded);
-                }
-            },
-        );
-        // Closing the queue ends the encoder.
-        drop(views_tx);
-        let encoded = encoder
-            .join()
-            .unwrap_or_else(|_| Err(anyhow::anyhow!("the frame encoder panicked")));
-        (report, rendered, encoded)
-    });
+    let PassResults {
+        report,
+        rendered,
+        recorded,
+        encoded,
+    } = pass.run(interrupt.flag(), &bar, recorder.as_mut());
     let report = report.context("evaluating the demo drive")?;
     if report.frames_run == 0 {
         // Stopped before the first frame: nothing to show (the folder's marker says so).
@@ -210,30 +158,147 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let json = super::eval::write_outputs(&args.out, &report, &params, "evigrid demo", seconds)?;
     append_attribution(&args.out.join("report.md"))?;
     crate::demo_page::write_index(&args.out, &report, &COLOURS)?;
-    if !report.complete {
-        out_dir.finish_interrupted()?;
-        return Err(
-            anyhow::Error::new(crate::interrupt::Interrupted).context(format!(
-                "demo stopped after {} of {frames} frames; outputs in {} (marked incomplete)",
-                report.frames_run,
-                args.out.display()
-            )),
-        );
-    }
-    out_dir.finish()?;
+    out_dir.finish_or_stopped(report.complete, || {
+        format!(
+            "demo stopped after {} of {frames} frames; outputs in {} (marked incomplete)",
+            report.frames_run,
+            args.out.display()
+        )
+    })?;
 
     if args.json {
         crate::outln!("{json}");
     } else {
-        crate::out!("{}", super::eval::table(&report));
-        crate::outln!(
-            "{frames} frames ({:.1} s of driving) in {seconds:.1} s; outputs in {}",
-            frames as f64 * report.frame_period_s,
-            args.out.display()
-        );
-        crate::outln!("{OSM_ATTRIBUTION}");
+        print_table(&report, frames, seconds, &args.out);
     }
     Ok(())
+}
+
+/// The recording `run.mcap` with every frame's grid, unless `--no-mcap`.
+fn demo_recorder(args: &DemoArgs, map: &geodata::LocalMap) -> Result<Option<McapRecorder>> {
+    if args.no_mcap {
+        return Ok(None);
+    }
+    // Every frame's grid: the demo's frames are what it shows; zstd at the level that keeps
+    // them small.
+    Ok(Some(
+        McapRecorder::create_with_zstd_level(
+            &args.out.join("run.mcap"),
+            Some(map),
+            EVERY_GRID_ZSTD_LEVEL,
+        )?
+        .with_grid_interval(0.0),
+    ))
+}
+
+/// Prints the evaluation's table, what ran (`frames` in `seconds`) and the map's attribution.
+fn print_table(report: &eval::EvalReport, frames: usize, seconds: f64, out: &Path) {
+    crate::out!("{}", super::eval::table(report));
+    crate::outln!(
+        "{frames} frames ({:.1} s of driving) in {seconds:.1} s; outputs in {}",
+        frames as f64 * report.frame_period_s,
+        out.display()
+    );
+    crate::outln!("{OSM_ATTRIBUTION}");
+}
+
+/// The embedded drive, cut to its first `frames` frames when that is fewer.
+fn demo_scenario(frames: Option<usize>) -> Result<Scenario> {
+    let mut scenario = Scenario::from_toml(SCENARIO_TOML).context("embedded demo scenario")?;
+    if let Some(frames) = frames
+        && frames < scenario.frame_count()
+    {
+        // frame_count() rounds duration × rate, so this gives exactly `frames` frames.
+        scenario.duration_s = frames as f64 / scenario.sensor.rate_hz;
+    }
+    Ok(scenario)
+}
+
+/// The demo's one pass over its drive, and where its outputs go.
+struct DemoPass<'a> {
+    out: &'a Path,
+    loaded: &'a geodata::LoadedMap,
+    scenario: &'a Scenario,
+    config: &'a EvalConfig,
+}
+
+impl DemoPass<'_> {
+    /// Evaluates the variants frame by frame until the drive ends or `stop` is raised,
+    /// rendering the views of the [`VIEWS_OF`] method after every frame and recording it into
+    /// `recorder`.
+    ///
+    /// One pass over the drive: the evaluation runs the variants frame by frame, and the
+    /// views are rendered from its `VIEWS_OF` method, not from a second run of it. Encoding the
+    /// GIF is the other half of the work; it runs on its own thread, fed through a
+    /// short queue (memory stays bounded), while the pipelines go on with the next frames.
+    fn run(
+        &self,
+        stop: &AtomicBool,
+        bar: &indicatif::ProgressBar,
+        mut recorder: Option<&mut McapRecorder>,
+    ) -> PassResults {
+        let (scenario, frames) = (self.scenario, self.scenario.frame_count());
+        let delay_ms = (1000.0 / scenario.sensor.rate_hz).round() as u32;
+        let (views_tx, views_rx) = mpsc::sync_channel::<FrameViews>(QUEUED_FRAMES);
+        // The MCAP frames and the final exports, written from the observer.
+        let mut recorded: Result<()> = Ok(());
+        let (report, rendered, encoded) = std::thread::scope(|scope| {
+            let out = self.out;
+            let encoder = scope.spawn(move || encode_views(views_rx, out, delay_ms));
+            let mut rendered: Result<()> = Ok(());
+            // The ego's positions so far, for the path drawn over the views.
+            let mut path: Vec<[f64; 2]> = Vec::with_capacity(frames);
+            let period_s = 1.0 / scenario.sensor.rate_hz;
+            let report = eval::evaluate_until(
+                &self.loaded.map,
+                scenario,
+                &VARIANTS,
+                &[scenario.seed],
+                self.config,
+                stop,
+                &mut |p: Progress| bar.set_position(p.frame as u64),
+                &mut |f: FusionFrame<'_>| {
+                    if f.variant != VIEWS_OF || rendered.is_err() {
+                        return;
+                    }
+                    path.push(f.ego_position);
+                    let last = f.frame + 1 == frames;
+                    rendered = render_views(&f, f.frame, &path, period_s, last).map(|views| {
+                        // A closed queue means the encoder failed; its error is reported below.
+                        let _ = views_tx.send(views);
+                    });
+                    if recorded.is_ok() {
+                        recorded =
+                            record_frame(&f, recorder.as_deref_mut(), frames, out, self.loaded);
+                    }
+                },
+            );
+            // Closing the queue ends the encoder.
+            drop(views_tx);
+            let encoded = encoder
+                .join()
+                .unwrap_or_else(|_| Err(anyhow::anyhow!("the frame encoder panicked")));
+            (report, rendered, encoded)
+        });
+        PassResults {
+            report,
+            rendered,
+            recorded,
+            encoded,
+        }
+    }
+}
+
+/// What [`DemoPass::run`] gives: each part's outcome, reported by the caller in this order.
+struct PassResults {
+    /// The evaluation's report.
+    report: Result<eval::EvalReport, eval::EvalError>,
+    /// Whether every frame's views were rendered.
+    rendered: Result<()>,
+    /// Whether every frame was recorded and the final exports written.
+    recorded: Result<()>,
+    /// The GIF's bytes.
+    encoded: Result<Vec<u8>>,
 }
 
 /// Adds the frame to the recording and, after the last frame, writes the final grid's exports.
