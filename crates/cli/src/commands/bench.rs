@@ -64,6 +64,63 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     // bench between rounds and the rounds measured are reported (`complete: false`); a second
     // ends it at once.
     let interrupt = crate::interrupt::Interrupt::install();
+    check_args(&args)?;
+    if args.drive_only {
+        let drive = drive_case(args.drive.as_deref())?;
+        match (args.json, drive) {
+            (true, drive) => crate::outln!(
+                "{}",
+                serde_json::to_string_pretty(&serde_json::json!({ "drive": drive }))
+                    .context("serialising the report")?
+            ),
+            (false, Some(drive)) => crate::out!("{}", drive_table(&drive)),
+            (false, None) => {}
+        }
+        return Ok(());
+    }
+    let real = if args.synthetic_only {
+        None
+    } else {
+        Some(real_inputs(&args)?)
+    };
+    let options = BenchOptions {
+        sizes: args.sizes,
+        rounds: args.rounds,
+        naive_rounds: args.naive_rounds.min(args.rounds),
+        real,
+        cell_size_m: args.cell_size,
+    };
+    let total = options.sizes.len() as u64 * (options.rounds as u64 + 1);
+    let bar = progress::bar(total, "bench");
+    let report = evigrid_bench::run_until(&options, interrupt.flag(), |round| {
+        bar.set_message(round.to_string());
+        bar.inc(1);
+    });
+    bar.finish_and_clear();
+    let report = report.map_err(|e| match e {
+        evigrid_bench::BenchError::Real(real) => BadInput::new(real.to_string()),
+        other => anyhow::Error::new(other),
+    })?;
+    // The drive case after the windows only when asked for (`--drive`): a whole drive's run.
+    let drive = match args.drive.as_deref() {
+        Some(dir) if report.complete => drive_case(Some(dir))?,
+        _ => None,
+    };
+    print_report(args.json, &report, drive.as_ref())?;
+    if !report.complete {
+        return Err(
+            anyhow::Error::new(crate::interrupt::Interrupted).context(format!(
+                "bench stopped; {} window(s) measured, the report above is incomplete",
+                report.windows.len()
+            )),
+        );
+    }
+    Ok(())
+}
+
+/// Checks the flags that need no file: sizes, rounds, cell size, the cases asked for, and that
+/// `--drive` is a folder.
+fn check_args(args: &BenchArgs) -> anyhow::Result<()> {
     if args.sizes.is_empty() || args.sizes.contains(&0) {
         return Err(BadInput::new(
             "--sizes: every size must be a positive number of cells",
@@ -96,85 +153,61 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
             dir.display()
         )));
     }
-    if args.drive_only {
-        let drive = drive_case(args.drive.as_deref())?;
-        match (args.json, drive) {
-            (true, drive) => crate::outln!(
-                "{}",
-                serde_json::to_string_pretty(&serde_json::json!({ "drive": drive }))
-                    .context("serialising the report")?
-            ),
-            (false, Some(drive)) => crate::out!("{}", drive_table(&drive)),
-            (false, None) => {}
+    Ok(())
+}
+
+/// The real-data cases' inputs: `--scan`, `--map` and `--odometry-scans`, or the shared data's
+/// (the odometry case without scans when the shared drive is absent).
+fn real_inputs(args: &BenchArgs) -> anyhow::Result<RealInputs> {
+    let shared =
+        PathBuf::from(std::env::var("EVIGRID_SHARED").unwrap_or_else(|_| "../shared".into()));
+    let scan = args
+        .scan
+        .clone()
+        .unwrap_or_else(|| shared.join("data/lidar/kitti-city-22/0000000000.pcd"));
+    let map = args
+        .map
+        .clone()
+        .unwrap_or_else(|| shared.join("data/osm/helsinki-centre.osm.pbf"));
+    for (what, path) in [("scan", &scan), ("map", &map)] {
+        if !path.is_file() {
+            return Err(BadInput::new(format!(
+                "{}: {what} file not found (give --{what}, set EVIGRID_SHARED, or use --synthetic-only)",
+                path.display()
+            )));
         }
-        return Ok(());
     }
-    let real = if args.synthetic_only {
-        None
-    } else {
-        let shared =
-            PathBuf::from(std::env::var("EVIGRID_SHARED").unwrap_or_else(|_| "../shared".into()));
-        let scan = args
-            .scan
-            .unwrap_or_else(|| shared.join("data/lidar/kitti-city-22/0000000000.pcd"));
-        let map = args
-            .map
-            .unwrap_or_else(|| shared.join("data/osm/helsinki-centre.osm.pbf"));
-        for (what, path) in [("scan", &scan), ("map", &map)] {
-            if !path.is_file() {
-                return Err(BadInput::new(format!(
-                    "{}: {what} file not found (give --{what}, set EVIGRID_SHARED, or use --synthetic-only)",
-                    path.display()
-                )));
-            }
+    let default_odometry = shared.join(
+        "data/lidar/kitti-raw-0013/2011_09_26/2011_09_26_drive_0013_sync/velodyne_points/data",
+    );
+    let odometry_scans = match &args.odometry_scans {
+        Some(dir) => drive::list_scans(dir).map_err(|e| BadInput::new(e.to_string()))?,
+        None if default_odometry.is_dir() => {
+            drive::list_scans(&default_odometry).map_err(|e| BadInput::new(e.to_string()))?
         }
-        let default_odometry = shared.join(
-            "data/lidar/kitti-raw-0013/2011_09_26/2011_09_26_drive_0013_sync/velodyne_points/data",
-        );
-        let odometry_scans = match &args.odometry_scans {
-            Some(dir) => drive::list_scans(dir).map_err(|e| BadInput::new(e.to_string()))?,
-            None if default_odometry.is_dir() => {
-                drive::list_scans(&default_odometry).map_err(|e| BadInput::new(e.to_string()))?
-            }
-            None => Vec::new(),
-        };
-        if args.odometry_scans.is_some() && odometry_scans.len() < 2 {
-            return Err(BadInput::new(
-                "--odometry-scans: the odometry case needs at least two scans",
-            ));
-        }
-        Some(RealInputs {
-            scan,
-            map,
-            odometry_scans: odometry_scans.into_iter().take(ODOMETRY_SCANS).collect(),
-        })
+        None => Vec::new(),
     };
-    let options = BenchOptions {
-        sizes: args.sizes,
-        rounds: args.rounds,
-        naive_rounds: args.naive_rounds.min(args.rounds),
-        real,
-        cell_size_m: args.cell_size,
-    };
-    let total = options.sizes.len() as u64 * (options.rounds as u64 + 1);
-    let bar = progress::bar(total, "bench");
-    let report = evigrid_bench::run_until(&options, interrupt.flag(), |round| {
-        bar.set_message(round.to_string());
-        bar.inc(1);
-    });
-    bar.finish_and_clear();
-    let report = report.map_err(|e| match e {
-        evigrid_bench::BenchError::Real(real) => BadInput::new(real.to_string()),
-        other => anyhow::Error::new(other),
-    })?;
-    // The drive case after the windows only when asked for (`--drive`): a whole drive's run.
-    let drive = match args.drive.as_deref() {
-        Some(dir) if report.complete => drive_case(Some(dir))?,
-        _ => None,
-    };
-    if args.json {
-        let mut value = serde_json::to_value(&report).context("serialising the report")?;
-        if let (Some(object), Some(drive)) = (value.as_object_mut(), &drive) {
+    if args.odometry_scans.is_some() && odometry_scans.len() < 2 {
+        return Err(BadInput::new(
+            "--odometry-scans: the odometry case needs at least two scans",
+        ));
+    }
+    Ok(RealInputs {
+        scan,
+        map,
+        odometry_scans: odometry_scans.into_iter().take(ODOMETRY_SCANS).collect(),
+    })
+}
+
+/// Prints the report, with the drive case's when it ran: as JSON (`json`) or as tables.
+fn print_report(
+    json: bool,
+    report: &BenchReport,
+    drive: Option<&evigrid_bench::drive_run::DriveRunReport>,
+) -> anyhow::Result<()> {
+    if json {
+        let mut value = serde_json::to_value(report).context("serialising the report")?;
+        if let (Some(object), Some(drive)) = (value.as_object_mut(), drive) {
             object.insert(
                 "drive".into(),
                 serde_json::to_value(drive).context("serialising the drive report")?,
@@ -185,18 +218,10 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
             serde_json::to_string_pretty(&value).context("serialising the report")?
         );
     } else {
-        crate::out!("{}", table(&report));
-        if let Some(drive) = &drive {
+        crate::out!("{}", table(report));
+        if let Some(drive) = drive {
             crate::out!("{}", drive_table(drive));
         }
-    }
-    if !report.complete {
-        return Err(
-            anyhow::Error::new(crate::interrupt::Interrupted).context(format!(
-                "bench stopped; {} window(s) measured, the report above is incomplete",
-                report.windows.len()
-            )),
-        );
     }
     Ok(())
 }
