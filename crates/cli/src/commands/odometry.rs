@@ -124,30 +124,12 @@ pub fn run(args: OdometryArgs) -> Result<()> {
     if args.max_frames == Some(0) {
         return Err(BadInput::new("--max-frames must be at least 1"));
     }
-    let inputs: Vec<&Path> = [Some(&args.scans), args.times.as_ref(), args.calib.as_ref()]
-        .into_iter()
-        .flatten()
-        .map(PathBuf::as_path)
-        .collect();
-    crate::out_dir::check_out_file(&args.out, &inputs, args.force)?;
-    let times_path =
-        (args.format == OdometryFormat::Kitti).then(|| args.out.with_extension("times.txt"));
-    if let Some(path) = &times_path {
-        crate::out_dir::check_side_file(path, &inputs, args.force)?;
-    }
+    let times_path = check_outputs(&args)?;
     let interrupt = crate::interrupt::Interrupt::install();
     if let Some(folder) = args.out.parent() {
         crate::interrupt::remove_temporaries_on_exit(folder, None);
     }
-    let mut scans = Drive::open(&DriveSpec::ScanFolder {
-        dir: args.scans.clone(),
-        times: args.times.clone(),
-        poses: None,
-    })
-    .map_err(|e| BadInput::new(e.to_string()))?;
-    if let Some(n) = args.max_frames {
-        scans.truncate(n);
-    }
+    let mut scans = open_scans(&args)?;
     let cam0_from_velo = match &args.calib {
         Some(path) => drive::calib::read_odometry_cam0_from_velo(path)
             .map_err(|e| BadInput::new(e.to_string()))?,
@@ -183,12 +165,6 @@ pub fn run(args: OdometryArgs) -> Result<()> {
         }
         poses => poses.map_err(|e| BadInput::new(e.to_string()))?,
     };
-    let Counts {
-        registered,
-        not_converged,
-        predicted,
-        ..
-    } = counts;
     let seconds = started.elapsed().as_secs_f64();
     let track = PoseTrack::new(poses.times.clone(), poses.world_from_sensor.clone())
         .map_err(|e| BadInput::new(format!("{}: scan times: {e}", args.scans.display())))?;
@@ -209,9 +185,9 @@ pub fn run(args: OdometryArgs) -> Result<()> {
         times_file,
         scan_times: scans.times_source().map(|p| p.display().to_string()),
         frames,
-        registered,
-        not_converged,
-        predicted,
+        registered: counts.registered,
+        not_converged: counts.not_converged,
+        predicted: counts.predicted,
         seconds,
         ms_per_scan: 1e3 * seconds / frames.max(1) as f64,
         path_length_m: poses
@@ -221,8 +197,45 @@ pub fn run(args: OdometryArgs) -> Result<()> {
             .sum(),
         against_oxts,
     };
-    if args.json {
-        crate::outln!("{}", serde_json::to_string_pretty(&summary)?);
+    print_summary(args.json, &summary)
+}
+
+/// Checks that `--out`, and for the KITTI format its times file beside it, may be written
+/// (never an input, a user's file only with `--force`); returns the times file's path.
+fn check_outputs(args: &OdometryArgs) -> Result<Option<PathBuf>> {
+    let inputs: Vec<&Path> = [Some(&args.scans), args.times.as_ref(), args.calib.as_ref()]
+        .into_iter()
+        .flatten()
+        .map(PathBuf::as_path)
+        .collect();
+    crate::out_dir::check_out_file(&args.out, &inputs, args.force)?;
+    let times_path =
+        (args.format == OdometryFormat::Kitti).then(|| args.out.with_extension("times.txt"));
+    if let Some(path) = &times_path {
+        crate::out_dir::check_side_file(path, &inputs, args.force)?;
+    }
+    Ok(times_path)
+}
+
+/// The folder of scans (`--scans`, `--times`), cut to `--max-frames`.
+fn open_scans(args: &OdometryArgs) -> Result<Drive> {
+    let mut scans = Drive::open(&DriveSpec::ScanFolder {
+        dir: args.scans.clone(),
+        times: args.times.clone(),
+        poses: None,
+    })
+    .map_err(|e| BadInput::new(e.to_string()))?;
+    if let Some(n) = args.max_frames {
+        scans.truncate(n);
+    }
+    Ok(scans)
+}
+
+/// Prints the summary: as JSON (`json`), or as a line for people and, with the drive's OXTS
+/// poses, a line of the errors against them.
+fn print_summary(json: bool, summary: &OdometrySummary) -> Result<()> {
+    if json {
+        crate::outln!("{}", serde_json::to_string_pretty(summary)?);
     } else {
         crate::outln!(
             "{} scans registered in {:.1} s ({:.0} ms per scan, scans read included): {} \
