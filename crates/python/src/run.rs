@@ -76,44 +76,89 @@ pub fn run<'py>(
         cloud_topic,
         pose_source,
     };
-    let spec = if let Ok(drive) = source.cast::<Drive>() {
+    let spec = spec_of(source, &args)?;
+    let mut config = options::session_config(config, method, map, origin)?;
+    config.max_frames = max_frames;
+    config.strict = strict;
+    let out = match out.filter(|o| !o.is_none()) {
+        Some(out) => Some(check_out(out, map, &spec, (force, mcap), &mut config)?),
+        None => None,
+    };
+    let stop = AtomicBool::new(false);
+    let mut interrupted: Option<PyErr> = None;
+    let ran = run_detached(py, &spec, config, out.as_ref(), &stop, &mut interrupted)?;
+    let (summary, error) = match ran {
+        Ok(ran) => ran,
+        Err(RunError::OutDir(e)) => return Err(out_dir_error(e)),
+        Err(RunError::Output(e)) => return Err(file_error(e.to_string())),
+        Err(RunError::Session(e)) => return Err(interrupted.unwrap_or(session_error(py, e))),
+    };
+    let Some(error) = error else {
+        return summary_dict(py, &summary);
+    };
+    // The signal's own exception (KeyboardInterrupt, or what a Python handler raised), or the
+    // session's, with what was done.
+    let raised = match interrupted {
+        Some(raised) if error.is_interrupted() => raised,
+        _ => session_error(py, error),
+    };
+    let _ = raised
+        .value(py)
+        .setattr("summary", summary_dict(py, &summary)?);
+    Err(raised)
+}
+
+/// The drive `source` names: a drive `open_drive` returned (then no drive option may be
+/// given: it was opened with its own), or a path with the options `args`.
+fn spec_of(source: &Bound<'_, PyAny>, args: &DriveArgs<'_, '_>) -> PyResult<drive::DriveSpec> {
+    if let Ok(drive) = source.cast::<Drive>() {
         if args.any_given() {
             return Err(input_error(
                 "run(drive): the drive was opened with its options; give them to open_drive",
             ));
         }
-        drive.get().spec().clone()
+        Ok(drive.get().spec().clone())
     } else {
-        options::drive_spec(&options::path_arg(source, "source")?, &args)?
-    };
-    let mut config = options::session_config(config, method, map, origin)?;
-    config.max_frames = max_frames;
-    config.strict = strict;
-    let out = match out.filter(|o| !o.is_none()) {
-        Some(out) => {
-            let path = options::path_arg(out, "out")?;
-            // Checked before any work, so that a bad folder costs nothing; the folder never
-            // holds an input, whatever `force` says (it is cleared and written while the drive
-            // is read).
-            let map_path = map.and_then(|m| options::path_arg(m, "map").ok());
-            let mut inputs = spec.input_paths();
-            inputs.extend(map_path.as_deref());
-            OutDir::check_inputs(&path, &inputs).map_err(out_dir_error)?;
-            OutDir::check(&path, force).map_err(out_dir_error)?;
-            config.out = path.display().to_string();
-            Some(Outputs { path, force, mcap })
-        }
-        None => None,
-    };
-    let stop = AtomicBool::new(false);
-    let mut interrupted: Option<PyErr> = None;
-    let ran = std::thread::scope(|scope| {
+        options::drive_spec(&options::path_arg(source, "source")?, args)
+    }
+}
+
+/// The output folder `out`, checked before any work so that a bad folder costs nothing, and
+/// noted in `config`; `(force, mcap)` as `run` was given them.
+fn check_out(
+    out: &Bound<'_, PyAny>,
+    map: Option<&Bound<'_, PyAny>>,
+    spec: &drive::DriveSpec,
+    (force, mcap): (bool, bool),
+    config: &mut SessionConfig,
+) -> PyResult<Outputs> {
+    let path = options::path_arg(out, "out")?;
+    // The folder never holds an input, whatever `force` says (it is cleared and written while
+    // the drive is read).
+    let map_path = map.and_then(|m| options::path_arg(m, "map").ok());
+    let mut inputs = spec.input_paths();
+    inputs.extend(map_path.as_deref());
+    OutDir::check_inputs(&path, &inputs).map_err(out_dir_error)?;
+    OutDir::check(&path, force).map_err(out_dir_error)?;
+    config.out = path.display().to_string();
+    Ok(Outputs { path, force, mcap })
+}
+
+/// Runs the drive on a thread of its own ([`run_drive`]) while this one waits with the GIL
+/// released, taking it back every [`SIGNAL_POLL`] to let Python see signals: the first raises
+/// `stop` and is kept in `interrupted`.
+fn run_detached(
+    py: Python<'_>,
+    spec: &drive::DriveSpec,
+    config: SessionConfig,
+    out: Option<&Outputs>,
+    stop: &AtomicBool,
+    interrupted: &mut Option<PyErr>,
+) -> PyResult<Result<(Summary, Option<SessionError>), RunError>> {
+    std::thread::scope(|scope| {
         let (done, finished) = mpsc::channel();
         // Waited on with the GIL released, from this thread only.
         let finished = std::sync::Mutex::new(finished);
-        let stop = &stop;
-        let spec = &spec;
-        let out = out.as_ref();
         scope.spawn(move || {
             let _ = done.send(run_drive(spec, config, out, stop));
         });
@@ -135,29 +180,10 @@ pub fn run<'py>(
                 && let Err(error) = py.check_signals()
             {
                 stop.store(true, Ordering::Relaxed);
-                interrupted = Some(error);
+                *interrupted = Some(error);
             }
         }
-    })?;
-    let (summary, error) = match ran {
-        Ok(ran) => ran,
-        Err(RunError::OutDir(e)) => return Err(out_dir_error(e)),
-        Err(RunError::Output(e)) => return Err(file_error(e.to_string())),
-        Err(RunError::Session(e)) => return Err(interrupted.unwrap_or(session_error(py, e))),
-    };
-    let Some(error) = error else {
-        return summary_dict(py, &summary);
-    };
-    // The signal's own exception (KeyboardInterrupt, or what a Python handler raised), or the
-    // session's, with what was done.
-    let raised = match interrupted {
-        Some(raised) if error.is_interrupted() => raised,
-        _ => session_error(py, error),
-    };
-    let _ = raised
-        .value(py)
-        .setattr("summary", summary_dict(py, &summary)?);
-    Err(raised)
+    })
 }
 
 /// Where the outputs go, when they do.
