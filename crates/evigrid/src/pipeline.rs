@@ -729,32 +729,7 @@ impl Fusion {
 
         // Cells that entered the window start vacuous, and off the trace.
         let start = Instant::now();
-        match front_end.new_cells() {
-            NewCells::All => {
-                self.perception.reset_all();
-                self.trace = MovingTrace::new(window.len());
-                if let Some(motion) = &mut self.motion {
-                    motion.reset_all();
-                }
-            }
-            NewCells::Entered(_) => {
-                for span in front_end.new_cell_spans() {
-                    self.perception.reset_range(span.clone());
-                    if let Some(motion) = &mut self.motion {
-                        motion.reset_range(span.clone());
-                    }
-                    self.trace.reset_range(span);
-                }
-            }
-        }
-        // The variant's boundary-aware map prior, where the window moved.
-        if let (Some(motion), Prior::Map) = (&mut self.motion, self.prior) {
-            let entered = match front_end.new_cells() {
-                NewCells::All => None,
-                NewCells::Entered(entered) => Some(entered),
-            };
-            motion.refresh_prior(front_end.gis(), window, entered);
-        }
+        self.reset_new_cells(front_end);
         let reset_ms = ms(start);
 
         // Refine, combine with the map prior, discount the past, fuse, accumulate, specialise
@@ -820,6 +795,39 @@ impl Fusion {
             step_ms,
             trace_ms,
         })
+    }
+
+    /// Starts the cells new in the front end's window vacuous and off the trace (every cell
+    /// when the window jumped), in the motion stage too, whose boundary-aware map prior is
+    /// refreshed where the window moved.
+    fn reset_new_cells(&mut self, front_end: &FrontEnd) {
+        let window = front_end.window();
+        match front_end.new_cells() {
+            NewCells::All => {
+                self.perception.reset_all();
+                self.trace = MovingTrace::new(window.len());
+                if let Some(motion) = &mut self.motion {
+                    motion.reset_all();
+                }
+            }
+            NewCells::Entered(_) => {
+                for span in front_end.new_cell_spans() {
+                    self.perception.reset_range(span.clone());
+                    if let Some(motion) = &mut self.motion {
+                        motion.reset_range(span.clone());
+                    }
+                    self.trace.reset_range(span);
+                }
+            }
+        }
+        // The variant's boundary-aware map prior, where the window moved.
+        if let (Some(motion), Prior::Map) = (&mut self.motion, self.prior) {
+            let entered = match front_end.new_cells() {
+                NewCells::All => None,
+                NewCells::Entered(entered) => Some(entered),
+            };
+            motion.refresh_prior(front_end.gis(), window, entered);
+        }
     }
 
     /// The parameters in use.
