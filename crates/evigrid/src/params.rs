@@ -976,6 +976,17 @@ pub struct MotionParams {
     /// With `object_layer`: how far outside the rectangle, metres, a cell centre still counts
     /// as inside (added to `surface_pose_sigmas` times the pose's error at its range).
     pub object_margin_m: f64,
+    /// With `object_layer`: a small road user's depth, metres. An object whose extents along
+    /// and across its heading, the largest seen over the frames kept, are both under 1 m
+    /// (a pedestrian, not a car seen end-on: a car's face spans more) reaches this far beyond
+    /// the faces the sensor sees, where it was left open before (`docs/motion.md`, "A small
+    /// road user's depth"); 0: open, as before. At most 1 m.
+    pub object_small_depth_m: f64,
+    /// With `object_layer`: also fit a moving track whose velocity's heading is not sure
+    /// (σ over the speed above the tangent of `object_heading_max_deg`), the faces' direction
+    /// searched over every direction (the returns' smallest box, ±45° of the velocity's);
+    /// false: such a track has no rectangle and its cells keep the track's evidence.
+    pub object_fit_unsure_heading: bool,
 }
 
 impl Default for MotionParams {
@@ -1018,6 +1029,8 @@ impl Default for MotionParams {
             object_max_length_m: 10.0,
             object_max_width_m: 3.0,
             object_margin_m: 0.0,
+            object_small_depth_m: 0.0,
+            object_fit_unsure_heading: false,
         }
     }
 }
@@ -1084,6 +1097,12 @@ impl MotionParams {
         positive("motion.object_max_length_m", self.object_max_length_m)?;
         positive("motion.object_max_width_m", self.object_max_width_m)?;
         non_negative("motion.object_margin_m", self.object_margin_m)?;
+        at_most_f64(
+            "motion.object_small_depth_m",
+            self.object_small_depth_m,
+            1.0,
+        )?;
+        non_negative("motion.object_small_depth_m", self.object_small_depth_m)?;
         positive("motion.surface_depth_cells", self.surface_depth_cells)?;
         at_most_f64("motion.surface_depth_cells", self.surface_depth_cells, 8.0)?;
         non_negative("motion.surface_pose_sigmas", self.surface_pose_sigmas)?;
@@ -1197,6 +1216,18 @@ mod tests {
             (
                 "[motion]\nobject_margin_m = -0.1\n",
                 "motion.object_margin_m",
+            ),
+            (
+                "[motion]\nobject_small_depth_m = -0.1\n",
+                "motion.object_small_depth_m",
+            ),
+            (
+                "[motion]\nobject_small_depth_m = 1.5\n",
+                "motion.object_small_depth_m",
+            ),
+            (
+                "[motion]\nobject_small_depth_m = nan\n",
+                "motion.object_small_depth_m",
             ),
         ] {
             match Params::from_toml_str(text) {

@@ -830,6 +830,8 @@ impl MotionStage {
             max_length_m: self.params.object_max_length_m,
             max_width_m: self.params.object_max_width_m,
             margin_m: self.params.object_margin_m + self.params.surface_pose_sigmas * pose_m,
+            small_depth_m: self.params.object_small_depth_m,
+            fit_unsure: self.params.object_fit_unsure_heading,
         }
     }
 

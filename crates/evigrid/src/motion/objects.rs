@@ -26,6 +26,10 @@ pub(crate) const EXTENT_FRAMES: usize = 8;
 /// An extent shorter than this, metres, is not known: the rectangle is open on the far side.
 pub(crate) const MIN_KNOWN_EXTENT_M: f64 = 1.0;
 
+/// The faces' direction of a track whose velocity's heading is not sure is searched this far,
+/// degrees, either side of it: every direction of a box.
+pub(crate) const UNSURE_SEARCH_DEG: f64 = 45.0;
+
 /// A moving object's extent as the object layer fitted it this frame (world frame).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct ObjectExtent {
@@ -92,6 +96,11 @@ pub(crate) struct Limits {
     pub(crate) max_width_m: f64,
     /// How far outside a cell centre still counts as inside, metres.
     pub(crate) margin_m: f64,
+    /// A small object's depth beyond the faces seen, metres (`object_small_depth_m`; 0: open).
+    pub(crate) small_depth_m: f64,
+    /// Fit a track whose velocity's heading is not sure too, the faces' direction searched
+    /// over [`UNSURE_SEARCH_DEG`] (`object_fit_unsure_heading`).
+    pub(crate) fit_unsure: bool,
 }
 
 /// One track's extents over the last frames it was fitted in (object frame, metres).
@@ -233,13 +242,20 @@ impl Extents {
     ) -> Option<(Rect, ObjectExtent)> {
         let [vx, vy] = track.velocity_mps;
         let speed = vx.hypot(vy);
-        if !(speed > 0.0 && track.sigma_mps <= speed * limits.heading_tan) || returns.len() < 2 {
+        let sure = speed > 0.0 && track.sigma_mps <= speed * limits.heading_tan;
+        if !(sure || limits.fit_unsure) || returns.len() < 2 {
             return None;
         }
-        let heading = vy.atan2(vx);
+        let heading = if speed > 0.0 { vy.atan2(vx) } else { 0.0 };
         // The faces' direction: the smallest box of the returns within the search, whole
-        // degrees from the velocity's heading (the nearest to it on a tie).
-        let steps = limits.heading_search_deg.max(0.0).floor() as i32;
+        // degrees from the velocity's heading (the nearest to it on a tie); a heading not
+        // sure is searched over every direction of a box (±45°).
+        let search = if sure {
+            limits.heading_search_deg
+        } else {
+            UNSURE_SEARCH_DEG
+        };
+        let steps = search.max(0.0).floor() as i32;
         let (heading, lo, hi) = (0..=2 * steps)
             .map(|k| {
                 let delta = if k % 2 == 1 { (k + 1) / 2 } else { -(k / 2) };
@@ -260,10 +276,14 @@ impl Extents {
         let state = self.states.entry(track.id).or_default();
         state.push(seen[0], seen[1], time_s);
         let known = state.known();
+        // A small object (no extent known on either axis: a pedestrian) is closed at the
+        // prior depth where it would be open.
+        let small = known[0] < MIN_KNOWN_EXTENT_M && known[1] < MIN_KNOWN_EXTENT_M;
+        let depth = (small && limits.small_depth_m > 0.0).then_some(limits.small_depth_m);
         let mut inside = [[0.0; 2]; 2];
         let mut reported = [[0.0; 2]; 2];
         for a in 0..2 {
-            (inside[a], reported[a]) = interval(lo[a], hi[a], known[a], limits.margin_m);
+            (inside[a], reported[a]) = interval(lo[a], hi[a], known[a], depth, limits.margin_m);
         }
         let [u, w] = reported.map(|[l, h]| (l + h) / 2.0);
         let centre_m = [
@@ -307,10 +327,20 @@ fn bounds(returns: &[[f64; 2]], sensor: [f64; 2], heading: f64) -> ([f64; 2], [f
 /// at `lo` is anchored and the object reaches the known extent beyond it; from above,
 /// likewise from `hi`; from between, the faces are silhouettes and the returns' span is the
 /// object's. A far side whose extent is not known (under [`MIN_KNOWN_EXTENT_M`]) is open in
-/// the first interval (infinite) and the returns' span in the second.
-fn interval(lo: f64, hi: f64, known: f64, margin: f64) -> ([f64; 2], [f64; 2]) {
-    let extent = known.max(hi - lo);
-    let open = extent < MIN_KNOWN_EXTENT_M;
+/// the first interval (infinite) and the returns' span in the second; with `small_depth`
+/// (a small object) it is that far beyond the face seen instead, in both.
+fn interval(
+    lo: f64,
+    hi: f64,
+    known: f64,
+    small_depth: Option<f64>,
+    margin: f64,
+) -> ([f64; 2], [f64; 2]) {
+    let mut extent = known.max(hi - lo);
+    let mut open = extent < MIN_KNOWN_EXTENT_M;
+    if let (true, Some(depth)) = (open, small_depth) {
+        (extent, open) = (extent.max(depth), false);
+    }
     if lo > 0.0 {
         let far = lo + extent;
         let inside = [lo - margin, if open { f64::INFINITY } else { far + margin }];
@@ -341,6 +371,8 @@ mod tests {
         max_length_m: 10.0,
         max_width_m: 3.0,
         margin_m: 0.0,
+        small_depth_m: 0.0,
+        fit_unsure: false,
     };
 
     fn east(id: u64) -> Motion {
@@ -535,5 +567,115 @@ mod tests {
         assert!(rect.contains([4.0, 9.95]) && !rect.contains([4.0, 9.85]));
         assert!((extent.heading_rad - std::f32::consts::FRAC_PI_2).abs() < 1e-6);
         assert!((extent.width_m - 1.8).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_small_object_reaches_the_prior_depth_beyond_its_faces() {
+        // A pedestrian walking east, seen from the origin: its front returns at x = 10, y 4.8
+        // and 5.1. Along the heading they span 0 m, across 0.3 m: no extent of 1 m known on
+        // either axis, a small object. Without the prior both far sides are open (a centre
+        // at x = 10.75, 1.5 cells behind the face, is inside); with 0.6 m the object reaches
+        // x = 10.6 along and y = 4.8 + 0.6 = 5.4 across (the face at 4.8, the sensor below).
+        let returns = [[10.0, 4.8], [10.0, 5.1]];
+        let walker = Motion {
+            id: 3,
+            velocity_mps: [1.5, 0.0],
+            sigma_mps: 0.2,
+        };
+        let (open, _) = Extents::default()
+            .fit(walker, &returns, [0.0; 2], 0.0, LIMITS)
+            .unwrap_or_else(|| panic!("fitted"));
+        assert!(open.contains([10.75, 5.25]) && open.contains([10.25, 5.75]));
+        let small = Limits {
+            small_depth_m: 0.6,
+            ..LIMITS
+        };
+        let (rect, extent) = Extents::default()
+            .fit(walker, &returns, [0.0; 2], 0.0, small)
+            .unwrap_or_else(|| panic!("fitted"));
+        assert!(rect.contains([10.25, 5.25]), "the cell of its returns");
+        assert!(!rect.contains([10.75, 5.25]), "behind it along the heading");
+        assert!(!rect.contains([10.25, 5.75]), "behind it across the heading");
+        assert!(!rect.contains([9.75, 5.25]), "in front of its face");
+        assert!((extent.length_m - 0.6).abs() < 1e-6 && (extent.width_m - 0.6).abs() < 1e-6);
+        assert!(
+            (extent.centre_m[0] - 10.3).abs() < 1e-12 && (extent.centre_m[1] - 5.1).abs() < 1e-12
+        );
+    }
+
+    #[test]
+    fn a_car_seen_from_behind_is_not_a_small_object() {
+        // The rear face of a car (x = 10, y 4.1 to 5.9: 1.8 m known across): not small, so
+        // with the small object's depth set it stays open ahead, as without.
+        let small = Limits {
+            small_depth_m: 0.6,
+            ..LIMITS
+        };
+        let mut layer = Extents::default();
+        let rear = [[10.0, 4.1], [10.0, 5.0], [10.0, 5.9]];
+        let (rect, _) = layer
+            .fit(east(1), &rear, [0.0; 2], 0.0, small)
+            .unwrap_or_else(|| panic!("fitted"));
+        assert!(rect.contains([30.0, 5.75]), "open ahead");
+        // Once 1.8 m has been seen, a frame that sees only 0.3 m of it (the rest hidden) is
+        // still not small: the extent kept is 1.8 m.
+        let (rect, extent) = layer
+            .fit(east(1), &[[10.5, 4.1], [10.5, 4.4]], [0.0; 2], 0.1, small)
+            .unwrap_or_else(|| panic!("fitted"));
+        assert!(rect.contains([30.0, 5.75]), "open ahead");
+        assert!((extent.width_m - 1.8).abs() < 1e-6);
+    }
+
+    #[test]
+    fn an_l_of_a_car_at_30_degrees_gives_its_heading_and_extent_when_the_velocity_is_unsure() {
+        // A 4.5 × 1.8 m car heading 30°, its corner at (10, 2): its side from the corner
+        // along (cos 30°, sin 30°), 10 returns 0.5 m apart, and its rear face along
+        // (−sin 30°, cos 30°), 7 returns 0.3 m apart. Its velocity says 1 m/s east, ± 3 m/s:
+        // no heading from it (3 > tan 15°). With the unsure fit the faces' direction is
+        // searched over ±45° of east: the smallest box is at 30°, 4.5 by 1.8 m (8.1 m²).
+        let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let side = (0..=9).map(|k| [10.0 + 0.5 * k as f64 * c, 2.0 + 0.5 * k as f64 * s]);
+        let rear = (1..=6).map(|k| [10.0 - 0.3 * k as f64 * s, 2.0 + 0.3 * k as f64 * c]);
+        let returns: Vec<[f64; 2]> = side.chain(rear).collect();
+        let unsure = Motion {
+            id: 4,
+            velocity_mps: [1.0, 0.0],
+            sigma_mps: 3.0,
+        };
+        assert!(
+            Extents::default()
+                .fit(unsure, &returns, [0.0; 2], 0.0, LIMITS)
+                .is_none()
+        );
+        let limits = Limits {
+            fit_unsure: true,
+            ..LIMITS
+        };
+        let (rect, e) = Extents::default()
+            .fit(unsure, &returns, [0.0; 2], 0.0, limits)
+            .unwrap_or_else(|| panic!("fitted"));
+        assert!((e.heading_rad - 30f32.to_radians()).abs() < 1e-5, "{e:?}");
+        assert!(
+            (e.length_m - 4.5).abs() < 1e-4 && (e.width_m - 1.8).abs() < 1e-4,
+            "{e:?}"
+        );
+        // Its centre: the corner + 2.25 along + 0.9 across.
+        let centre = [10.0 + 2.25 * c - 0.9 * s, 2.0 + 2.25 * s + 0.9 * c];
+        assert!(
+            (e.centre_m[0] - centre[0]).abs() < 1e-9 && (e.centre_m[1] - centre[1]).abs() < 1e-9,
+            "{e:?}"
+        );
+        assert!(rect.contains(centre));
+        // 0.1 m beyond its side face: out.
+        assert!(!rect.contains([10.0 + 2.0 * c + 0.1 * s, 2.0 + 2.0 * s - 0.1 * c]));
+        // A standing object (no velocity at all) is fitted likewise.
+        let standing = Motion {
+            velocity_mps: [0.0, 0.0],
+            ..unsure
+        };
+        let (_, e) = Extents::default()
+            .fit(standing, &returns, [0.0; 2], 0.0, limits)
+            .unwrap_or_else(|| panic!("fitted"));
+        assert!((e.heading_rad - 30f32.to_radians()).abs() < 1e-5, "{e:?}");
     }
 }
