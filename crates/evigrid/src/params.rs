@@ -987,6 +987,10 @@ pub struct MotionParams {
     /// searched over every direction (the returns' smallest box, ±45° of the velocity's);
     /// false: such a track has no rectangle and its cells keep the track's evidence.
     pub object_fit_unsure_heading: bool,
+    /// With `object_layer`: how far beyond the far sides of a rectangle (those reached by an
+    /// extent seen, not anchored on a face the sensor sees, and a silhouette's ends), metres,
+    /// a cell centre still counts as inside: the largest extent seen is a lower bound.
+    pub object_far_margin_m: f64,
 }
 
 impl Default for MotionParams {
@@ -1031,6 +1035,7 @@ impl Default for MotionParams {
             object_margin_m: 0.0,
             object_small_depth_m: 0.0,
             object_fit_unsure_heading: false,
+            object_far_margin_m: 0.0,
         }
     }
 }
@@ -1103,6 +1108,7 @@ impl MotionParams {
             1.0,
         )?;
         non_negative("motion.object_small_depth_m", self.object_small_depth_m)?;
+        non_negative("motion.object_far_margin_m", self.object_far_margin_m)?;
         positive("motion.surface_depth_cells", self.surface_depth_cells)?;
         at_most_f64("motion.surface_depth_cells", self.surface_depth_cells, 8.0)?;
         non_negative("motion.surface_pose_sigmas", self.surface_pose_sigmas)?;
@@ -1228,6 +1234,10 @@ mod tests {
             (
                 "[motion]\nobject_small_depth_m = nan\n",
                 "motion.object_small_depth_m",
+            ),
+            (
+                "[motion]\nobject_far_margin_m = -0.1\n",
+                "motion.object_far_margin_m",
             ),
         ] {
             match Params::from_toml_str(text) {

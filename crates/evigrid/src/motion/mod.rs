@@ -832,6 +832,7 @@ impl MotionStage {
             margin_m: self.params.object_margin_m + self.params.surface_pose_sigmas * pose_m,
             small_depth_m: self.params.object_small_depth_m,
             fit_unsure: self.params.object_fit_unsure_heading,
+            far_margin_m: self.params.object_far_margin_m,
         }
     }
 

@@ -101,6 +101,9 @@ pub(crate) struct Limits {
     /// Fit a track whose velocity's heading is not sure too, the faces' direction searched
     /// over [`UNSURE_SEARCH_DEG`] (`object_fit_unsure_heading`).
     pub(crate) fit_unsure: bool,
+    /// How far beyond a far side (one not anchored on a face seen, or a silhouette's end) a
+    /// cell centre still counts as inside, metres (`object_far_margin_m`).
+    pub(crate) far_margin_m: f64,
 }
 
 /// One track's extents over the last frames it was fitted in (object frame, metres).
@@ -283,7 +286,14 @@ impl Extents {
         let mut inside = [[0.0; 2]; 2];
         let mut reported = [[0.0; 2]; 2];
         for a in 0..2 {
-            (inside[a], reported[a]) = interval(lo[a], hi[a], known[a], depth, limits.margin_m);
+            (inside[a], reported[a]) = interval(
+                lo[a],
+                hi[a],
+                known[a],
+                depth,
+                limits.margin_m,
+                limits.far_margin_m,
+            );
         }
         let [u, w] = reported.map(|[l, h]| (l + h) / 2.0);
         let centre_m = [
@@ -335,15 +345,26 @@ fn interval(
     known: f64,
     small_depth: Option<f64>,
     margin: f64,
+    far_margin: f64,
 ) -> ([f64; 2], [f64; 2]) {
     let mut extent = known.max(hi - lo);
     let mut open = extent < MIN_KNOWN_EXTENT_M;
+    // The slack of a far side drawn from an extent seen (the largest seen is a lower bound);
+    // none for a small object's prior depth.
+    let mut slack = far_margin;
     if let (true, Some(depth)) = (open, small_depth) {
-        (extent, open) = (extent.max(depth), false);
+        (extent, open, slack) = (extent.max(depth), false, 0.0);
     }
     if lo > 0.0 {
         let far = lo + extent;
-        let inside = [lo - margin, if open { f64::INFINITY } else { far + margin }];
+        let inside = [
+            lo - margin,
+            if open {
+                f64::INFINITY
+            } else {
+                far + margin + slack
+            },
+        ];
         (inside, [lo, if open { hi } else { far }])
     } else if hi < 0.0 {
         let far = hi - extent;
@@ -351,13 +372,17 @@ fn interval(
             if open {
                 f64::NEG_INFINITY
             } else {
-                far - margin
+                far - margin - slack
             },
             hi + margin,
         ];
         (inside, [if open { lo } else { far }, hi])
     } else {
-        ([lo - margin, hi + margin], [lo, hi])
+        // Both ends silhouettes.
+        (
+            [lo - margin - far_margin, hi + margin + far_margin],
+            [lo, hi],
+        )
     }
 }
 
@@ -373,6 +398,7 @@ mod tests {
         margin_m: 0.0,
         small_depth_m: 0.0,
         fit_unsure: false,
+        far_margin_m: 0.0,
     };
 
     fn east(id: u64) -> Motion {
@@ -595,7 +621,10 @@ mod tests {
             .unwrap_or_else(|| panic!("fitted"));
         assert!(rect.contains([10.25, 5.25]), "the cell of its returns");
         assert!(!rect.contains([10.75, 5.25]), "behind it along the heading");
-        assert!(!rect.contains([10.25, 5.75]), "behind it across the heading");
+        assert!(
+            !rect.contains([10.25, 5.75]),
+            "behind it across the heading"
+        );
         assert!(!rect.contains([9.75, 5.25]), "in front of its face");
         assert!((extent.length_m - 0.6).abs() < 1e-6 && (extent.width_m - 0.6).abs() < 1e-6);
         assert!(
@@ -677,5 +706,37 @@ mod tests {
             .fit(standing, &returns, [0.0; 2], 0.0, limits)
             .unwrap_or_else(|| panic!("fitted"));
         assert!((e.heading_rad - 30f32.to_radians()).abs() < 1e-5, "{e:?}");
+    }
+
+    #[test]
+    fn the_far_margin_widens_only_the_sides_reached_by_the_extent_seen() {
+        // The car of the slant test (rear face x = 10, side y = 4.1 from x = 10 to 14.5, rear
+        // from y = 4.1 to 5.9; the sensor at the origin, below both): the faces seen are
+        // x = 10 and y = 4.1, the far sides x = 14.5 and y = 5.9. With a far margin of
+        // 0.15 m a centre at x = 14.6 or y = 6.0 is in, at 14.7 or 6.1 out; the faces seen
+        // take no slack (x = 9.95, y = 4.05 out).
+        let limits = Limits {
+            far_margin_m: 0.15,
+            ..LIMITS
+        };
+        let slant = [[10.0, 5.9], [10.0, 4.1], [12.0, 4.1], [14.5, 4.1]];
+        let (rect, extent) = Extents::default()
+            .fit(east(1), &slant, [0.0; 2], 0.0, limits)
+            .unwrap_or_else(|| panic!("fitted"));
+        assert_eq!(
+            (extent.length_m, extent.width_m),
+            (4.5, 1.8_f32),
+            "reported unwidened"
+        );
+        assert!(rect.contains([14.6, 5.0]) && !rect.contains([14.7, 5.0]));
+        assert!(rect.contains([12.0, 6.0]) && !rect.contains([12.0, 6.1]));
+        assert!(!rect.contains([9.95, 5.0]) && !rect.contains([12.0, 4.05]));
+        // Seen from between along the heading (the sensor at x = 12, beside the car), both
+        // ends of its side are silhouettes: both widened.
+        let (rect, _) = Extents::default()
+            .fit(east(2), &slant, [12.0, 0.0], 0.0, limits)
+            .unwrap_or_else(|| panic!("fitted"));
+        assert!(rect.contains([9.9, 5.0]) && rect.contains([14.6, 5.0]));
+        assert!(!rect.contains([9.8, 5.0]) && !rect.contains([14.7, 5.0]));
     }
 }
