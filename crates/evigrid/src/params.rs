@@ -1033,9 +1033,9 @@ impl Default for MotionParams {
             object_max_length_m: 10.0,
             object_max_width_m: 3.0,
             object_margin_m: 0.0,
-            object_small_depth_m: 0.0,
-            object_fit_unsure_heading: false,
-            object_far_margin_m: 0.0,
+            object_small_depth_m: 0.6,
+            object_fit_unsure_heading: true,
+            object_far_margin_m: 0.15,
         }
     }
 }
