@@ -259,11 +259,13 @@ fn a_car_crossing_open_space_is_seen_to_leave_its_cells() {
     let run_with = |empty_without_return: bool,
                     placed_by_surface: bool,
                     shift_margin_fraction: f64,
-                    object_layer: bool| {
+                    object_layer: bool,
+                    object_far_margin_m: f64| {
         let mut params = Params::default();
         params.motion.placed_by_surface = placed_by_surface;
         params.motion.shift_margin_fraction = shift_margin_fraction;
         params.motion.object_layer = object_layer;
+        params.motion.object_far_margin_m = object_far_margin_m;
         (params.window.width_cells, params.window.height_cells) = (120, 120);
         params.sensor.ground_model = GroundModel::None;
         params.sensor.empty_without_return = empty_without_return;
@@ -308,6 +310,7 @@ fn a_car_crossing_open_space_is_seen_to_leave_its_cells() {
             placed_by_surface,
             shift_margin_fraction,
             true,
+            Params::default().motion.object_far_margin_m,
         )
     };
     for placed_by_surface in [true, false] {
@@ -332,9 +335,17 @@ fn a_car_crossing_open_space_is_seen_to_leave_its_cells() {
     // velocity, so frame 7 keeps only what earlier frames left in the cell. Without the layer
     // that is frame 5's moving evidence; with it, at frame 5 the cell's centre (y 3.75) lay on
     // the car's end, just past its last return: outside the rectangle, m(Ω∖{M}), and frame 7
-    // is not decided moving.
-    let by_margin = run_with(false, false, default_margin, false);
+    // is not decided moving. The far sides' slack (`object_far_margin_m`, 0.15 m by default
+    // since "A small road user's depth, a heading for the unsure, the far sides' slack")
+    // holds that centre: frame 7 is moving again; without the slack, as before.
+    let by_margin = run_with(false, false, default_margin, false, 0.0);
     assert!(by_margin[4..].iter().all(|&m| m), "{by_margin:?}");
+    let without_slack = run_with(false, false, default_margin, true, 0.0);
+    assert_eq!(
+        without_slack[4..],
+        [true, true, true, false],
+        "{without_slack:?}"
+    );
     let with_layer = run(false, false, default_margin);
-    assert_eq!(with_layer[4..], [true, true, true, false], "{with_layer:?}");
+    assert!(with_layer[4..].iter().all(|&m| m), "{with_layer:?}");
 }

@@ -13,8 +13,13 @@
 //! sensor sees (the extreme returns towards the sensor along each axis) and reaches the known
 //! extent away from the sensor. An axis whose extent is not known (under
 //! [`MIN_KNOWN_EXTENT_M`], a car seen only from behind has no known length) is left open on
-//! the far side: the placement's depth bounds it. The stage gives the track's placed cells
-//! inside the moving evidence, those outside `object_outside_static` on Ω∖{M}.
+//! the far side: the placement's depth bounds it, unless no extent of 1 m is known on either
+//! axis (a small road user: a pedestrian), which reaches `object_small_depth_m` beyond its
+//! faces. The far sides drawn from an extent seen take `object_far_margin_m` of slack (the
+//! largest extent seen is a lower bound). A track whose velocity's heading is not sure is
+//! fitted with `object_fit_unsure_heading`, the faces' direction searched over every direction
+//! of a box. The stage gives the track's placed cells inside the moving evidence, those
+//! outside `object_outside_static` on Ω∖{M}.
 
 use std::collections::HashMap;
 
@@ -37,12 +42,14 @@ pub struct ObjectExtent {
     /// not known, the centre of the returns seen.
     pub centre_m: [f64; 2],
     /// Length along the heading, metres: the extent known (the largest seen in the last eight
-    /// frames fitted), or the returns' extent this frame where it is not known.
+    /// frames fitted), or the returns' extent this frame where it is not known (a small
+    /// object's: `motion.object_small_depth_m` where that is larger).
     pub length_m: f32,
     /// Width across the heading, metres, likewise.
     pub width_m: f32,
     /// Heading, radians counter-clockwise from east: the faces' direction, within
-    /// `motion.object_heading_fit_deg` of the velocity's.
+    /// `motion.object_heading_fit_deg` of the velocity's (within 45° where the velocity's
+    /// heading is not sure, `motion.object_fit_unsure_heading`).
     pub heading_rad: f32,
 }
 
@@ -233,8 +240,9 @@ impl Extents {
 
     /// Fits the rectangle of a track seen as `returns` (world metres) from `sensor` at
     /// `time_s`, and keeps its extents. `None`, and nothing kept, when its heading is not
-    /// known (the velocity's σ over the speed above `limits.heading_tan`), it has fewer than
-    /// two returns, or its returns span more than the largest object.
+    /// known (the velocity's σ over the speed above `limits.heading_tan`) unless
+    /// `limits.fit_unsure`, it has fewer than two returns, or its returns span more than the
+    /// largest object.
     pub(crate) fn fit(
         &mut self,
         track: Motion,
