@@ -943,6 +943,16 @@ pub struct MotionParams {
     /// refinement's gate at 1 m / 2°, won moving IoU on the validation drives but cost dynamic
     /// accuracy 0.05 on every set, more than the 0.02 the tuning rule allows: an option.
     pub pose_gate_sigmas: f64,
+    /// A track's cells are moving only once its net displacement as registered (the first
+    /// registration's velocity times its mean span, then each registration's velocity times
+    /// the frame's interval, summed) is longer than this many standard deviations of the
+    /// apparent displacement the pose's error gives a static object at its range (√2 ·
+    /// √(σ² + (r·σ_θ)²), σ and σ_θ the front end's
+    /// [`FrontEnd::pose_sigma`](crate::FrontEnd::pose_sigma) estimate): a parked car whose
+    /// registered shifts jitter with the pose stays within that, a mover's displacement grows
+    /// (`docs/motion.md`, "A static track under pose error: its net displacement"). Before
+    /// that a fast track gives no evidence. 0, the default, turns the test off.
+    pub displaced_pose_sigmas: f64,
     /// The object layer (`docs/motion.md`, "An object layer"): each moving track whose
     /// heading is known (from its velocity) gets an oriented rectangle fitted to its returns,
     /// its extent kept over the frames in the object's own frame, anchored on the faces the
@@ -1025,6 +1035,7 @@ impl Default for MotionParams {
             surface_convex_corners: false,
             surface_register_on_returns: true,
             pose_gate_sigmas: 0.0,
+            displaced_pose_sigmas: 0.0,
             object_layer: true,
             object_outside_static: 0.9,
             object_outside_fused: false,
@@ -1116,6 +1127,7 @@ impl MotionParams {
         if self.pose_gate_sigmas != 0.0 {
             positive("motion.pose_gate_sigmas", self.pose_gate_sigmas)?;
         }
+        non_negative("motion.displaced_pose_sigmas", self.displaced_pose_sigmas)?;
         Ok(())
     }
 }
@@ -1178,6 +1190,10 @@ mod tests {
             (
                 "[motion]\nsurface_pose_sigmas = -0.5\n",
                 "motion.surface_pose_sigmas",
+            ),
+            (
+                "[motion]\ndisplaced_pose_sigmas = -1\n",
+                "motion.displaced_pose_sigmas",
             ),
             ("[motion]\nhistory_frames = 0\n", "motion.history_frames"),
             (

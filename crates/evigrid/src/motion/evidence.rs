@@ -4,8 +4,9 @@
 //! faster than `min_speed_mps` (the truth's "moving"), c = erf(z/√2), z = (|v| −
 //! `min_speed_mps`)/σ_r, σ_r the standard deviation of the speed along v. Then, on the cells
 //! of the track's cluster in this frame:
-//! - moving (|v| ≥ `min_speed_mps`, and at least `moving_after_measurements` registrations
-//!   of the track): m({M}) = `mu_moving` · c, the rest on Ω;
+//! - moving (|v| ≥ `min_speed_mps`, at least `moving_after_measurements` registrations of
+//!   the track, and a net registered displacement beyond what the pose's error explains,
+//!   `displaced_pose_sigmas`): m({M}) = `mu_moving` · c, the rest on Ω;
 //! - static (|v| < `min_speed_mps` and √(σx² + σy²) < `static_sigma_mps`: slow and known
 //!   well enough), and the track has travelled `mobile_after_travel_m` while moving (net), for
 //!   at least `mobile_after_moving_s`, and its cluster touches no mapped building: m({S}) = `mu_static`, the rest on Ω: a mobile
@@ -50,7 +51,7 @@ pub(crate) fn track_mass(track: &Track, params: &MotionParams) -> MotionMass {
     let [x, y] = track.velocity;
     let speed = x.mean_mps.hypot(y.mean_mps);
     if speed >= params.min_speed_mps {
-        if (track.measurements as usize) < params.moving_after_measurements {
+        if (track.measurements as usize) < params.moving_after_measurements || !track.displaced {
             return MotionMass::Vacuous;
         }
         let confidence = moving_confidence(x, y, speed, params.min_speed_mps);
@@ -67,6 +68,17 @@ pub(crate) fn track_mass(track: &Track, params: &MotionParams) -> MotionMass {
     } else {
         MotionMass::Vacuous
     }
+}
+
+/// Whether the track is fast and registered often enough to move, but its net registered
+/// displacement is within what the pose's error explains (`displaced_pose_sigmas`): it gives
+/// no evidence ([`track_mass`]).
+pub(crate) fn within_pose_error(track: &Track, params: &MotionParams) -> bool {
+    let [x, y] = track.velocity;
+    track.measurements > 0
+        && (track.measurements as usize) >= params.moving_after_measurements
+        && x.mean_mps.hypot(y.mean_mps) >= params.min_speed_mps
+        && !track.displaced
 }
 
 /// The confidence that a track whose estimated speed `speed` is at least `min_speed_mps` moves
@@ -368,6 +380,8 @@ mod tests {
             misses: 0,
             moving_frames: 0,
             moving_s: 0.0,
+            registered_m: [0.0; 2],
+            displaced: true,
         }
     }
 

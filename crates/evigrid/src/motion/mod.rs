@@ -78,6 +78,9 @@ pub enum CellMotion {
     EnteredSeenFree,
     /// Registered, slow, too uncertain to be static: no evidence.
     Uncertain,
+    /// Registered fast, but its track's net registered displacement is within what the
+    /// pose's error explains (`motion.displaced_pose_sigmas`): no evidence.
+    WithinPoseError,
     /// Registered slow and certain: m(Ω∖{M}).
     Static,
     /// Static after travelling: m({S}).
@@ -402,7 +405,7 @@ impl MotionStage {
 
         // 4. Tracks.
         self.tracks
-            .update(&self.observations, time_s, dt_s, &self.params);
+            .update(&self.observations, time_s, dt_s, self.pose_error(), &self.params);
 
         // 5. Evidence into the grid, the decision again, the velocity planes.
         self.clear_velocities();
@@ -428,6 +431,9 @@ impl MotionStage {
             let mut mass = evidence::track_mass(track, &self.params);
             let mut state = match mass {
                 MotionMass::Vacuous if track.measurements == 0 => CellMotion::Unregistered,
+                MotionMass::Vacuous if evidence::within_pose_error(track, &self.params) => {
+                    CellMotion::WithinPoseError
+                }
                 MotionMass::Vacuous => CellMotion::Uncertain,
                 MotionMass::Moving(_) => CellMotion::Moving,
                 MotionMass::Static(_) => CellMotion::Static,
@@ -439,7 +445,9 @@ impl MotionStage {
             // empty (the cue of SPEC §5's free→occupied conflict, per object). An object that
             // comes out of occlusion, or into the field of view, entered no cell seen free;
             // a static one occupies its cells in every frame.
-            if mass == MotionMass::Vacuous && recent != 0 {
+            // A track held back by the displacement test takes none: its cells come and go
+            // with the pose's error, which is what that test keeps from being motion.
+            if mass == MotionMass::Vacuous && state != CellMotion::WithinPoseError && recent != 0 {
                 let (mut entered, mut counted) = (0usize, 0usize);
                 for c in cells.iter().filter(|c| registers(c)) {
                     counted += 1;
@@ -809,9 +817,14 @@ impl MotionStage {
                 })
                 .filter(|([vx, vy], _)| vx.hypot(*vy) <= self.params.max_speed_mps);
             registered += usize::from(velocity.is_some());
+            let span_s = match registration {
+                Some(r) if velocity.is_some() && r.sum_span > 0.0 => r.sum_span_sq / r.sum_span,
+                _ => 0.0,
+            };
             self.observations.push(Observation {
                 centroid_m,
                 velocity,
+                span_s,
             });
         }
         registered
@@ -833,6 +846,15 @@ impl MotionStage {
             small_depth_m: self.params.object_small_depth_m,
             fit_unsure: self.params.object_fit_unsure_heading,
             far_margin_m: self.params.object_far_margin_m,
+        }
+    }
+
+    /// This frame's pose and its estimated error, for the tracks' displacement test.
+    fn pose_error(&self) -> tracks::PoseError {
+        tracks::PoseError {
+            sensor_xy_m: self.sensor_xy_m,
+            sigma_m: self.pose_sigma_m,
+            sigma_rad: self.pose_sigma_rad,
         }
     }
 

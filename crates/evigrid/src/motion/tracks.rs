@@ -17,6 +17,31 @@ pub(crate) struct Observation {
     pub(crate) centroid_m: [f64; 2],
     /// Velocity measured by registration, m/s, with its variance per axis, (m/s)².
     pub(crate) velocity: Option<([f64; 2], f64)>,
+    /// The registration's mean span, s (Σ τ_k² / Σ τ_k over the past frames it matched: the
+    /// time its velocity's displacement covers), 0 without a velocity.
+    pub(crate) span_s: f64,
+}
+
+/// How wrong the pose of this frame may be, for the displacement test of
+/// `motion.displaced_pose_sigmas`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct PoseError {
+    /// The sensor's position, world metres.
+    pub(crate) sensor_xy_m: [f64; 2],
+    /// Standard deviation of the position's error per axis, m.
+    pub(crate) sigma_m: f64,
+    /// Standard deviation of the heading's error, rad.
+    pub(crate) sigma_rad: f64,
+}
+
+impl PoseError {
+    /// The standard deviation per axis of the apparent displacement of a static object at
+    /// `at_m` between two scans with independent pose errors: √2 · √(σ² + (r·σ_θ)²), r its
+    /// range (the heading's error moves it by its lever arm).
+    pub(crate) fn displacement_sigma_m(&self, at_m: [f64; 2]) -> f64 {
+        let range_m = (at_m[0] - self.sensor_xy_m[0]).hypot(at_m[1] - self.sensor_xy_m[1]);
+        std::f64::consts::SQRT_2 * self.sigma_m.hypot(range_m * self.sigma_rad)
+    }
 }
 
 /// One followed object.
@@ -46,6 +71,15 @@ pub(crate) struct Track {
     pub(crate) moving_frames: u32,
     /// Time the track was judged moving, s: with `travel_m`, what makes it a mobile object.
     pub(crate) moving_s: f64,
+    /// Net displacement as registered, m: the first registration's velocity times its mean
+    /// span, then each registration's velocity times the frame's interval. A static object's
+    /// apparent shifts under pose error come and go, so this stays within the pose's error;
+    /// a mover's grows.
+    pub(crate) registered_m: [f64; 2],
+    /// Whether `registered_m` is longer than `motion.displaced_pose_sigmas` standard
+    /// deviations of the displacement the pose's error explains at the track's range (always
+    /// with the test off): [`is_moving`] requires it.
+    pub(crate) displaced: bool,
 }
 
 /// Probability that a return-producing cluster is a real object, per frame: of a track being
@@ -68,12 +102,14 @@ impl Track {
     }
 }
 
-/// Whether the track moves now: fast enough, and registered often enough to say so.
+/// Whether the track moves now: fast enough, registered often enough to say so, and
+/// displaced beyond what the pose's error explains (`motion.displaced_pose_sigmas`).
 pub(crate) fn is_moving(track: &Track, params: &MotionParams) -> bool {
     let [x, y] = track.velocity;
     track.measurements > 0
         && (track.measurements as usize) >= params.moving_after_measurements
         && x.mean_mps.hypot(y.mean_mps) >= params.min_speed_mps
+        && track.displaced
 }
 
 /// The tracks and the association scratch, kept between frames.
@@ -108,11 +144,13 @@ impl Tracks {
 
     /// Predicts every track to `now_s` (`dt_s` after the last frame), drops those unseen for
     /// too long, and assigns the frame's observations to tracks, new ones where none is near.
+    /// `pose` is this frame's pose error, for the displacement test.
     pub(crate) fn update(
         &mut self,
         observations: &[Observation],
         now_s: f64,
         dt_s: f64,
+        pose: PoseError,
         params: &MotionParams,
     ) {
         // Predict, and drop tracks lost for too long.
@@ -179,6 +217,8 @@ impl Tracks {
                         misses: 0,
                         moving_frames: 0,
                         moving_s: 0.0,
+                        registered_m: [0.0; 2],
+                        displaced: params.displaced_pose_sigmas == 0.0,
                     });
                     self.assigned[oi] = (self.tracks.len() - 1) as u32;
                     self.tracks.len() - 1
@@ -193,8 +233,17 @@ impl Tracks {
                 for (filter, &z) in t.velocity.iter_mut().zip(&v) {
                     filter.update(z, variance);
                 }
+                // The first registration covers its whole span; each later one adds the
+                // frame's interval (its span overlaps the ones before).
+                let span_s = if t.measurements == 0 { o.span_s } else { dt_s };
+                for (d, z) in t.registered_m.iter_mut().zip(v) {
+                    *d += z * span_s;
+                }
                 t.measurements = t.measurements.saturating_add(1);
             }
+            t.displaced = params.displaced_pose_sigmas == 0.0
+                || t.registered_m[0].hypot(t.registered_m[1])
+                    > params.displaced_pose_sigmas * pose.displacement_sigma_m(t.position_m);
             if is_moving(t, params) {
                 for (d, v) in t.travel_m.iter_mut().zip(&t.velocity) {
                     *d += v.mean_mps * dt_s;
@@ -322,6 +371,7 @@ mod tests {
         Observation {
             centroid_m: [x, 0.0],
             velocity: v.map(|v| ([v, 0.0], 1.0)),
+            span_s: 0.1,
         }
     }
 
@@ -330,13 +380,13 @@ mod tests {
         let params = MotionParams::default();
         let mut tracks = Tracks::default();
         let p = |t: &Tracks| t.tracks[0].existence_probability();
-        tracks.update(&[seen(0.0, None)], 0.0, 0.1, &params);
+        tracks.update(&[seen(0.0, None)], 0.0, 0.1, PoseError::default(), &params);
         // Odds 3 per hit from even: 1 hit 3/4, 2 hits 9/10.
         assert!((p(&tracks) - 0.75).abs() < 1e-12);
-        tracks.update(&[seen(0.0, None)], 0.1, 0.1, &params);
+        tracks.update(&[seen(0.0, None)], 0.1, 0.1, PoseError::default(), &params);
         assert!((p(&tracks) - 0.9).abs() < 1e-12);
         // A miss: odds 9 · (0.1 / 0.7) = 9/7, p = 9/16.
-        tracks.update(&[], 0.2, 0.1, &params);
+        tracks.update(&[], 0.2, 0.1, PoseError::default(), &params);
         assert_eq!((tracks.tracks[0].hits, tracks.tracks[0].misses), (2, 1));
         assert!((p(&tracks) - 9.0 / 16.0).abs() < 1e-12);
     }
@@ -345,7 +395,7 @@ mod tests {
     fn a_track_follows_its_object_and_coasts_through_a_gap() {
         let params = MotionParams::default();
         let mut tracks = Tracks::default();
-        tracks.update(&[seen(0.0, None)], 0.0, 0.0, &params);
+        tracks.update(&[seen(0.0, None)], 0.0, 0.0, PoseError::default(), &params);
         assert_eq!(tracks.len(), 1);
         assert!(
             tracks
@@ -355,7 +405,7 @@ mod tests {
         // 10 m/s east, measured from the second frame.
         for k in 1..6 {
             let x = k as f64;
-            tracks.update(&[seen(x, Some(10.0))], 0.1 * k as f64, 0.1, &params);
+            tracks.update(&[seen(x, Some(10.0))], 0.1 * k as f64, 0.1, PoseError::default(), &params);
         }
         assert_eq!(tracks.len(), 1);
         let v = tracks
@@ -364,16 +414,16 @@ mod tests {
         assert!((v - 10.0).abs() < 0.5, "{v}");
         // Hidden for three frames, then seen where it should be, with no registration.
         for k in 6..9 {
-            tracks.update(&[], 0.1 * k as f64, 0.1, &params);
+            tracks.update(&[], 0.1 * k as f64, 0.1, PoseError::default(), &params);
         }
-        tracks.update(&[seen(9.0, None)], 0.9, 0.1, &params);
+        tracks.update(&[seen(9.0, None)], 0.9, 0.1, PoseError::default(), &params);
         assert_eq!(tracks.len(), 1, "joined the coasting track");
         let t = tracks.of_observation(0).copied();
         assert!(t.is_some_and(|t| t.measurements == 5 && t.velocity[0].mean_mps > 9.0));
         // Far away: a new track; and after max_coast_s unseen, the old one is gone.
-        tracks.update(&[seen(50.0, None)], 1.0, 0.1, &params);
+        tracks.update(&[seen(50.0, None)], 1.0, 0.1, PoseError::default(), &params);
         assert_eq!(tracks.len(), 2);
-        tracks.update(&[], 2.05, 1.05, &params);
+        tracks.update(&[], 2.05, 1.05, PoseError::default(), &params);
         assert_eq!(tracks.len(), 0);
     }
 
@@ -390,7 +440,7 @@ mod tests {
         for (k, v) in speeds.chain([0.0; 10]).enumerate() {
             x += v * 0.1;
             let measured = (k > 0).then_some(v);
-            tracks.update(&[seen(x, measured)], 0.1 * k as f64, 0.1, &params);
+            tracks.update(&[seen(x, measured)], 0.1 * k as f64, 0.1, PoseError::default(), &params);
         }
         assert_eq!(tracks.len(), 1);
         let t = tracks.of_observation(0).copied();
@@ -410,8 +460,9 @@ mod tests {
             let jump = Observation {
                 centroid_m: [x, 0.0],
                 velocity: Some(([v, 0.0], 6.25)),
+                span_s: 0.1,
             };
-            tracks.update(&[jump], 0.1 * k as f64, 0.1, &params);
+            tracks.update(&[jump], 0.1 * k as f64, 0.1, PoseError::default(), &params);
         }
         assert_eq!(tracks.len(), 1);
         let travel = tracks.of_observation(0).map_or(9.0, |t| t.travel_m[0]);
@@ -423,10 +474,10 @@ mod tests {
         let params = MotionParams::default();
         let mut tracks = Tracks::default();
         for k in 0..5 {
-            tracks.update(&[seen(k as f64, Some(10.0))], 0.1 * k as f64, 0.1, &params);
+            tracks.update(&[seen(k as f64, Some(10.0))], 0.1 * k as f64, 0.1, PoseError::default(), &params);
         }
         // At 5 m the track meets a cluster measured static: a new track, still 2 in all.
-        tracks.update(&[seen(5.0, Some(0.0))], 0.5, 0.1, &params);
+        tracks.update(&[seen(5.0, Some(0.0))], 0.5, 0.1, PoseError::default(), &params);
         assert_eq!(tracks.len(), 2);
         let v = tracks
             .of_observation(0)
@@ -440,8 +491,8 @@ mod tests {
         // At x = 0, then at 1 m measured at 10 m/s (variance 1) from the new track's 0 ± 25
         // m/s (variance 625 + (3 · 0.1)² = 625.09): 10 · 625.09 / 626.09 = 9.98403 m/s.
         // Two hits (existence 0.9: confirmed), one frame judged moving.
-        tracks.update(&[seen(0.0, None)], 0.0, 0.1, &params);
-        tracks.update(&[seen(1.0, Some(10.0))], 0.1, 0.1, &params);
+        tracks.update(&[seen(0.0, None)], 0.0, 0.1, PoseError::default(), &params);
+        tracks.update(&[seen(1.0, Some(10.0))], 0.1, 0.1, PoseError::default(), &params);
         let v = 10.0 * 625.09 / 626.09;
         // Next frame it is predicted at 1 + 0.1 v = 1.9984 m: the car's cluster at 2.0 m
         // (0.0016 m off) takes the prior; a pole at 3.5 m, within the 2 m gate too, does not.
@@ -472,14 +523,129 @@ mod tests {
         // Track 1 from x = 0, then at 1.0 m moving at 10 m/s (variance 1): two hits, existence
         // 0.9, confirmed. A stray cluster at 3.0 m starts track 2 (3 m from track 1's
         // prediction, beyond the 2 m gate): one hit, existence 0.75, tentative.
-        tracks.update(&[seen(0.0, None)], 0.0, 0.1, &params);
-        tracks.update(&[seen(1.0, Some(10.0)), seen(3.0, None)], 0.1, 0.1, &params);
+        tracks.update(&[seen(0.0, None)], 0.0, 0.1, PoseError::default(), &params);
+        tracks.update(&[seen(1.0, Some(10.0)), seen(3.0, None)], 0.1, 0.1, PoseError::default(), &params);
         assert_eq!(tracks.of_observation(1).map(|t| t.id), Some(2));
         // Track 1 predicts 1.0 + 0.1 · 9.98 = 2.0 m; the car is seen at 2.9 m, 0.9 m from it
         // and 0.1 m from the stray track. Nearest first would hand the car to track 2; the
         // confirmed track is matched first.
-        tracks.update(&[seen(2.9, Some(10.0))], 0.2, 0.1, &params);
+        tracks.update(&[seen(2.9, Some(10.0))], 0.2, 0.1, PoseError::default(), &params);
         let t = tracks.of_observation(0);
         assert_eq!(t.map(|t| (t.id, t.hits, t.measurements)), Some((1, 3, 2)));
+    }
+
+    #[test]
+    fn the_pose_explains_a_displacement_of_root_two_sigma_at_the_range() {
+        // Range 50 m (30, 40), σ = 0.3 m, σ_θ = 0.008 rad: √(0.3² + 0.4²) = 0.5, × √2.
+        let pose = PoseError {
+            sensor_xy_m: [1.0, 2.0],
+            sigma_m: 0.3,
+            sigma_rad: 0.008,
+        };
+        let sigma = pose.displacement_sigma_m([31.0, 42.0]);
+        assert!((sigma - 0.5 * std::f64::consts::SQRT_2).abs() < 1e-12, "{sigma}");
+    }
+
+    /// `displaced_pose_sigmas` 3 under a pose error of 0.2 m per axis (heading exact): a
+    /// static object's apparent displacement has σ = 0.2 · √2 = 0.28284 m, the gate is
+    /// 0.84853 m.
+    fn noisy_pose() -> (MotionParams, PoseError) {
+        let params = MotionParams {
+            displaced_pose_sigmas: 3.0,
+            ..MotionParams::default()
+        };
+        let pose = PoseError {
+            sensor_xy_m: [0.0, 10.0],
+            sigma_m: 0.2,
+            sigma_rad: 0.0,
+        };
+        (params, pose)
+    }
+
+    /// The pose's error at frame `k`, east, m: 0, +1 cell, 0, −1 cell (0.5 m cells), again.
+    fn jitter(k: usize) -> f64 {
+        [0.0, 0.5, 0.0, -0.5][k % 4]
+    }
+
+    /// Frame `k` of an object at `x` m east (seen at `x + jitter`), registered against the
+    /// frame before (0.1 s): velocity (x_k − x_{k−1}) / 0.1, σ = 2.5 m/s (half a cell's
+    /// quantisation each way over 0.1 s), from the second frame.
+    fn seen_at(k: usize, x: impl Fn(usize) -> f64) -> Observation {
+        let at = |k: usize| x(k) + jitter(k);
+        Observation {
+            centroid_m: [at(k), 0.0],
+            velocity: (k > 0).then(|| ([(at(k) - at(k - 1)) / 0.1, 0.0], 6.25)),
+            span_s: 0.1,
+        }
+    }
+
+    #[test]
+    fn a_parked_car_jittering_with_the_pose_is_never_displaced() {
+        let (params, pose) = noisy_pose();
+        let mut tracks = Tracks::default();
+        let mut fast_frames = 0;
+        for k in 0..20 {
+            tracks.update(&[seen_at(k, |_| 0.0)], 0.1 * k as f64, 0.1, pose, &params);
+            let Some(t) = tracks.of_observation(0) else {
+                panic!("frame {k}: no track");
+            };
+            // Registered net displacement = x_k − x_0 = the jitter: at most 0.5 m.
+            assert!((t.registered_m[0] - jitter(k)).abs() < 1e-9, "frame {k}");
+            assert!(!t.displaced && !is_moving(t, &params), "frame {k}");
+            let [x, y] = t.velocity;
+            fast_frames += usize::from(x.mean_mps.hypot(y.mean_mps) >= params.min_speed_mps);
+        }
+        assert_eq!(tracks.len(), 1);
+        // Without the test the jumps alone would have made it move (4.95 m/s after the first).
+        assert!(fast_frames > 0);
+    }
+
+    #[test]
+    fn a_car_crawling_under_the_same_jitter_is_displaced_once_it_has_moved_beyond_it() {
+        let (params, pose) = noisy_pose();
+        let mut tracks = Tracks::default();
+        let mut displaced = Vec::new();
+        for k in 0..16 {
+            // 1.5 m/s east: 0.15 m a frame.
+            let crawl = |k: usize| 0.15 * k as f64;
+            tracks.update(&[seen_at(k, crawl)], 0.1 * k as f64, 0.1, pose, &params);
+            let Some(t) = tracks.of_observation(0) else {
+                panic!("frame {k}: no track");
+            };
+            // Net displacement 0.15 k + jitter(k): above 0.84853 m at frames 5 (1.25 m) and 6
+            // (0.9 m), not 7 (0.55 m), and from frame 8 (1.2 m) on (at least 1.15 m).
+            let expected = 0.15 * k as f64 + jitter(k);
+            assert!((t.registered_m[0] - expected).abs() < 1e-9, "frame {k}");
+            displaced.push(t.displaced);
+        }
+        let expected: Vec<bool> = (0..16).map(|k| matches!(k, 5 | 6) || k >= 8).collect();
+        assert_eq!(displaced, expected);
+        // And it moves: 1.5 m/s filtered from the noisy registrations.
+        let t = tracks.of_observation(0).copied();
+        assert!(t.is_some_and(|t| is_moving(&t, &params)), "{t:?}");
+    }
+
+    #[test]
+    fn a_first_registration_counts_its_whole_span() {
+        let (params, pose) = noisy_pose();
+        let mut tracks = Tracks::default();
+        // A car out of occlusion, registered at once against cells 0.4 s old at 2 m/s: 0.8 m
+        // registered, under the gate; the next frame adds 2 · 0.1: 1.0 m, beyond it.
+        let car = |x: f64, span_s: f64| Observation {
+            centroid_m: [x, 0.0],
+            velocity: Some(([2.0, 0.0], 0.25)),
+            span_s,
+        };
+        tracks.update(&[car(0.0, 0.4)], 0.0, 0.1, pose, &params);
+        let t = tracks.of_observation(0).copied();
+        assert!(t.is_some_and(|t| (t.registered_m[0] - 0.8).abs() < 1e-12 && !t.displaced));
+        tracks.update(&[car(0.2, 0.4)], 0.1, 0.1, pose, &params);
+        let t = tracks.of_observation(0).copied();
+        assert!(t.is_some_and(|t| (t.registered_m[0] - 1.0).abs() < 1e-12 && t.displaced));
+        // With the test off (the default) every track counts as displaced.
+        let mut tracks = Tracks::default();
+        let off = MotionParams::default();
+        tracks.update(&[car(0.0, 0.4)], 0.0, 0.1, pose, &off);
+        assert!(tracks.of_observation(0).is_some_and(|t| t.displaced));
     }
 }
