@@ -78,7 +78,7 @@ pub(crate) struct Track {
     pub(crate) registered_m: [f64; 2],
     /// Whether `registered_m` is longer than `motion.displaced_pose_sigmas` standard
     /// deviations of the displacement the pose's error explains at the track's range (always
-    /// with the test off): [`is_moving`] requires it.
+    /// with the test off): moving evidence requires it.
     pub(crate) displaced: bool,
 }
 
@@ -102,14 +102,15 @@ impl Track {
     }
 }
 
-/// Whether the track moves now: fast enough, registered often enough to say so, and
-/// displaced beyond what the pose's error explains (`motion.displaced_pose_sigmas`).
+/// Whether the track moves now: fast enough, and registered often enough to say so. (Its
+/// cells take moving evidence only once it is `displaced` too, [`super::evidence::track_mass`];
+/// its prior and its travel do not wait for that: a slow mover held back whose registrations
+/// lose the prior would read zero and never get displaced.)
 pub(crate) fn is_moving(track: &Track, params: &MotionParams) -> bool {
     let [x, y] = track.velocity;
     track.measurements > 0
         && (track.measurements as usize) >= params.moving_after_measurements
         && x.mean_mps.hypot(y.mean_mps) >= params.min_speed_mps
-        && track.displaced
 }
 
 /// The tracks and the association scratch, kept between frames.
@@ -405,7 +406,13 @@ mod tests {
         // 10 m/s east, measured from the second frame.
         for k in 1..6 {
             let x = k as f64;
-            tracks.update(&[seen(x, Some(10.0))], 0.1 * k as f64, 0.1, PoseError::default(), &params);
+            tracks.update(
+                &[seen(x, Some(10.0))],
+                0.1 * k as f64,
+                0.1,
+                PoseError::default(),
+                &params,
+            );
         }
         assert_eq!(tracks.len(), 1);
         let v = tracks
@@ -440,7 +447,13 @@ mod tests {
         for (k, v) in speeds.chain([0.0; 10]).enumerate() {
             x += v * 0.1;
             let measured = (k > 0).then_some(v);
-            tracks.update(&[seen(x, measured)], 0.1 * k as f64, 0.1, PoseError::default(), &params);
+            tracks.update(
+                &[seen(x, measured)],
+                0.1 * k as f64,
+                0.1,
+                PoseError::default(),
+                &params,
+            );
         }
         assert_eq!(tracks.len(), 1);
         let t = tracks.of_observation(0).copied();
@@ -474,10 +487,22 @@ mod tests {
         let params = MotionParams::default();
         let mut tracks = Tracks::default();
         for k in 0..5 {
-            tracks.update(&[seen(k as f64, Some(10.0))], 0.1 * k as f64, 0.1, PoseError::default(), &params);
+            tracks.update(
+                &[seen(k as f64, Some(10.0))],
+                0.1 * k as f64,
+                0.1,
+                PoseError::default(),
+                &params,
+            );
         }
         // At 5 m the track meets a cluster measured static: a new track, still 2 in all.
-        tracks.update(&[seen(5.0, Some(0.0))], 0.5, 0.1, PoseError::default(), &params);
+        tracks.update(
+            &[seen(5.0, Some(0.0))],
+            0.5,
+            0.1,
+            PoseError::default(),
+            &params,
+        );
         assert_eq!(tracks.len(), 2);
         let v = tracks
             .of_observation(0)
@@ -492,7 +517,13 @@ mod tests {
         // m/s (variance 625 + (3 · 0.1)² = 625.09): 10 · 625.09 / 626.09 = 9.98403 m/s.
         // Two hits (existence 0.9: confirmed), one frame judged moving.
         tracks.update(&[seen(0.0, None)], 0.0, 0.1, PoseError::default(), &params);
-        tracks.update(&[seen(1.0, Some(10.0))], 0.1, 0.1, PoseError::default(), &params);
+        tracks.update(
+            &[seen(1.0, Some(10.0))],
+            0.1,
+            0.1,
+            PoseError::default(),
+            &params,
+        );
         let v = 10.0 * 625.09 / 626.09;
         // Next frame it is predicted at 1 + 0.1 v = 1.9984 m: the car's cluster at 2.0 m
         // (0.0016 m off) takes the prior; a pole at 3.5 m, within the 2 m gate too, does not.
@@ -524,12 +555,24 @@ mod tests {
         // 0.9, confirmed. A stray cluster at 3.0 m starts track 2 (3 m from track 1's
         // prediction, beyond the 2 m gate): one hit, existence 0.75, tentative.
         tracks.update(&[seen(0.0, None)], 0.0, 0.1, PoseError::default(), &params);
-        tracks.update(&[seen(1.0, Some(10.0)), seen(3.0, None)], 0.1, 0.1, PoseError::default(), &params);
+        tracks.update(
+            &[seen(1.0, Some(10.0)), seen(3.0, None)],
+            0.1,
+            0.1,
+            PoseError::default(),
+            &params,
+        );
         assert_eq!(tracks.of_observation(1).map(|t| t.id), Some(2));
         // Track 1 predicts 1.0 + 0.1 · 9.98 = 2.0 m; the car is seen at 2.9 m, 0.9 m from it
         // and 0.1 m from the stray track. Nearest first would hand the car to track 2; the
         // confirmed track is matched first.
-        tracks.update(&[seen(2.9, Some(10.0))], 0.2, 0.1, PoseError::default(), &params);
+        tracks.update(
+            &[seen(2.9, Some(10.0))],
+            0.2,
+            0.1,
+            PoseError::default(),
+            &params,
+        );
         let t = tracks.of_observation(0);
         assert_eq!(t.map(|t| (t.id, t.hits, t.measurements)), Some((1, 3, 2)));
     }
@@ -543,7 +586,10 @@ mod tests {
             sigma_rad: 0.008,
         };
         let sigma = pose.displacement_sigma_m([31.0, 42.0]);
-        assert!((sigma - 0.5 * std::f64::consts::SQRT_2).abs() < 1e-12, "{sigma}");
+        assert!(
+            (sigma - 0.5 * std::f64::consts::SQRT_2).abs() < 1e-12,
+            "{sigma}"
+        );
     }
 
     /// `displaced_pose_sigmas` 3 under a pose error of 0.2 m per axis (heading exact): a
@@ -591,7 +637,7 @@ mod tests {
             };
             // Registered net displacement = x_k − x_0 = the jitter: at most 0.5 m.
             assert!((t.registered_m[0] - jitter(k)).abs() < 1e-9, "frame {k}");
-            assert!(!t.displaced && !is_moving(t, &params), "frame {k}");
+            assert!(!t.displaced, "frame {k}");
             let [x, y] = t.velocity;
             fast_frames += usize::from(x.mean_mps.hypot(y.mean_mps) >= params.min_speed_mps);
         }
@@ -622,7 +668,10 @@ mod tests {
         assert_eq!(displaced, expected);
         // And it moves: 1.5 m/s filtered from the noisy registrations.
         let t = tracks.of_observation(0).copied();
-        assert!(t.is_some_and(|t| is_moving(&t, &params)), "{t:?}");
+        assert!(
+            t.is_some_and(|t| is_moving(&t, &params) && t.displaced),
+            "{t:?}"
+        );
     }
 
     #[test]
