@@ -953,12 +953,6 @@ pub struct MotionParams {
     /// (`docs/motion.md`, "A static track under pose error: its net displacement"). Before
     /// that a fast track gives no evidence. 0, the default, turns the test off.
     pub displaced_pose_sigmas: f64,
-    /// With `displaced_pose_sigmas`: m(Ω∖{M}) given to the cells of a track it holds back,
-    /// deciding them this frame only (the grid keeps what the SPEC §5 step made of them, so
-    /// a car starting off leaves no static mass where it goes), `[0, 1]`. 0, the default: no
-    /// evidence, the cells keep the step's decision (often M: the free→occupied conflict
-    /// of a face that the pose's error moved).
-    pub displaced_hold_static: f64,
     /// The object layer (`docs/motion.md`, "An object layer"): each moving track whose
     /// heading is known (from its velocity) gets an oriented rectangle fitted to its returns,
     /// its extent kept over the frames in the object's own frame, anchored on the faces the
@@ -1042,7 +1036,6 @@ impl Default for MotionParams {
             surface_register_on_returns: true,
             pose_gate_sigmas: 0.0,
             displaced_pose_sigmas: 0.0,
-            displaced_hold_static: 0.0,
             object_layer: true,
             object_outside_static: 0.9,
             object_outside_fused: false,
@@ -1135,7 +1128,6 @@ impl MotionParams {
             positive("motion.pose_gate_sigmas", self.pose_gate_sigmas)?;
         }
         non_negative("motion.displaced_pose_sigmas", self.displaced_pose_sigmas)?;
-        unit("motion.displaced_hold_static", self.displaced_hold_static)?;
         Ok(())
     }
 }

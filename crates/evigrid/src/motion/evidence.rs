@@ -421,6 +421,29 @@ mod tests {
     }
 
     #[test]
+    fn a_fast_track_within_the_pose_error_gives_nothing_and_a_slow_one_stays_static() {
+        let p = MotionParams::default();
+        let held = |t: Track| Track {
+            displaced: false,
+            ..t
+        };
+        // 3 m/s, registered twice, not displaced: no evidence, and held by the pose.
+        let fast = held(track([3.0, 0.0], 1.0, 2));
+        assert_eq!(track_mass(&fast, &p), MotionMass::Vacuous);
+        assert!(within_pose_error(&fast, &p));
+        // Displaced: moving, and not held.
+        let free = track([3.0, 0.0], 1.0, 2);
+        assert!(matches!(track_mass(&free, &p), MotionMass::Moving(_)));
+        assert!(!within_pose_error(&free, &p));
+        // Slow and well known, displaced or not: static, never held (the test is about M).
+        let slow = held(track([0.1, 0.0], 0.01, 1));
+        assert_eq!(track_mass(&slow, &p), MotionMass::Static(0.9));
+        assert!(!within_pose_error(&slow, &p));
+        // Never registered: nothing, and not held either.
+        assert!(!within_pose_error(&held(track([3.0, 0.0], 1.0, 0)), &p));
+    }
+
+    #[test]
     fn a_silent_track_that_entered_cells_seen_free_is_moving() {
         let params = MotionParams::default();
         // Registered once, no shift, σ² = 0.8 (m/s)² per axis: √1.6 ≥ static_sigma_mps = 1,

@@ -464,12 +464,6 @@ impl MotionStage {
                     state = CellMotion::EnteredSeenFree;
                 }
             }
-            // A track held back by the displacement test: optionally "not moving" on its
-            // cells, as this frame's decision only (below), since a mover starting off is
-            // held back too and must not leave static mass in the grid where it goes.
-            if state == CellMotion::WithinPoseError && self.params.displaced_hold_static > 0.0 {
-                mass = MotionMass::Static(self.params.displaced_hold_static as f32);
-            }
             let mass = evidence::off_buildings(
                 mass,
                 cells
@@ -560,12 +554,7 @@ impl MotionStage {
                 // The outside label, unfused, is this frame's decision only: the grid keeps
                 // the step's masses, and the car that covers the cell next frame meets no
                 // static mass there.
-                let unfused = match cell_state {
-                    CellMotion::OutsideObject => !self.params.object_outside_fused,
-                    CellMotion::WithinPoseError => true,
-                    _ => false,
-                };
-                if !unfused {
+                if cell_state != CellMotion::OutsideObject || self.params.object_outside_fused {
                     write_cell(perception, idx, &m);
                 }
                 decisions[idx] = decide(&m, perception.seen()[idx] != 0, self.unknown_threshold);

@@ -242,19 +242,9 @@ impl Tracks {
                 }
                 t.measurements = t.measurements.saturating_add(1);
             }
-            t.displaced = params.displaced_pose_sigmas == 0.0 || {
-                // Displaced: registered beyond the pose's error, or surely fast enough (its
-                // speed less two σ per axis) to go beyond it over the history's span (the
-                // frames registered against).
-                let span_s = params.history_frames as f64 * dt_s;
-                let [x, y] = t.velocity;
-                let sure_mps =
-                    x.mean_mps.hypot(y.mean_mps) - 2.0 * x.variance.max(y.variance).sqrt();
-                let claimed_m = t.registered_m[0]
-                    .hypot(t.registered_m[1])
-                    .max(sure_mps * span_s);
-                claimed_m > params.displaced_pose_sigmas * pose.displacement_sigma_m(t.position_m)
-            };
+            t.displaced = params.displaced_pose_sigmas == 0.0
+                || t.registered_m[0].hypot(t.registered_m[1])
+                    > params.displaced_pose_sigmas * pose.displacement_sigma_m(t.position_m);
             if is_moving(t, params) {
                 for (d, v) in t.travel_m.iter_mut().zip(&t.velocity) {
                     *d += v.mean_mps * dt_s;
@@ -669,16 +659,12 @@ mod tests {
                 panic!("frame {k}: no track");
             };
             // Net displacement 0.15 k + jitter(k): above 0.84853 m at frames 5 (1.25 m) and 6
-            // (0.9 m), not 7 (0.55 m), and from frame 8 (1.2 m) on (at least 1.15 m). Frame 1
-            // by its speed: its first registration, 6.5 m/s (variance 6.25) against the new
-            // track's 0 (variance 625), filters to 6.4356 m/s, variance 625 · 6.25 / 631.25 =
-            // 6.1881; less two σ (4.9752), 1.4604 m/s over the history's 0.8 s: 1.168 m. (The
-            // parked car's first, 5 m/s, filters to 4.9505, less 4.9752: nothing.)
+            // (0.9 m), not 7 (0.55 m), and from frame 8 (1.2 m) on (at least 1.15 m).
             let expected = 0.15 * k as f64 + jitter(k);
             assert!((t.registered_m[0] - expected).abs() < 1e-9, "frame {k}");
             displaced.push(t.displaced);
         }
-        let expected: Vec<bool> = (0..16).map(|k| matches!(k, 1 | 5 | 6) || k >= 8).collect();
+        let expected: Vec<bool> = (0..16).map(|k| matches!(k, 5 | 6) || k >= 8).collect();
         assert_eq!(displaced, expected);
         // And it moves: 1.5 m/s filtered from the noisy registrations.
         let t = tracks.of_observation(0).copied();
