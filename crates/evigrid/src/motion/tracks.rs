@@ -691,9 +691,12 @@ mod tests {
         tracks.update(&[car(0.2, 0.4)], 0.1, 0.1, pose, &params);
         let t = tracks.of_observation(0).copied();
         assert!(t.is_some_and(|t| (t.registered_m[0] - 1.0).abs() < 1e-12 && t.displaced));
-        // With the test off (the default) every track counts as displaced.
+        // With the test off every track counts as displaced.
         let mut tracks = Tracks::default();
-        let off = MotionParams::default();
+        let off = MotionParams {
+            displaced_pose_sigmas: 0.0,
+            ..MotionParams::default()
+        };
         tracks.update(&[car(0.0, 0.4)], 0.0, 0.1, pose, &off);
         assert!(tracks.of_observation(0).is_some_and(|t| t.displaced));
     }
