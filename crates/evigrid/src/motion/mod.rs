@@ -1005,6 +1005,46 @@ mod tests {
     }
 
     #[test]
+    fn a_car_driving_off_under_pose_error_is_held_until_it_has_left_it() {
+        let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
+        let (w, h) = (window.width(), window.height());
+        let params = crate::Params::default();
+        let mut stage = MotionStage::new(&params, w, h);
+        let mut perception = PerceptionGrid::new(w, h);
+        let mut decisions = vec![Label::Unknown; w * h];
+        let mut states = Vec::new();
+        for t in 0..3 {
+            // 0.2 m of pose error per axis, heading exact: a static object's apparent
+            // displacement has σ = 0.2 · √2 = 0.28284 m, 2 σ (the default) 0.56569 m.
+            stage.set_pose(0.0, 0.0, 0.2, 0.0);
+            let (returns, placed) = driving_away(t, &window);
+            stage.update_registering(
+                &window,
+                &placed,
+                &returns,
+                0.1 * t as f64,
+                0.1,
+                &mut perception,
+                &mut decisions,
+            );
+            let mut now: Vec<CellMotion> = stage.cell_states().iter().map(|r| r.state).collect();
+            now.dedup();
+            states.push(now);
+        }
+        // Frame 0: nothing to register against. Frame 1: one cell east in 0.1 s, 5 m/s over a
+        // span of 0.1 s: 0.5 m registered, within 0.566 m: held, no evidence. Frame 2: one
+        // more cell, 5 m/s × 0.1 s more: 1.0 m, beyond it: moving.
+        assert_eq!(
+            states,
+            vec![
+                vec![CellMotion::Unregistered],
+                vec![CellMotion::WithinPoseError],
+                vec![CellMotion::Moving]
+            ]
+        );
+    }
+
+    #[test]
     fn a_cluster_registered_on_its_returns_moves_where_its_placed_cells_read_zero() {
         let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
         // The margin before "A car's corner, and the margin of a crawl" (0.25; 0.15 now).
