@@ -952,8 +952,8 @@ pub struct MotionParams {
     /// registered shifts jitter with the pose stays within that, a mover's displacement grows
     /// (`docs/motion.md`, "A static track under pose error: its net displacement"). Before
     /// that a fast track gives no evidence. By default 2, chosen on the tuning drives among
-    /// 2 and 3 and adopted on the validation drives (moving IoU 0.5551 → 0.5571, dynamic
-    /// accuracy 0.7883 → 0.7862); 0 turns the test off.
+    /// 2 and 3 and adopted on the validation drives (moving IoU 0.5655 → 0.5675, dynamic
+    /// accuracy 0.7907 → 0.7886 on top of the object layer's keys); 0 turns the test off.
     pub displaced_pose_sigmas: f64,
     /// The object layer (`docs/motion.md`, "An object layer"): each moving track whose
     /// heading is known (from its velocity) gets an oriented rectangle fitted to its returns,
