@@ -65,6 +65,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .motion()
                 .map(|m| m.cell_states().iter().map(|r| (r.idx, *r)).collect())
                 .unwrap_or_default();
+            // Per cluster: its labelled cells and how many are truth M (`DIAGNOSE_DETAIL`).
+            let mut composition: std::collections::HashMap<u32, (u32, u32)> =
+                std::collections::HashMap::new();
+            for s in states.values() {
+                let e = composition.entry(s.cluster).or_default();
+                e.0 += 1;
+                e.1 += u32::from(f.truth[s.idx as usize] == Label::M);
+            }
             if detail {
                 for idx in 0..window.len() {
                     let outside = outside_before.iter().any(|s| s.contains(&(idx as u32)));
@@ -169,10 +177,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         states
                             .get(&(idx as u32))
                             .map_or("-".to_owned(), |s| if detail {
+                                let (n, m) = composition.get(&s.cluster).copied().unwrap_or((0, 0));
                                 format!(
-                                    "{:?} n{} f{} m{} v{:.1} s{:.1} age{:.1}",
+                                    "{:?} n{} M{}% f{} m{} v{:.1} s{:.1} age{:.1}",
                                     s.state,
-                                    s.cluster_cells.min(9),
+                                    bucket(n),
+                                    (100 * m / n.max(1)) / 25 * 25,
                                     s.frames,
                                     s.measurements.min(9),
                                     s.speed_mps,
@@ -289,4 +299,17 @@ fn where_on_its_ray(
             "not placed"
         }
     )
+}
+
+/// A cluster's size in coarse buckets: 1, 2, 3-5, 6-10, 11-20, 21-40, > 40 cells.
+fn bucket(n: u32) -> &'static str {
+    match n {
+        0..=1 => "1",
+        2 => "2",
+        3..=5 => "3-5",
+        6..=10 => "6-10",
+        11..=20 => "11-20",
+        21..=40 => "21-40",
+        _ => ">40",
+    }
 }

@@ -802,6 +802,11 @@ pub struct MotionParams {
     /// Frames back a cluster is registered against, 1-8 (slow objects need several). By
     /// default 8.
     pub history_frames: usize,
+    /// Whether the eight frames kept are thinned: the last four, the even-numbered ones up to
+    /// eight frames back and every fourth up to sixteen back (1.3-1.6 s at 10 Hz instead of
+    /// 0.8 s), so that a slow object's shift grows to whole cells (`docs/motion.md`, "A
+    /// longer history for slow objects"). By default false.
+    pub history_thinned: bool,
     /// Largest shift searched, cells, in each axis (1-16). By default 6 (3 m at 0.5 m cells).
     pub search_radius_cells: usize,
     /// Fastest object, m/s: limits the shift searched against each past frame. By default 25.
@@ -814,6 +819,10 @@ pub struct MotionParams {
     /// (a crawling car sliding along its own length beats zero only by the cells at its ends;
     /// 0.25 before, `docs/motion.md`, "A car's corner, and the margin of a crawl").
     pub shift_margin_fraction: f64,
+    /// The most cells the margin of `shift_margin_fraction` asks of a large cluster (a long
+    /// side crawling along itself gains only the cells at its ends over zero, however long it
+    /// is; `docs/motion.md`, "The margin of a long slide"); 0: no cap. By default 0.
+    pub shift_margin_max_cells: usize,
     /// Below this speed, m/s, a track counts as not moving. By default 0.5.
     pub min_speed_mps: f64,
     /// Standard deviation of a track's acceleration, m/s² (the filter's process noise). By
@@ -1009,10 +1018,12 @@ impl Default for MotionParams {
     fn default() -> Self {
         Self {
             history_frames: 8,
+            history_thinned: false,
             search_radius_cells: 6,
             max_speed_mps: 25.0,
             match_fraction: 0.5,
             shift_margin_fraction: 0.15,
+            shift_margin_max_cells: 0,
             min_speed_mps: 0.5,
             accel_sigma_mps2: 3.0,
             shift_sigma_cells: 0.5,

@@ -11,7 +11,8 @@ use std::ops::Range;
 /// Frames kept: the bits of a byte.
 pub(crate) const SLOTS: usize = 8;
 
-/// The occupied cells of the last [`SLOTS`] frames.
+/// The occupied cells of the last [`SLOTS`] frames, or, thinned, of eight frames reaching
+/// about twice as far back.
 #[derive(Clone, Debug)]
 pub(crate) struct OccupancyHistory {
     bits: Vec<u8>,
@@ -21,8 +22,25 @@ pub(crate) struct OccupancyHistory {
     free_lists: [Vec<u32>; SLOTS],
     /// Time of each slot's frame, seconds.
     times_s: [f64; SLOTS],
+    /// Number of each slot's frame (0 for the first frame recorded).
+    frame_of: [u64; SLOTS],
+    /// The slots holding a frame, newest first: `order[..kept]`.
+    order: [usize; SLOTS],
+    kept: usize,
     /// Frames recorded so far.
     frames: u64,
+    /// Whether the frames kept are thinned ([`keeps_thinned`]) rather than the last eight.
+    thinned: bool,
+}
+
+/// Whether a thinned history keeps frame number `frame` when it is `age` frames before the
+/// frame being registered: the last four, the even ones up to eight back and every fourth up
+/// to sixteen back. Those are eight frames at every step (four, two of the four frames 5-8
+/// back and two of the eight frames 9-16 back), and a frame kept at one step was kept at every
+/// step before: each push drops at most one frame. At 10 Hz they reach 1.3-1.6 s back instead
+/// of 0.8 s: a car crawling at 1.5 m/s moves 4-5 cells of 0.5 m, not 2.4.
+pub(crate) fn keeps_thinned(age: u64, frame: u64) -> bool {
+    age <= 4 || (age <= 8 && frame % 2 == 0) || (age <= 16 && frame % 4 == 0)
 }
 
 impl OccupancyHistory {
@@ -38,8 +56,18 @@ impl OccupancyHistory {
             lists: Default::default(),
             free_lists: Default::default(),
             times_s: [0.0; SLOTS],
+            frame_of: [0; SLOTS],
+            order: [0; SLOTS],
+            kept: 0,
             frames: 0,
+            thinned: false,
         }
+    }
+
+    /// The same history keeping thinned frames ([`keeps_thinned`]) when `thinned`
+    /// (`motion.history_thinned`).
+    pub(crate) fn with_thinning(self, thinned: bool) -> Self {
+        Self { thinned, ..self }
     }
 
     /// Forgets the cells of `range` (they entered the window). Stale indices in the lists only
@@ -60,6 +88,7 @@ impl OccupancyHistory {
         for list in self.lists.iter_mut().chain(&mut self.free_lists) {
             list.clear();
         }
+        self.kept = 0;
         self.frames = 0;
     }
 
@@ -75,30 +104,62 @@ impl OccupancyHistory {
         self.free_bits.get(idx).copied().unwrap_or(0)
     }
 
-    /// The bit and time of the frame `frames_back` (1 = the last recorded) frames before the
-    /// next one, if it was recorded and is still kept.
+    /// The bit and time of the `frames_back`-th newest frame kept (1 = the last recorded;
+    /// without thinning, the frame that many frames before the next one), if there is one.
     pub(crate) fn frame_back(&self, frames_back: usize) -> Option<(u8, f64)> {
-        if frames_back == 0 || frames_back > SLOTS || frames_back as u64 > self.frames {
+        if frames_back == 0 || frames_back > self.kept {
             return None;
         }
-        let slot = ((self.frames - frames_back as u64) % SLOTS as u64) as usize;
+        let slot = self.order[frames_back - 1];
         Some((1 << slot, self.times_s[slot]))
     }
 
+    /// The bits of the frames kept that are at most [`SLOTS`] frames before the next one (all
+    /// of them without thinning): the frames whose seen-free cells tell an object that
+    /// entered space seen empty.
+    pub(crate) fn recent_bits(&self) -> u8 {
+        self.order[..self.kept]
+            .iter()
+            .filter(|&&slot| self.frames - self.frame_of[slot] <= SLOTS as u64)
+            .fold(0u8, |bits, &slot| bits | 1 << slot)
+    }
+
     /// Records the occupied and the seen-free cells of the next frame, taken at `time_s`.
+    /// Without thinning it takes the slot of the oldest frame once eight are kept; thinned, the
+    /// frames [`keeps_thinned`] no longer keeps for the next registration are dropped first.
     pub(crate) fn push(&mut self, occupied: &[u32], free: &[u32], time_s: f64) {
-        let slot = (self.frames % SLOTS as u64) as usize;
+        let frame = self.frames;
+        if self.thinned {
+            let mut k = 0;
+            while k < self.kept {
+                let slot = self.order[k];
+                let age = frame + 1 - self.frame_of[slot];
+                if keeps_thinned(age, self.frame_of[slot]) {
+                    k += 1;
+                } else {
+                    self.drop_kept(k);
+                }
+            }
+        }
+        let slot = if self.thinned {
+            if self.kept == SLOTS {
+                self.drop_kept(SLOTS - 1);
+            }
+            (0..SLOTS)
+                .find(|s| !self.order[..self.kept].contains(s))
+                .unwrap_or(0)
+        } else {
+            let slot = (frame % SLOTS as u64) as usize;
+            if let Some(k) = self.order[..self.kept].iter().position(|&s| s == slot) {
+                self.drop_kept(k);
+            }
+            slot
+        };
         let bit = 1u8 << slot;
         for (bits, list, cells) in [
             (&mut self.bits, &mut self.lists[slot], occupied),
             (&mut self.free_bits, &mut self.free_lists[slot], free),
         ] {
-            for &idx in list.iter() {
-                if let Some(b) = bits.get_mut(idx as usize) {
-                    *b &= !bit;
-                }
-            }
-            list.clear();
             list.extend_from_slice(cells);
             for &idx in cells {
                 if let Some(b) = bits.get_mut(idx as usize) {
@@ -107,7 +168,30 @@ impl OccupancyHistory {
             }
         }
         self.times_s[slot] = time_s;
+        self.frame_of[slot] = frame;
+        self.order.copy_within(0..self.kept, 1);
+        self.order[0] = slot;
+        self.kept += 1;
         self.frames += 1;
+    }
+
+    /// Forgets the `k`-th newest frame kept: its bits cleared in the cells it listed.
+    fn drop_kept(&mut self, k: usize) {
+        let slot = self.order[k];
+        let bit = 1u8 << slot;
+        for (bits, list) in [
+            (&mut self.bits, &mut self.lists[slot]),
+            (&mut self.free_bits, &mut self.free_lists[slot]),
+        ] {
+            for &idx in list.iter() {
+                if let Some(b) = bits.get_mut(idx as usize) {
+                    *b &= !bit;
+                }
+            }
+            list.clear();
+        }
+        self.order.copy_within(k + 1..self.kept, k);
+        self.kept -= 1;
     }
 }
 

@@ -103,6 +103,8 @@ pub struct CellReport {
     pub state: CellMotion,
     /// Cells of its cluster.
     pub cluster_cells: u32,
+    /// Its cluster's index this frame (cells of one cluster share it).
+    pub cluster: u32,
     /// Past frames its cluster's registration used this frame (0: not registered).
     pub frames: u32,
     /// Its track's speed, m/s, and √(σx² + σy²), m/s.
@@ -224,7 +226,7 @@ impl MotionStage {
             residual: params.fusion.residual,
             unknown_threshold: params.decision.unknown_threshold,
             edge_not_moving: params.map.beta_building as f32,
-            history: OccupancyHistory::new(len),
+            history: OccupancyHistory::new(len).with_thinning(params.motion.history_thinned),
             clusters: Clusters::new(len),
             registrars: Vec::new(),
             registrations: Vec::new(),
@@ -420,7 +422,8 @@ impl MotionStage {
         // The history bits of the frames kept, for the seen-free test below.
         let recent = (1..=self.params.history_frames)
             .filter_map(|k| self.history.frame_back(k))
-            .fold(0u8, |bits, (bit, _)| bits | bit);
+            .fold(0u8, |bits, (bit, _)| bits | bit)
+            & self.history.recent_bits();
         let object_layer = self.params.object_layer;
         if object_layer {
             self.objects.group(&self.clusters);
@@ -533,6 +536,7 @@ impl MotionStage {
                     idx: c.idx,
                     state: cell_state,
                     cluster_cells: labelled_cells,
+                    cluster: k as u32,
                     frames: self.cluster_frames.get(k).copied().unwrap_or(0),
                     speed_mps: vx.hypot(vy),
                     sigma_mps,

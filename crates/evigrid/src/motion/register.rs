@@ -158,9 +158,7 @@ impl Registrar {
             std::f64::consts::SQRT_2 * now.pose_sigma_cells.hypot(range_cells * now.pose_sigma_rad);
         let pose_gate_sq = (params.pose_gate_sigmas * pose_shift_sigma).powi(2);
         let needed = (params.match_fraction * f64::from(counted)).max(1.0);
-        let margin = (params.shift_margin_fraction * f64::from(counted))
-            .ceil()
-            .max(1.0) as u32;
+        let margin = margin_cells(counted, params);
         let cell_size_m = window.cell_size_m();
         let (mut sum_dt_x, mut sum_dt_y, mut sum_tt, mut frames) = (0.0, 0.0, 0.0, 0);
         let mut sum_t = 0.0;
@@ -389,6 +387,19 @@ impl Registrar {
             }
         }
         counted
+    }
+}
+
+/// The cells a non-zero shift must explain more than zero, and on which its move must be seen,
+/// for a cluster of which `counted` cells are counted: `shift_margin_fraction` of them, at
+/// least one, and at most `shift_margin_max_cells` when that is not 0.
+fn margin_cells(counted: u32, params: &MotionParams) -> u32 {
+    let margin = (params.shift_margin_fraction * f64::from(counted))
+        .ceil()
+        .max(1.0) as u32;
+    match params.shift_margin_max_cells {
+        0 => margin,
+        cap => margin.min(u32::try_from(cap).unwrap_or(u32::MAX)),
     }
 }
 
