@@ -819,10 +819,6 @@ pub struct MotionParams {
     /// (a crawling car sliding along its own length beats zero only by the cells at its ends;
     /// 0.25 before, `docs/motion.md`, "A car's corner, and the margin of a crawl").
     pub shift_margin_fraction: f64,
-    /// The most cells the margin of `shift_margin_fraction` asks of a large cluster (a long
-    /// side crawling along itself gains only the cells at its ends over zero, however long it
-    /// is; `docs/motion.md`, "The margin of a long slide"); 0: no cap. By default 0.
-    pub shift_margin_max_cells: usize,
     /// Below this speed, m/s, a track counts as not moving. By default 0.5.
     pub min_speed_mps: f64,
     /// Standard deviation of a track's acceleration, m/s² (the filter's process noise). By
@@ -1023,7 +1019,6 @@ impl Default for MotionParams {
             max_speed_mps: 25.0,
             match_fraction: 0.5,
             shift_margin_fraction: 0.15,
-            shift_margin_max_cells: 0,
             min_speed_mps: 0.5,
             accel_sigma_mps2: 3.0,
             shift_sigma_cells: 0.5,

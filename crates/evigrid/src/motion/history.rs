@@ -40,7 +40,7 @@ pub(crate) struct OccupancyHistory {
 /// step before: each push drops at most one frame. At 10 Hz they reach 1.3-1.6 s back instead
 /// of 0.8 s: a car crawling at 1.5 m/s moves 4-5 cells of 0.5 m, not 2.4.
 pub(crate) fn keeps_thinned(age: u64, frame: u64) -> bool {
-    age <= 4 || (age <= 8 && frame % 2 == 0) || (age <= 16 && frame % 4 == 0)
+    age <= 4 || (age <= 8 && frame.is_multiple_of(2)) || (age <= 16 && frame.is_multiple_of(4))
 }
 
 impl OccupancyHistory {
@@ -226,5 +226,51 @@ mod tests {
         assert_eq!(h.free_bits(3), 0);
         h.reset_range(3..4);
         assert_eq!(h.bits(3), 0);
+    }
+
+    #[test]
+    fn a_thinned_history_keeps_eight_frames_reaching_sixteen_back() {
+        let mut h = OccupancyHistory::new(20).with_thinning(true);
+        // Frame k, at 0.1·k s, occupies cell k and sees cell 19 free.
+        for k in 0..20u32 {
+            h.push(&[k], &[19], 0.1 * f64::from(k));
+            // Eight frames at most (the odd ones are dropped five frames back from the
+            // start), and eight once frames reach sixteen back.
+            assert!(h.kept <= SLOTS, "after frame {k}");
+            if k >= 15 {
+                assert_eq!(h.kept, SLOTS, "after frame {k}");
+            }
+        }
+        // Before frame 20: ages 1-4 (frames 19-16), the even ones of ages 5-8 (14, 12) and
+        // every fourth of ages 9-16 (8, 4).
+        let kept: Vec<usize> = (1..=SLOTS)
+            .filter_map(|k| h.frame_back(k))
+            .map(|(bit, _)| (0..20).find(|&c| h.bits(c) & bit != 0).unwrap_or(99))
+            .collect();
+        assert_eq!(kept, vec![19, 18, 17, 16, 14, 12, 8, 4]);
+        let times: Vec<f64> = (1..=SLOTS)
+            .filter_map(|k| h.frame_back(k))
+            .map(|(_, t)| (t * 10.0).round() / 10.0)
+            .collect();
+        assert_eq!(times, vec![1.9, 1.8, 1.7, 1.6, 1.4, 1.2, 0.8, 0.4]);
+        assert_eq!(h.frame_back(9), None);
+        // The frames dropped were cleared from their cells; the free plane holds the eight.
+        for dropped in [0, 1, 2, 3, 5, 6, 7, 9, 10, 11, 13, 15] {
+            assert_eq!(h.bits(dropped), 0, "frame {dropped}");
+        }
+        assert_eq!(h.free_bits(19).count_ones(), 8);
+        // Only the frames at most eight back tell what entered space seen free.
+        let recent = h.recent_bits();
+        assert_eq!(recent.count_ones(), 6);
+        assert_eq!(recent & h.bits(8), 0);
+        assert_eq!(recent & h.bits(12), h.bits(12));
+        // The rule itself: a frame kept at one step was kept at every step before.
+        for frame in 0..40u64 {
+            for age in 2..=20u64 {
+                if keeps_thinned(age, frame) {
+                    assert!(keeps_thinned(age - 1, frame), "frame {frame} age {age}");
+                }
+            }
+        }
     }
 }

@@ -158,7 +158,9 @@ impl Registrar {
             std::f64::consts::SQRT_2 * now.pose_sigma_cells.hypot(range_cells * now.pose_sigma_rad);
         let pose_gate_sq = (params.pose_gate_sigmas * pose_shift_sigma).powi(2);
         let needed = (params.match_fraction * f64::from(counted)).max(1.0);
-        let margin = margin_cells(counted, params);
+        let margin = (params.shift_margin_fraction * f64::from(counted))
+            .ceil()
+            .max(1.0) as u32;
         let cell_size_m = window.cell_size_m();
         let (mut sum_dt_x, mut sum_dt_y, mut sum_tt, mut frames) = (0.0, 0.0, 0.0, 0);
         let mut sum_t = 0.0;
@@ -387,19 +389,6 @@ impl Registrar {
             }
         }
         counted
-    }
-}
-
-/// The cells a non-zero shift must explain more than zero, and on which its move must be seen,
-/// for a cluster of which `counted` cells are counted: `shift_margin_fraction` of them, at
-/// least one, and at most `shift_margin_max_cells` when that is not 0.
-fn margin_cells(counted: u32, params: &MotionParams) -> u32 {
-    let margin = (params.shift_margin_fraction * f64::from(counted))
-        .ceil()
-        .max(1.0) as u32;
-    match params.shift_margin_max_cells {
-        0 => margin,
-        cap => margin.min(u32::try_from(cap).unwrap_or(u32::MAX)),
     }
 }
 
@@ -1082,5 +1071,54 @@ mod tests {
         };
         let found = Registrar::default().register(&pole, &window, &history, now, &params);
         assert!(found.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 8));
+    }
+
+    #[test]
+    fn a_slow_side_shows_its_move_only_to_a_thinned_history() {
+        // A 10-cell side on row 10 creeping east one cell a second (0.5 m/s at 0.5 m cells):
+        // its first column in frame k (0.1·k s) is 10 + ⌊k / 10⌋, the road ahead seen free.
+        // Registered at frame 20 (2.0 s, columns 12-21).
+        let window = window();
+        let row = |first: i64| (first..first + 10).map(|c| (c, 10)).collect::<Vec<_>>();
+        let register = |thinned: bool| {
+            let mut history = OccupancyHistory::new(window.len()).with_thinning(thinned);
+            for k in 0..20 {
+                let first = 10 + k / 10;
+                let ahead: Vec<_> = (first + 10..40).map(|c| (c, 10)).collect();
+                history.push(
+                    &indices(&window, &row(first)),
+                    &indices(&window, &ahead),
+                    0.1 * k as f64,
+                );
+            }
+            let none = Clusters::new(window.len());
+            Registrar::default().register(
+                &cells(&window, &row(12)),
+                &window,
+                &history,
+                alone(2.0, &none),
+                &MotionParams::default(),
+            )
+        };
+        // The last eight frames (1.2-1.9 s) all hold columns 11-20: one cell explains 10 cells
+        // against zero's 9, not the margin of ⌈0.15 · 10⌉ = 2 more: static, on all eight.
+        let eight = register(false);
+        assert!(
+            eight.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 8),
+            "{eight:?}"
+        );
+        // Thinned, the frames kept are 1.9, 1.8, 1.7, 1.6, 1.4, 1.2, 0.8 and 0.4 s. The six
+        // newest read zero the same way (one cell more than zero each time: they could not
+        // tell); 1.2 s back (columns 10-19) two cells explain 10 against 8, and the cells
+        // entered (20, 21) were seen free then: clear. The shift predicts at most 2 · 0.8 / 1.2
+        // = 1.33 cells for the newer frames, no stop evidence (1.5), so they give way: two
+        // cells in 1.2 s.
+        let thinned = register(true);
+        assert!(
+            thinned.is_some_and(|r| r.frames == 1
+                && (r.velocity_cells_per_s.0 - 2.0 / 1.2).abs() < 1e-9
+                && r.velocity_cells_per_s.1 == 0.0),
+            "{thinned:?}"
+        );
     }
 }
