@@ -19,6 +19,10 @@
 //! With `DIAGNOSE_DETAIL` set, the truth-M cells that the object layer labelled outside a
 //! track's rectangle (`OutsideObject`) in one of the previous [`OUTSIDE_FRAMES`] frames are
 //! also counted as hits or misses "after outside": what the outside label costs later frames.
+//! With `DIAGNOSE_DETAIL`, a miss's cluster is described by its size and the share of its cells
+//! that are truth M (`M75%`: 75-99 %). With `DIAGNOSE_STARTED` set, each miss says how many
+//! frames back, within [`STARTED_FRAMES`], its cell was last truth S (a road user that has just
+//! started), or "not S lately".
 
 mod common;
 
@@ -27,6 +31,9 @@ use std::collections::BTreeMap;
 use eval::{Variant, evaluate_observed};
 use evigrid::Label;
 use evigrid::motion::CellMotion;
+
+/// Frames back in which a missed cell's truth S counts as a start (`DIAGNOSE_STARTED`).
+const STARTED_FRAMES: usize = 10;
 
 /// Frames back in which an `OutsideObject` label counts for the "after outside" tally.
 const OUTSIDE_FRAMES: usize = 3;
@@ -44,6 +51,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The storage indices labelled `OutsideObject`, one set per frame, newest last.
     let mut outside_before: std::collections::VecDeque<std::collections::HashSet<u32>> =
         std::collections::VecDeque::new();
+    let started = std::env::var_os("DIAGNOSE_STARTED").is_some();
+    // The truth of the last `STARTED_FRAMES` frames of the seed, newest last
+    // (`DIAGNOSE_STARTED`).
+    let mut truths: std::collections::VecDeque<Vec<Label>> = std::collections::VecDeque::new();
     evaluate_observed(
         &map,
         &scenario,
@@ -52,6 +63,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &config,
         &mut |_| {},
         &mut |f| {
+            if f.frame == 0 {
+                truths.clear();
+            }
             let window = f.front_end.window();
             let sensor = f.front_end.sensor_grid();
             let decisions = f.fusion.decisions();
@@ -110,6 +124,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 };
                 let truth = f.truth[idx];
                 let decided = decisions[idx];
+                // Frames back the cell was last truth S (a stopped road user), within
+                // `STARTED_FRAMES` (`DIAGNOSE_STARTED`): a car that has just started.
+                let was_stopped = truths
+                    .iter()
+                    .rev()
+                    .position(|t| t.get(idx) == Some(&Label::S));
                 let false_moving = decided == Label::M
                     && matches!(truth, Label::F | Label::I | Label::U | Label::S);
                 let missed = truth == Label::M && decided != Label::M;
@@ -167,7 +187,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     )
                 } else {
                     format!(
-                        "missed M decided {:?} | {seen} | {} | {}",
+                        "missed M decided {:?} | {seen} | {} | {}{}",
                         decided,
                         if has_velocity {
                             "velocity"
@@ -191,7 +211,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                                 )
                             } else {
                                 format!("{:?}", s.state)
-                            })
+                            }),
+                        match (started, was_stopped) {
+                            (false, _) => String::new(),
+                            (true, None) => " | not S lately".to_owned(),
+                            (true, Some(k)) => format!(" | S {} frames back", k + 1),
+                        }
                     )
                 };
                 let key = if geometry {
@@ -217,6 +242,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     key
                 };
                 *counts.entry(key).or_default() += 1;
+            }
+            if started {
+                truths.push_back(f.truth.to_vec());
+                if truths.len() > STARTED_FRAMES {
+                    truths.pop_front();
+                }
             }
         },
     )?;
