@@ -511,6 +511,15 @@ impl MotionStage {
             } else {
                 MotionMass::Vacuous
             };
+            // A return's cell of a static cluster seen free and never holding a return in the
+            // frames kept: an object that entered space seen empty beside the static one
+            // (`static_part_entered`).
+            let static_part_entered = self.params.static_part_entered && recent != 0;
+            let history = &self.history;
+            let entered_cell = |c: &clusters::Cell| {
+                let idx = c.idx as usize;
+                history.free_bits(idx) & recent != 0 && history.bits(idx) & recent == 0
+            };
             let of_cell = |c: &clusters::Cell, moved: bool| -> Option<(MotionMass, CellMotion)> {
                 if !labels(c) {
                     return None;
@@ -519,6 +528,14 @@ impl MotionStage {
                 Some(match (mass, within) {
                     (MotionMass::Moving(_), _) if !moved => {
                         (MotionMass::Vacuous, CellMotion::StaticPart)
+                    }
+                    (MotionMass::Static(_) | MotionMass::Stopped(_), _)
+                        if static_part_entered && registers(c) && entered_cell(c) =>
+                    {
+                        (
+                            MotionMass::Moving(self.params.mu_moving as f32),
+                            CellMotion::EnteredSeenFree,
+                        )
                     }
                     (MotionMass::Moving(_), Some(false)) => (outside, CellMotion::OutsideObject),
                     _ => (mass, state),
@@ -1046,6 +1063,79 @@ mod tests {
                 vec![CellMotion::Moving]
             ]
         );
+    fn a_cell_that_joins_a_wall_from_space_seen_free_is_moving_with_static_part_entered() {
+        // A wall on row 20, columns 5-14, in ten frames 0.1 s apart; rows 18-22 from column 2
+        // to 29 seen free around it. In the last frame a walker stands at (15, 20), beside
+        // the wall's end: one cluster of 11 cells, read at zero (zero and one cell east both
+        // explain 10; ties go to zero), a static track after nine zero registrations.
+        let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
+        let (w, h) = (window.width(), window.height());
+        let at = |col: i64, row: i64| window.storage_index(col, row).unwrap_or(0);
+        let run = |static_part_entered: bool, held_before: Option<i64>| {
+            let mut params = crate::Params::default();
+            params.motion.static_part_entered = static_part_entered;
+            let mut stage = MotionStage::new(&params, w, h);
+            let mut perception = PerceptionGrid::new(w, h);
+            let mut decisions = vec![Label::Unknown; w * h];
+            for t in 0..10 {
+                let mut grid = SensorGrid::new(w, h);
+                for row in 18..=22 {
+                    for col in 2..30 {
+                        let wall = row == 20 && (5..15).contains(&col);
+                        let walker = (col, row) == (15, 20) && (t == 9 || held_before == Some(t));
+                        if wall || walker {
+                            grid.set_occupied(at(col, row), 0.8);
+                        } else {
+                            grid.set_free(at(col, row), 0.7);
+                        }
+                    }
+                }
+                stage.update(
+                    &window,
+                    &grid,
+                    0.1 * t as f64,
+                    0.1,
+                    &mut perception,
+                    &mut decisions,
+                );
+            }
+            stage
+        };
+        let state_of = |stage: &MotionStage, col: i64| {
+            stage
+                .cell_states()
+                .iter()
+                .find(|r| r.idx as usize == at(col, 20))
+                .map(|r| r.state)
+        };
+        // Off (the rule before): the whole cluster is static, the walker too.
+        let off = run(false, None);
+        assert_eq!(off.cell_states().len(), 11);
+        assert!(
+            off.cell_states()
+                .iter()
+                .all(|r| r.state == CellMotion::Static),
+            "{:?}",
+            off.cell_states()
+        );
+        // On (the default): the walker's cell, seen free in the frames kept and never
+        // holding a return, takes m({M}) = mu_moving; the wall stays static.
+        let on = run(true, None);
+        assert_eq!(state_of(&on, 15), Some(CellMotion::EnteredSeenFree));
+        assert_eq!(on.velocity_east()[at(15, 20)], 0.0);
+        for col in 5..15 {
+            assert_eq!(state_of(&on, col), Some(CellMotion::Static), "column {col}");
+        }
+        let entered = on.cell_states().iter();
+        assert_eq!(
+            entered
+                .filter(|r| r.state == CellMotion::EnteredSeenFree)
+                .count(),
+            1
+        );
+        // A cell that held a return 0.4 s ago (frame 5) is no newcomer: static.
+        let flicker = run(true, Some(5));
+        assert_eq!(state_of(&flicker, 15), Some(CellMotion::Static));
     }
 
     #[test]
