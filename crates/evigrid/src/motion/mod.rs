@@ -1063,6 +1063,9 @@ mod tests {
                 vec![CellMotion::Moving]
             ]
         );
+    }
+
+    #[test]
     fn a_cell_that_joins_a_wall_from_space_seen_free_is_moving_with_static_part_entered() {
         // A wall on row 20, columns 5-14, in ten frames 0.1 s apart; rows 18-22 from column 2
         // to 29 seen free around it. In the last frame a walker stands at (15, 20), beside
