@@ -8,7 +8,9 @@
 //! CONFIG), and prints the root mean square position and heading errors against the true
 //! sensor pose, and of their change from one scan to the next (what makes a static object jump
 //! a cell), with the refinement outcomes. SEEDS as in `diagnose_moving` (default: the
-//! scenario's seed and the next).
+//! scenario's seed and the next). With `POSE_ERROR_FRAMES` set, each frame is printed too: its
+//! seed, time, true sensor pose (x, y, heading), the refinement's outcome, the error of the pose
+//! used and the scan's point count.
 
 mod common;
 
@@ -79,6 +81,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     steps += 1;
                 }
                 last_error = Some((dx, dy, turn));
+                if std::env::var_os("POSE_ERROR_FRAMES").is_some() {
+                    println!(
+                        "frame seed {seed} t {:.1} true ({:.2}, {:.2}, {:.1}°) {:?} error {:.3} m \
+                         {:.3}° points {}",
+                        scan.time_s,
+                        truth.position_m.x,
+                        truth.position_m.y,
+                        truth.heading_rad.to_degrees(),
+                        stats.pose_refinement.outcome,
+                        dx.hypot(dy),
+                        turn.to_degrees(),
+                        stats.sensor.points
+                    );
+                }
                 if recent.len() == 8
                     && let Some(&(then_s, ox, oy)) = recent.front()
                     && scan.time_s > then_s

@@ -68,9 +68,15 @@ fn error_scenarios_differ_from_their_base_only_by_their_error() {
 #[test]
 fn every_family_scenario_is_valid_draws_its_route_and_carries_its_family() {
     let names = toml_names("families");
-    assert_eq!(names.len(), 18, "{names:?}");
+    // Six families, one drive per set, and six more tuning drives of `pose-offset`.
+    assert_eq!(names.len(), 24, "{names:?}");
+    let mut seeds = std::collections::BTreeMap::new();
     for name in &names {
         let s = read(name);
+        // A drive of one set never reuses another's seed (its route and traffic).
+        if let Some(other) = seeds.insert(s.seed, name) {
+            panic!("{name} and {other} share seed {}", s.seed);
+        }
         assert!(s.frame_count() > 0, "{name}");
         assert!(s.ego.waypoints.is_empty(), "{name}");
         let file = name.trim_start_matches("families/");
