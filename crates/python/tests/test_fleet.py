@@ -436,3 +436,33 @@ def test_a_two_node_cluster_runs_tasks_on_both_nodes(local_ray, drives, singles,
         assert not ray.is_initialized()
     finally:
         cluster.shutdown()
+
+
+def test_a_drive_finished_when_ctrl_c_comes_is_collected_and_never_cancelled():
+    """Ray 2.60 aborts the driver when a cancel races with a finishing task's reply, so the
+    fleet collects what has finished before it cancels (a fake Ray: no timing involved)."""
+    from evigrid.fleet import _collect_ready
+    from evigrid.fleet._drives import DriveSpec
+
+    class FakeRay:
+        def __init__(self, finished):
+            self.finished, self.cancelled = set(finished), []
+
+        def wait(self, refs, num_returns, timeout):
+            ready = [ref for ref in refs if ref in self.finished]
+            return ready, [ref for ref in refs if ref not in self.finished]
+
+        def get(self, ref):
+            return {"summary": {"frames": 10}, "attempt": 1}
+
+        def cancel(self, ref, force):
+            self.cancelled.append(ref)
+
+    fake = FakeRay(finished={"b"})
+    specs = [DriveSpec(given=n, path=n, options={}) for n in ("a", "b")]
+    pending = {"a": 0, "b": 1}
+    rows = [None, None]
+    _collect_ready(fake, pending, specs, ["a", "b"], rows, "/nowhere", 0, timeout_s=0.0)
+    assert pending == {"a": 0}
+    assert rows[0] is None and rows[1]["status"] == "ok" and rows[1]["frames"] == 10
+    assert fake.cancelled == []

@@ -213,28 +213,49 @@ def _run_on_ray(
                 say(_progress_line(done_count, len(specs), rows[i]))
         return False, True
     except KeyboardInterrupt:
+        # Ray 2.60's owner aborts the driver when a cancel races with the reply of a task that
+        # is finishing ("Tried to complete task that was not pending", task_manager.cc), also
+        # without `force`. So the drives that have finished are collected first and only the
+        # others cancelled, which leaves that race a window of microseconds instead of the
+        # whole wait. A plain cancel interrupts the task, which `evigrid.run` notices between
+        # frames.
+        _collect_ready(ray, pending, specs, names, rows, fleet_dir, retries, timeout_s=0.0)
         say(f"evigrid fleet: interrupted; cancelling {len(pending)} drives")
-        # Not `force=True`: killing a worker whose task is finishing at that moment makes Ray
-        # 2.60's owner abort the driver ("Tried to complete task that was not pending"). A plain
-        # cancel interrupts the task, which `evigrid.run` notices between frames.
         for ref in pending:
             ray.cancel(ref, force=False)
         deadline = time.monotonic() + _CANCEL_WAIT_S
         while pending and time.monotonic() < deadline:
-            ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=0.5)
-            for ref in ready:
-                i = pending.pop(ref)
-                row = _collect(ray, ref, specs[i], names[i], fleet_dir, retries)
-                # A drive that finished before the cancel keeps its result.
-                rows[i] = (
-                    row
-                    if row["status"] == "ok"
-                    else failed_row(specs[i].given, names[i], "interrupted", "cancelled by Ctrl-C")
-                )
+            _collect_ready(ray, pending, specs, names, rows, fleet_dir, retries, timeout_s=0.5)
         return True, not pending
     finally:
         if started_ray:
             ray.shutdown()
+
+
+def _collect_ready(
+    ray: Any,
+    pending: Dict[Any, int],
+    specs: List[DriveSpec],
+    names: List[str],
+    rows: List[Optional[Dict[str, Any]]],
+    fleet_dir: str,
+    retries: int,
+    *,
+    timeout_s: float,
+) -> None:
+    """After Ctrl-C: fills the rows of the pending drives that have ended within ``timeout_s``.
+    A drive that finished keeps its result; any other is interrupted."""
+    if not pending:
+        return
+    ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=timeout_s)
+    for ref in ready:
+        i = pending.pop(ref)
+        row = _collect(ray, ref, specs[i], names[i], fleet_dir, retries)
+        rows[i] = (
+            row
+            if row["status"] == "ok"
+            else failed_row(specs[i].given, names[i], "interrupted", "cancelled by Ctrl-C")
+        )
 
 
 def _collect(
