@@ -2,12 +2,14 @@
 //! unmapped street furniture, each with a footprint and a class at every instant.
 //!
 //! Motion is kinematic and deliberately simple: a car follows its lane (a route offset to the
-//! right of the road's middle) at its cruise speed, brakes to stop at junctions it decided to stop
-//! at, and keeps a gap behind whatever is ahead in its lane, which makes queues form. All actors
+//! right of the road's middle, its corners rounded by arcs of radius at least
+//! [`MIN_TURN_RADIUS_M`], so its heading turns continuously) at its cruise speed, slows for
+//! corners ([`CORNER_LATERAL_MPS2`]), brakes to stop at junctions it decided to stop at, and
+//! keeps a gap behind whatever is ahead in its lane, which makes queues form. All actors
 //! are updated from a snapshot of the previous instant, in id order, so the result depends only
 //! on the seed.
 
-use crate::geometry::{Footprint, Polyline, Pose2, Vec2, wrap_angle};
+use crate::geometry::{Footprint, Polyline, Pose2, RoundedPath, Vec2, wrap_angle};
 use crate::roadnet::{RoadNetwork, Route};
 use crate::scenario::TrafficConfig;
 use rand::Rng;
@@ -69,11 +71,23 @@ const MAX_BRAKE_MPS2: f64 = 8.0;
 const STANDSTILL_GAP_M: f64 = 2.5;
 /// Stop line distance before a junction centre, metres.
 const STOP_LINE_BEFORE_JUNCTION_M: f64 = 9.0;
+/// Tightest turn a car drives, metres: the radius of the arcs that round its lane's sharpest
+/// corners (a compact car's kerb-to-kerb turning circle is about 10 m across). A car's heading
+/// turns at most `v / MIN_TURN_RADIUS_M` radians a second.
+pub const MIN_TURN_RADIUS_M: f64 = 5.0;
+/// How far inside a lane's corner its arc passes, metres, where the segments leave room and the
+/// radius stays above [`MIN_TURN_RADIUS_M`]: gentle bends get wide arcs, street corners the
+/// tightest turn.
+pub const CORNER_APEX_M: f64 = 1.0;
+/// Lateral acceleration a car accepts in a corner, m/s²: it slows to `√(a·R)` for an arc of
+/// radius R (3.9 m/s on the tightest turn), braking for it at [`BRAKE_MPS2`] beforehand.
+pub const CORNER_LATERAL_MPS2: f64 = 3.0;
 
 /// A car following a lane.
 #[derive(Clone, Debug)]
 pub struct Driving {
-    lane: Polyline,
+    /// The lane with its corners rounded (see [`MIN_TURN_RADIUS_M`]).
+    lane: RoundedPath,
     junctions_m: Vec<f64>,
     s_m: f64,
     cruise_mps: f64,
@@ -143,7 +157,11 @@ fn lane_offset_m(half_width_m: f64) -> f64 {
 impl Actor {
     /// A car on `route`, driving on the right, starting `start_m` along it.
     pub fn driving_car(id: u32, route: &Route, start_m: f64, cruise_mps: f64, stops: bool) -> Self {
-        let lane = route.path.offset(-lane_offset_m(route.half_width_m));
+        let lane = RoundedPath::new(
+            &route.path.offset(-lane_offset_m(route.half_width_m)),
+            MIN_TURN_RADIUS_M,
+            CORNER_APEX_M,
+        );
         let ratio = if route.path.length_m() > 0.0 {
             lane.length_m() / route.path.length_m()
         } else {
@@ -382,6 +400,7 @@ impl Driving {
                 v_target = 0.0;
             }
         }
+        v_target = v_target.min(self.corner_speed_mps());
         let free = (gap_m - STANDSTILL_GAP_M).max(0.0);
         v_target = v_target.min((2.0 * BRAKE_MPS2 * free).sqrt());
         let mut v = if v_target >= v {
@@ -394,6 +413,22 @@ impl Driving {
             v = v.min(((gap_m - 0.5).max(0.0)) / dt_s);
         }
         v
+    }
+
+    /// The fastest speed at which the car can still slow, braking at [`BRAKE_MPS2`], to
+    /// `√(CORNER_LATERAL_MPS2 · R)` by every arc of radius R ahead within its braking reach
+    /// from cruise speed; inside an arc, that arc's speed.
+    fn corner_speed_mps(&self) -> f64 {
+        let reach_m = self.cruise_mps * self.cruise_mps / (2.0 * BRAKE_MPS2) + 5.0;
+        self.lane
+            .arcs()
+            .skip_while(|&(_, end, _)| end <= self.s_m)
+            .take_while(|&(start, _, _)| start - self.s_m < reach_m)
+            .map(|(start, _, radius_m)| {
+                let to_arc = (start - self.s_m).max(0.0);
+                (CORNER_LATERAL_MPS2 * radius_m + 2.0 * BRAKE_MPS2 * to_arc).sqrt()
+            })
+            .fold(f64::INFINITY, f64::min)
     }
 
     /// At the end of the lane, a car that stops at junctions (not the ego) takes a new route
@@ -722,5 +757,49 @@ mod tests {
             plain.clone().with_front_reach(1.0).clearance(),
             plain.clearance()
         );
+    }
+
+    #[test]
+    fn a_car_slows_for_a_corner_and_turns_it_continuously() {
+        use rand::SeedableRng;
+        // East 100 m, then a left turn north: the lane's corner is rounded by the tightest arc,
+        // R = 5 m, where a car accepts 3 m/s² sideways: √(3 · 5) = 3.87 m/s.
+        let route = Route {
+            path: Polyline::new(vec![
+                Vec2::new(0.0, 0.0),
+                Vec2::new(100.0, 0.0),
+                Vec2::new(100.0, 100.0),
+            ])
+            .unwrap(),
+            junctions_m: vec![],
+            half_width_m: 4.0,
+        };
+        let cfg = TrafficConfig::default();
+        let net = net();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let mut car = Actor::driving_car(0, &route, 0.0, 10.0, true);
+        let corner_mps = (CORNER_LATERAL_MPS2 * MIN_TURN_RADIUS_M).sqrt();
+        assert!((corner_mps - 3.873).abs() < 1e-3);
+        let (mut slowest, mut fastest_after): (f64, f64) = (f64::INFINITY, 0.0);
+        for _ in 0..250 {
+            let before = car.pose;
+            advance(&mut car, &[], 0.1, &cfg, &net, &mut rng);
+            let heading = car.pose.heading_rad.to_degrees();
+            // Its heading turns at most v·dt / R a frame.
+            let turn = wrap_angle(car.pose.heading_rad - before.heading_rad);
+            assert!(turn.abs() <= car.speed_mps * 0.1 / MIN_TURN_RADIUS_M + 1e-9);
+            if (20.0..=70.0).contains(&heading) {
+                assert!(car.speed_mps <= corner_mps + 1e-9, "{}", car.speed_mps);
+            }
+            // Before and in the corner; beyond it, up to the lane's end where it stops.
+            if heading <= 80.0 {
+                slowest = slowest.min(car.speed_mps);
+            } else {
+                fastest_after = fastest_after.max(car.speed_mps);
+            }
+        }
+        // It slowed for the corner, not to a stop, and is back at its cruise speed beyond it.
+        assert!((corner_mps - 0.5..=corner_mps + 1e-9).contains(&slowest), "{slowest}");
+        assert!((fastest_after - 10.0).abs() < 1e-9, "{fastest_after}");
     }
 }

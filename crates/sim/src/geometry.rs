@@ -472,6 +472,289 @@ impl Polyline {
     }
 }
 
+/// A path a car can drive: a polyline whose corners are rounded by circular arcs, so that the
+/// heading along it is continuous and turns at most `1 / min_radius_m` radians a metre.
+///
+/// Built once per lane ([`RoundedPath::new`]); [`RoundedPath::at`] then evaluates a line or an
+/// arc exactly, with no densification. Each corner of deflection θ gets the arc of radius
+/// `R = max(min_radius_m, apex_m / (sec(θ/2) − 1))`, the one passing `apex_m` inside the
+/// corner (gentle bends get wide arcs, street corners the tightest turn), reduced where the
+/// adjacent segments are too short to hold its tangent length `R·tan(θ/2)`, but never below
+/// `min_radius_m`: a corner whose minimum tangent does not fit beside its neighbour's is taken
+/// out of the polyline first (of the two, the one nearest the chord of its own neighbours).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RoundedPath {
+    pieces: Vec<Piece>,
+    /// Arc length at the start of each piece, metres.
+    start_m: Vec<f64>,
+    length_m: f64,
+}
+
+/// One piece of a [`RoundedPath`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Piece {
+    /// A straight stretch from `from` along the unit `direction`.
+    Line {
+        from: Vec2,
+        direction: Vec2,
+        length_m: f64,
+    },
+    /// An arc about `centre` starting at angle `start_rad` (of the start point seen from the
+    /// centre), turning left when `left`, `length_m` long.
+    Arc {
+        centre: Vec2,
+        radius_m: f64,
+        start_rad: f64,
+        left: bool,
+        length_m: f64,
+    },
+}
+
+impl Piece {
+    fn length_m(&self) -> f64 {
+        match *self {
+            Piece::Line { length_m, .. } | Piece::Arc { length_m, .. } => length_m,
+        }
+    }
+
+    /// Point and unit tangent `u_m` along the piece.
+    fn at(&self, u_m: f64) -> (Vec2, Vec2) {
+        match *self {
+            Piece::Line {
+                from, direction, ..
+            } => (from.plus(direction.scale(u_m)), direction),
+            Piece::Arc {
+                centre,
+                radius_m,
+                start_rad,
+                left,
+                ..
+            } => {
+                let sign = if left { 1.0 } else { -1.0 };
+                let radial = Vec2::from_angle(start_rad + sign * u_m / radius_m);
+                (
+                    centre.plus(radial.scale(radius_m)),
+                    radial.perp_left().scale(sign),
+                )
+            }
+        }
+    }
+}
+
+/// A corner of a polyline about to be rounded: its deflection and the tangent lengths.
+#[derive(Clone, Copy, Debug)]
+struct Corner {
+    /// Signed deflection, radians (positive turns left).
+    turn_rad: f64,
+    /// Tangent length of the tightest arc allowed, metres.
+    min_tangent_m: f64,
+    /// Tangent length of the preferred arc, metres.
+    preferred_tangent_m: f64,
+}
+
+impl Corner {
+    fn new(before: Vec2, at: Vec2, after: Vec2, min_radius_m: f64, apex_m: f64) -> Self {
+        let (a, b) = (at.minus(before), after.minus(at));
+        let turn_rad = a.cross(b).atan2(a.dot(b));
+        let half = turn_rad.abs() / 2.0;
+        // Beyond ~179.9° a corner is a reversal no arc rounds; it is kept as the path's turn.
+        if half < 1e-9 || half > std::f64::consts::FRAC_PI_2 - 1e-3 {
+            return Self {
+                turn_rad,
+                min_tangent_m: 0.0,
+                preferred_tangent_m: 0.0,
+            };
+        }
+        let preferred_radius_m = min_radius_m.max(apex_m / (1.0 / half.cos() - 1.0));
+        Self {
+            turn_rad,
+            min_tangent_m: min_radius_m * half.tan(),
+            preferred_tangent_m: preferred_radius_m * half.tan(),
+        }
+    }
+}
+
+impl RoundedPath {
+    /// Rounds the corners of `line` with arcs of radius at least `min_radius_m` that pass
+    /// `apex_m` inside the corner where the segments leave room (see [`RoundedPath`]). The ends
+    /// stay where they are.
+    pub fn new(line: &Polyline, min_radius_m: f64, apex_m: f64) -> Self {
+        let mut points = line.points().to_vec();
+        let corners = loop {
+            let corners: Vec<Corner> = points
+                .windows(3)
+                .map(|w| Corner::new(w[0], w[1], w[2], min_radius_m, apex_m))
+                .collect();
+            match Self::crowded_corner(&points, &corners) {
+                // Corner `k` is the polyline's vertex `k + 1`.
+                Some(k) => {
+                    points.remove(k + 1);
+                    // A path that went there and back now has the same point twice.
+                    points.dedup_by(|a, b| a.minus(*b).norm() <= 1e-9);
+                }
+                None => break corners,
+            }
+        };
+        Self::from_corners(&points, &corners)
+    }
+
+    /// The index of a corner to take out because its minimum tangent and its neighbour's do
+    /// not fit on the segment between them, if any.
+    fn crowded_corner(points: &[Vec2], corners: &[Corner]) -> Option<usize> {
+        let n = corners.len();
+        // Segment j runs from vertex j to j + 1; corner k sits at vertex k + 1.
+        for j in 0..points.len().saturating_sub(1) {
+            let length = points[j + 1].minus(points[j]).norm();
+            let before = j.checked_sub(1).filter(|&k| k < n);
+            let after = Some(j).filter(|&k| k < n);
+            let need: f64 = [before, after]
+                .iter()
+                .flatten()
+                .map(|&k| corners[k].min_tangent_m)
+                .sum();
+            if need <= length {
+                continue;
+            }
+            return match (before, after) {
+                (Some(a), Some(b)) => {
+                    // The one whose removal moves the path least.
+                    let off_chord = |k: usize| {
+                        let (p, q, r) = (points[k], points[k + 1], points[k + 2]);
+                        let chord = r.minus(p);
+                        let len = chord.norm();
+                        if len > 0.0 {
+                            (q.minus(p).cross(chord) / len).abs()
+                        } else {
+                            q.minus(p).norm()
+                        }
+                    };
+                    Some(if off_chord(a) <= off_chord(b) { a } else { b })
+                }
+                (Some(k), None) | (None, Some(k)) => Some(k),
+                (None, None) => None,
+            };
+        }
+        None
+    }
+
+    /// The lines and arcs through `points` with their `corners` rounded; every corner's
+    /// minimum tangent fits.
+    fn from_corners(points: &[Vec2], corners: &[Corner]) -> Self {
+        let n = corners.len();
+        let seg = |j: usize| points[j + 1].minus(points[j]).norm();
+        // What a corner may take of segment j: all of an end segment, else its minimum plus
+        // half of what the two minimums leave.
+        let share = |k: usize, j: usize| {
+            let other = if j == k { j.checked_sub(1) } else { Some(j) };
+            match other.filter(|&o| o < n) {
+                None => seg(j),
+                Some(o) => {
+                    let slack = seg(j) - corners[k].min_tangent_m - corners[o].min_tangent_m;
+                    corners[k].min_tangent_m + slack.max(0.0) / 2.0
+                }
+            }
+        };
+        let mut pieces = Vec::with_capacity(2 * n + 1);
+        let mut from = points[0];
+        for (k, corner) in corners.iter().enumerate() {
+            let vertex = points[k + 1];
+            let tangent_m = corner
+                .preferred_tangent_m
+                .min(share(k, k))
+                .min(share(k, k + 1))
+                .max(corner.min_tangent_m);
+            let half = corner.turn_rad.abs() / 2.0;
+            if tangent_m <= 0.0 || half.tan() <= 0.0 {
+                Self::push_line(&mut pieces, from, vertex);
+                from = vertex;
+                continue;
+            }
+            let d_in = vertex.minus(points[k]).scale(1.0 / seg(k));
+            let d_out = points[k + 2].minus(vertex).scale(1.0 / seg(k + 1));
+            let enter = vertex.minus(d_in.scale(tangent_m));
+            let radius_m = tangent_m / half.tan();
+            let left = corner.turn_rad > 0.0;
+            let side = if left { 1.0 } else { -1.0 };
+            let centre = enter.plus(d_in.perp_left().scale(side * radius_m));
+            let radial = enter.minus(centre);
+            Self::push_line(&mut pieces, from, enter);
+            pieces.push(Piece::Arc {
+                centre,
+                radius_m,
+                start_rad: radial.y.atan2(radial.x),
+                left,
+                length_m: radius_m * corner.turn_rad.abs(),
+            });
+            from = vertex.plus(d_out.scale(tangent_m));
+        }
+        Self::push_line(&mut pieces, from, points[points.len() - 1]);
+        if pieces.is_empty() {
+            // A path back to where it started: it stays there.
+            pieces.push(Piece::Line {
+                from,
+                direction: Vec2::new(1.0, 0.0),
+                length_m: 0.0,
+            });
+        }
+        let mut start_m = Vec::with_capacity(pieces.len());
+        let mut length_m = 0.0;
+        for piece in &pieces {
+            start_m.push(length_m);
+            length_m += piece.length_m();
+        }
+        Self {
+            pieces,
+            start_m,
+            length_m,
+        }
+    }
+
+    /// Appends the line `from`–`to` unless it has no length.
+    fn push_line(pieces: &mut Vec<Piece>, from: Vec2, to: Vec2) {
+        let d = to.minus(from);
+        let length_m = d.norm();
+        if length_m > 1e-9 {
+            pieces.push(Piece::Line {
+                from,
+                direction: d.scale(1.0 / length_m),
+                length_m,
+            });
+        }
+    }
+
+    /// Total length, metres.
+    pub fn length_m(&self) -> f64 {
+        self.length_m
+    }
+
+    /// Point and unit tangent at arc length `s_m` (clamped to the ends).
+    pub fn at(&self, s_m: f64) -> (Vec2, Vec2) {
+        let s = s_m.clamp(0.0, self.length_m);
+        let i = match self.start_m.binary_search_by(|c| c.total_cmp(&s)) {
+            Ok(i) => i,
+            Err(i) => i.saturating_sub(1),
+        };
+        match self.pieces.get(i) {
+            Some(piece) => piece.at((s - self.start_m[i]).min(piece.length_m())),
+            // Never: a path has at least one piece.
+            None => (Vec2::default(), Vec2::new(1.0, 0.0)),
+        }
+    }
+
+    /// The arcs as (start, end along the path, radius), metres, in order.
+    pub fn arcs(&self) -> impl Iterator<Item = (f64, f64, f64)> + '_ {
+        self.pieces
+            .iter()
+            .zip(&self.start_m)
+            .filter_map(|(piece, &start)| match *piece {
+                Piece::Arc {
+                    radius_m, length_m, ..
+                } => Some((start, start + length_m, radius_m)),
+                Piece::Line { .. } => None,
+            })
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
@@ -660,5 +943,131 @@ mod tests {
         assert_relative_eq!(t.y, 1.0);
         let left = pl.offset(1.0);
         assert_relative_eq!(left.points()[0].y, 1.0);
+    }
+
+    /// Walks `path` in steps of `step_m` and returns the largest heading change and the
+    /// largest move of a step.
+    fn largest_steps(path: &RoundedPath, step_m: f64) -> (f64, f64) {
+        let n = (path.length_m() / step_m).floor() as usize;
+        let (mut turn, mut moved): (f64, f64) = (0.0, 0.0);
+        for k in 0..n {
+            let (p, t) = path.at(k as f64 * step_m);
+            let (q, u) = path.at((k + 1) as f64 * step_m);
+            turn = turn.max(t.cross(u).atan2(t.dot(u)).abs());
+            moved = moved.max(q.minus(p).norm());
+        }
+        (turn, moved)
+    }
+
+    #[test]
+    fn a_right_angle_between_two_20_m_segments_is_a_5_m_arc() {
+        let line = Polyline::new(vec![
+            Vec2::new(0.0, 0.0),
+            Vec2::new(20.0, 0.0),
+            Vec2::new(20.0, 20.0),
+        ])
+        .unwrap();
+        let path = RoundedPath::new(&line, 5.0, 1.0);
+        // The arc passing 1 m inside a 90° corner would be R = 1 / (√2 − 1) = 2.41 m: below the
+        // minimum, so R = 5 m, tangent length 5·tan 45° = 5 m: from (15, 0) to (20, 5) about
+        // (15, 5), a quarter circle 7.854 m long between two 15 m lines.
+        assert_eq!(path.arcs().collect::<Vec<_>>().len(), 1);
+        let (start, end, radius) = path.arcs().next().unwrap();
+        assert_relative_eq!(radius, 5.0, epsilon = 1e-12);
+        assert_relative_eq!(start, 15.0, epsilon = 1e-12);
+        assert_relative_eq!(end, 15.0 + 2.5 * std::f64::consts::PI, epsilon = 1e-12);
+        assert_relative_eq!(path.length_m(), 30.0 + 2.5 * std::f64::consts::PI, epsilon = 1e-12);
+        // Halfway round: 5 m from the centre, at (15 + 5/√2, 5 − 5/√2), heading 45°, and
+        // 5·(√2 − 1) = 2.071 m inside the corner.
+        let (mid, tangent) = path.at((start + end) / 2.0);
+        let centre = Vec2::new(15.0, 5.0);
+        assert_relative_eq!(mid.minus(centre).norm(), 5.0, epsilon = 1e-12);
+        assert_relative_eq!(mid.x, 15.0 + 5.0 / 2f64.sqrt(), epsilon = 1e-12);
+        assert_relative_eq!(mid.y, 5.0 - 5.0 / 2f64.sqrt(), epsilon = 1e-12);
+        assert_relative_eq!(tangent.y.atan2(tangent.x), std::f64::consts::FRAC_PI_4);
+        assert_relative_eq!(
+            mid.minus(Vec2::new(20.0, 0.0)).norm(),
+            5.0 * (2f64.sqrt() - 1.0),
+            epsilon = 1e-12
+        );
+        // The lines stay where they were, and the ends with them.
+        let (p, t) = path.at(10.0);
+        assert_eq!((p, t), (Vec2::new(10.0, 0.0), Vec2::new(1.0, 0.0)));
+        let (p, t) = path.at(path.length_m());
+        assert_relative_eq!(p.x, 20.0, epsilon = 1e-12);
+        assert_relative_eq!(p.y, 20.0, epsilon = 1e-12);
+        assert_relative_eq!(t.y, 1.0, epsilon = 1e-12);
+        // At 8 m/s, 0.1 s a frame: a frame's step of 0.8 m turns the heading by at most
+        // v·dt / R = 0.16 rad (9.2°), and does so on the arc; the polyline turned 90° at once.
+        let (turn, moved) = largest_steps(&path, 0.8);
+        assert_relative_eq!(turn, 0.8 / 5.0, epsilon = 1e-9);
+        assert!(moved <= 0.8 + 1e-12, "{moved}");
+    }
+
+    #[test]
+    fn a_gentle_bend_gets_the_arc_passing_its_apex_distance_inside() {
+        // A 10° bend between two 100 m segments: R = 1 m / (sec 5° − 1) = 261.8 m, whose tangent
+        // length 22.9 m fits, and whose middle lies 1 m from the corner.
+        let bend = 10f64.to_radians();
+        let line = Polyline::new(vec![
+            Vec2::new(0.0, 0.0),
+            Vec2::new(100.0, 0.0),
+            Vec2::new(100.0, 0.0).plus(Vec2::from_angle(-bend).scale(100.0)),
+        ])
+        .unwrap();
+        let path = RoundedPath::new(&line, 5.0, 1.0);
+        let (start, end, radius) = path.arcs().next().unwrap();
+        let expected = 1.0 / (1.0 / (bend / 2.0).cos() - 1.0);
+        assert_relative_eq!(radius, expected, epsilon = 1e-9);
+        assert_relative_eq!(radius, 261.8, epsilon = 0.05);
+        assert_relative_eq!(start, 100.0 - radius * (bend / 2.0).tan(), epsilon = 1e-9);
+        let mid = path.at((start + end) / 2.0).0;
+        assert_relative_eq!(mid.minus(Vec2::new(100.0, 0.0)).norm(), 1.0, epsilon = 1e-9);
+        // Turning right: the arc's middle lies below the corner.
+        assert!(mid.y < 0.0);
+    }
+
+    #[test]
+    fn crowded_corners_are_merged_so_no_turn_is_tighter_than_the_minimum() {
+        let v = Vec2::new;
+        for points in [
+            // A 4 m jog: two 90° corners whose 5 m tangents cannot both fit on 4 m.
+            vec![v(0.0, 0.0), v(20.0, 0.0), v(20.0, 4.0), v(40.0, 4.0)],
+            // Three 45° corners 1 m apart, then a U-turn-like hairpin 30 m on.
+            vec![
+                v(0.0, 0.0),
+                v(20.0, 0.0),
+                v(20.7, 0.7),
+                v(20.7, 1.7),
+                v(50.0, 30.0),
+                v(40.0, 40.0),
+            ],
+            // A short first segment before a right angle.
+            vec![v(0.0, 0.0), v(2.0, 0.0), v(2.0, 30.0)],
+        ] {
+            let line = Polyline::new(points.clone()).unwrap();
+            let path = RoundedPath::new(&line, 5.0, 1.0);
+            assert!(path.arcs().all(|(_, _, r)| r >= 5.0 - 1e-9), "{points:?}");
+            // Every 1 cm the heading turns at most 1 cm / 5 m and the point moves 1 cm.
+            let (turn, moved) = largest_steps(&path, 0.01);
+            assert!(turn <= 0.01 / 5.0 + 1e-9, "{points:?}: {turn}");
+            assert!(moved <= 0.01 + 1e-9, "{points:?}: {moved}");
+            // The ends stay.
+            let last = *points.last().unwrap();
+            assert!(path.at(0.0).0.minus(points[0]).norm() < 1e-9);
+            assert!(path.at(path.length_m()).0.minus(last).norm() < 1e-9);
+        }
+        // The jog: the corner at (20, 0) goes (both lie 3.92 m off their chords), leaving one
+        // 11.3° bend at (20, 4).
+        let jog = Polyline::new(vec![v(0.0, 0.0), v(20.0, 0.0), v(20.0, 4.0), v(40.0, 4.0)])
+            .unwrap();
+        let arcs: Vec<_> = RoundedPath::new(&jog, 5.0, 1.0).arcs().collect();
+        assert_eq!(arcs.len(), 1);
+        let half = (4.0f64 / 20.0).atan() / 2.0;
+        // The arc 1 m inside it, R = 1 / (sec(θ/2) − 1) = 204.7 m, would need a tangent of
+        // 20.27 m; the last segment, an end segment, holds 20 m: R = 20 / tan(θ/2) = 202.0 m.
+        assert!(20.0 < half.tan() / (1.0 / half.cos() - 1.0));
+        assert_relative_eq!(arcs[0].2, 20.0 / half.tan(), epsilon = 1e-9);
+        assert_relative_eq!(arcs[0].2, 202.0, epsilon = 0.05);
     }
 }
