@@ -79,6 +79,11 @@ pub const MIN_TURN_RADIUS_M: f64 = 5.0;
 /// radius stays above [`MIN_TURN_RADIUS_M`]: gentle bends get wide arcs, street corners the
 /// tightest turn.
 pub const CORNER_APEX_M: f64 = 1.0;
+/// How far before the end of its lane a car takes its next route, metres: the new lane starts
+/// where the car is, so the corner at the old lane's end is rounded like any other.
+const ROUTE_JOIN_M: f64 = 10.0;
+/// How many routes a car at the end of its lane draws, for one that does not turn back.
+const NEXT_ROUTE_DRAWS: usize = 4;
 /// Lateral acceleration a car accepts in a corner, m/s²: it slows to `√(a·R)` for an arc of
 /// radius R (3.9 m/s on the tightest turn), braking for it at [`BRAKE_MPS2`] beforehand.
 pub const CORNER_LATERAL_MPS2: f64 = 3.0;
@@ -99,6 +104,8 @@ pub struct Driving {
     /// How far ahead of its centre the car reaches, metres: half its length, or for the ego
     /// the sensor on its front when that sits further out. Gaps ahead are kept from there.
     front_m: f64,
+    /// Whether the car has drawn its next route (once, [`ROUTE_JOIN_M`] before its lane's end).
+    next_route_drawn: bool,
 }
 
 /// A pedestrian walking back and forth along a pavement.
@@ -157,36 +164,16 @@ fn lane_offset_m(half_width_m: f64) -> f64 {
 impl Actor {
     /// A car on `route`, driving on the right, starting `start_m` along it.
     pub fn driving_car(id: u32, route: &Route, start_m: f64, cruise_mps: f64, stops: bool) -> Self {
-        let lane = RoundedPath::new(
-            &route.path.offset(-lane_offset_m(route.half_width_m)),
-            MIN_TURN_RADIUS_M,
-            CORNER_APEX_M,
-        );
-        let ratio = if route.path.length_m() > 0.0 {
-            lane.length_m() / route.path.length_m()
-        } else {
-            1.0
-        };
-        let junctions_m = route.junctions_m.iter().map(|s| s * ratio).collect();
-        let s_m = start_m.clamp(0.0, lane.length_m());
-        let (p, t) = lane.at(s_m);
+        let driving = Driving::on_route(route, &[], cruise_mps, stops);
+        let s_m = start_m.clamp(0.0, driving.lane.length_m());
+        let (p, t) = driving.lane.at(s_m);
         Self {
             id,
             kind: ActorKind::Car,
             footprint: ActorKind::Car.footprint(),
             pose: Pose2::new(p, t.y.atan2(t.x)),
             speed_mps: cruise_mps,
-            motion: Motion::Driving(Box::new(Driving {
-                lane,
-                junctions_m,
-                s_m,
-                cruise_mps,
-                next_junction: 0,
-                stop_at_m: None,
-                wait_left_s: 0.0,
-                stops,
-                front_m: CAR_HALF_LENGTH_M,
-            })),
+            motion: Motion::Driving(Box::new(Driving { s_m, ..driving })),
         }
     }
 
@@ -343,12 +330,16 @@ pub fn advance(
             } else {
                 d.next_speed(actor.speed_mps, gap, dt_s, cfg, rng)
             };
-            d.s_m += v * dt_s;
-            if d.s_m >= d.lane.length_m() && !d.take_next_route(actor.id, net, rng) {
+            if d.s_m + v * dt_s >= d.lane.length_m() {
                 // The ego keeps its route and stops at its end; so does a car with nowhere to
-                // go.
+                // go. Its speed is what it covered.
+                v = (d.lane.length_m() - d.s_m).max(0.0) / dt_s;
                 d.s_m = d.lane.length_m();
-                v = 0.0;
+            } else {
+                d.s_m += v * dt_s;
+            }
+            if d.s_m >= d.lane.length_m() - ROUTE_JOIN_M {
+                d.take_next_route(net, rng);
             }
             let (p, t) = d.lane.at(d.s_m);
             actor.pose = Pose2::new(p, t.y.atan2(t.x));
@@ -401,6 +392,11 @@ impl Driving {
             }
         }
         v_target = v_target.min(self.corner_speed_mps());
+        if !self.stops || self.next_route_drawn {
+            // It stops at the end of its lane: the ego at its route's, a car with nowhere to go.
+            let to_end = (self.lane.length_m() - self.s_m).max(0.0);
+            v_target = v_target.min((2.0 * BRAKE_MPS2 * to_end).sqrt());
+        }
         let free = (gap_m - STANDSTILL_GAP_M).max(0.0);
         v_target = v_target.min((2.0 * BRAKE_MPS2 * free).sqrt());
         let mut v = if v_target >= v {
@@ -431,20 +427,77 @@ impl Driving {
             .fold(f64::INFINITY, f64::min)
     }
 
-    /// At the end of the lane, a car that stops at junctions (not the ego) takes a new route
-    /// from `net` starting where it is, as car `id`; false when it does not (the ego, or no
-    /// route from there).
-    fn take_next_route(&mut self, id: u32, net: &RoadNetwork, rng: &mut impl Rng) -> bool {
-        let end = self.lane.at(self.lane.length_m()).0;
-        match net.random_route_from(end, 150.0, 600.0, rng) {
-            Some(route) if self.stops => {
-                let next = Actor::driving_car(id, &route, 0.0, self.cruise_mps, self.stops);
-                if let Motion::Driving(nd) = next.motion {
-                    *self = *nd;
-                }
-                true
+    /// A car at the start of its lane: `route` offset to the right, after the points `lead_in`
+    /// (where it is and where its last lane ended), its corners rounded.
+    fn on_route(route: &Route, lead_in: &[Vec2], cruise_mps: f64, stops: bool) -> Self {
+        let offset = route.path.offset(-lane_offset_m(route.half_width_m));
+        let mut points = lead_in.to_vec();
+        // The new lane from its first point ahead of where the last one ended.
+        let ahead_of_end = |q: &Vec2| match lead_in {
+            [.., a, b] => q.minus(*b).dot(b.minus(*a)) > 0.0,
+            _ => true,
+        };
+        points.extend(
+            offset
+                .points()
+                .iter()
+                .copied()
+                .skip_while(|q| !ahead_of_end(q)),
+        );
+        let lead_in_m: f64 = lead_in.windows(2).map(|w| w[1].minus(w[0]).norm()).sum();
+        let lane = match Polyline::new(points) {
+            Some(line) => RoundedPath::new(&line, MIN_TURN_RADIUS_M, CORNER_APEX_M),
+            None => RoundedPath::new(&offset, MIN_TURN_RADIUS_M, CORNER_APEX_M),
+        };
+        let ratio = if route.path.length_m() > 0.0 {
+            ((lane.length_m() - lead_in_m) / route.path.length_m()).max(0.0)
+        } else {
+            1.0
+        };
+        let junctions_m = route
+            .junctions_m
+            .iter()
+            .map(|s| lead_in_m + s * ratio)
+            .collect();
+        Self {
+            lane,
+            junctions_m,
+            s_m: 0.0,
+            cruise_mps,
+            next_junction: 0,
+            stop_at_m: None,
+            wait_left_s: 0.0,
+            stops,
+            front_m: CAR_HALF_LENGTH_M,
+            next_route_drawn: false,
+        }
+    }
+
+    /// Near the end of its lane, a car that stops at junctions (not the ego) draws a new route
+    /// from `net` starting where the lane ends, once, and takes the first of
+    /// [`NEXT_ROUTE_DRAWS`] that does not turn back: the new lane runs from where the car is
+    /// through the old lane's end, so the corner between them is rounded like any other. The
+    /// car keeps its lane (and stops at its end) when no route is taken.
+    fn take_next_route(&mut self, net: &RoadNetwork, rng: &mut impl Rng) {
+        if !self.stops || self.next_route_drawn {
+            return;
+        }
+        self.next_route_drawn = true;
+        let here = self.lane.at(self.s_m).0;
+        let (end, along) = self.lane.at(self.lane.length_m());
+        for _draw in 0..NEXT_ROUTE_DRAWS {
+            let Some(route) = net.random_route_from(end, 150.0, 600.0, rng) else {
+                return;
+            };
+            let next = Self::on_route(&route, &[here, end], self.cruise_mps, self.stops);
+            // Ahead: the new lane 20 m on lies in front of the old lane's end.
+            if next.lane.at(20.0).0.minus(end).dot(along) > 0.0 {
+                *self = Self {
+                    front_m: self.front_m,
+                    ..next
+                };
+                return;
             }
-            _ => false,
         }
     }
 }
@@ -799,7 +852,10 @@ mod tests {
             }
         }
         // It slowed for the corner, not to a stop, and is back at its cruise speed beyond it.
-        assert!((corner_mps - 0.5..=corner_mps + 1e-9).contains(&slowest), "{slowest}");
+        assert!(
+            (corner_mps - 0.5..=corner_mps + 1e-9).contains(&slowest),
+            "{slowest}"
+        );
         assert!((fastest_after - 10.0).abs() < 1e-9, "{fastest_after}");
     }
 }

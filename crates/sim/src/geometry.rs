@@ -557,12 +557,20 @@ impl Corner {
         let (a, b) = (at.minus(before), after.minus(at));
         let turn_rad = a.cross(b).atan2(a.dot(b));
         let half = turn_rad.abs() / 2.0;
-        // Beyond ~179.9° a corner is a reversal no arc rounds; it is kept as the path's turn.
-        if half < 1e-9 || half > std::f64::consts::FRAC_PI_2 - 1e-3 {
+        if half < 1e-9 {
             return Self {
                 turn_rad,
                 min_tangent_m: 0.0,
                 preferred_tangent_m: 0.0,
+            };
+        }
+        // Beyond ~179.9° a corner is a reversal no arc rounds: no segment holds it, so it is
+        // taken out of the path.
+        if half > std::f64::consts::FRAC_PI_2 - 1e-3 {
+            return Self {
+                turn_rad,
+                min_tangent_m: f64::INFINITY,
+                preferred_tangent_m: f64::INFINITY,
             };
         }
         let preferred_radius_m = min_radius_m.max(apex_m / (1.0 / half.cos() - 1.0));
@@ -976,7 +984,11 @@ mod tests {
         assert_relative_eq!(radius, 5.0, epsilon = 1e-12);
         assert_relative_eq!(start, 15.0, epsilon = 1e-12);
         assert_relative_eq!(end, 15.0 + 2.5 * std::f64::consts::PI, epsilon = 1e-12);
-        assert_relative_eq!(path.length_m(), 30.0 + 2.5 * std::f64::consts::PI, epsilon = 1e-12);
+        assert_relative_eq!(
+            path.length_m(),
+            30.0 + 2.5 * std::f64::consts::PI,
+            epsilon = 1e-12
+        );
         // Halfway round: 5 m from the centre, at (15 + 5/√2, 5 − 5/√2), heading 45°, and
         // 5·(√2 − 1) = 2.071 m inside the corner.
         let (mid, tangent) = path.at((start + end) / 2.0);
@@ -1044,6 +1056,8 @@ mod tests {
             ],
             // A short first segment before a right angle.
             vec![v(0.0, 0.0), v(2.0, 0.0), v(2.0, 30.0)],
+            // There and back: no arc rounds a reversal, so the far end goes.
+            vec![v(0.0, 0.0), v(20.0, 0.0), v(10.0, 0.0)],
         ] {
             let line = Polyline::new(points.clone()).unwrap();
             let path = RoundedPath::new(&line, 5.0, 1.0);
@@ -1059,8 +1073,8 @@ mod tests {
         }
         // The jog: the corner at (20, 0) goes (both lie 3.92 m off their chords), leaving one
         // 11.3° bend at (20, 4).
-        let jog = Polyline::new(vec![v(0.0, 0.0), v(20.0, 0.0), v(20.0, 4.0), v(40.0, 4.0)])
-            .unwrap();
+        let jog =
+            Polyline::new(vec![v(0.0, 0.0), v(20.0, 0.0), v(20.0, 4.0), v(40.0, 4.0)]).unwrap();
         let arcs: Vec<_> = RoundedPath::new(&jog, 5.0, 1.0).arcs().collect();
         assert_eq!(arcs.len(), 1);
         let half = (4.0f64 / 20.0).atan() / 2.0;
