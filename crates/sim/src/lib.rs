@@ -1,11 +1,13 @@
 //! sim: simulated drives with per-cell ground truth, to evaluate evigrid on.
 //!
 //! **What.** A planar world built from a real map (buildings and road surface from
-//! [`geodata::LocalMap`]), populated with cars that drive, stop at junctions and queue, parked
-//! cars, pedestrians who walk and stand, and unmapped street furniture; a simulated IBEO-like
-//! 4-layer or 360° multi-beam scanner with exact ray casting; and per-cell ground truth in the
-//! perception grid's classes {F, I, U, S, M} ([`Label`], the one label type of truth and
-//! predictions). Scoring methods against that truth is the `evigrid-eval` crate's business.
+//! [`geodata::LocalMap`]), populated with cars that drive their lanes (corners rounded by arcs
+//! of at least 5 m radius, slowing for them; `scenarios/README.md`), stop at junctions and
+//! queue, parked cars, pedestrians who walk and stand, and unmapped street furniture; a
+//! simulated IBEO-like 4-layer or 360° multi-beam scanner with exact ray casting; and per-cell
+//! ground truth in the perception grid's classes {F, I, U, S, M} ([`Label`], the one label
+//! type of truth and predictions). Scoring methods against that truth is the `evigrid-eval`
+//! crate's business.
 //!
 //! **Why.** The paper's method (Kurdej et al. 2013) needs a benchmark with per-cell truth of
 //! *moving* vs *stopped* vs *infrastructure*, which no public lidar data set gives together with
