@@ -79,6 +79,10 @@ pub const MIN_TURN_RADIUS_M: f64 = 5.0;
 /// radius stays above [`MIN_TURN_RADIUS_M`]: gentle bends get wide arcs, street corners the
 /// tightest turn.
 pub const CORNER_APEX_M: f64 = 1.0;
+/// How far a parked car stands from a junction's centre at least, metres: a junction's
+/// half-width and the 5 m before a crossing where parking is not allowed. Closer, it would
+/// stand in the arc a car turning there drives (a turn cuts the corner by up to 2 m).
+const PARKED_CLEAR_OF_JUNCTION_M: f64 = 10.0;
 /// How far before the end of its lane a car takes its next route, metres: the new lane starts
 /// where the car is, so the corner at the old lane's end is rounded like any other.
 const ROUTE_JOIN_M: f64 = 10.0;
@@ -259,22 +263,39 @@ impl Actor {
         }
     }
 
-    /// Distance to the nearest obstacle ahead in this actor's lane among `others`
-    /// (bumper to bumper, metres), looking `horizon_m` ahead.
+    /// Distance to the nearest obstacle ahead in this car's lane among `others` (bumper to
+    /// bumper, metres), looking `horizon_m` ahead along the lane: an obstacle is in the lane
+    /// when its centre lies within 1.6 m of it (a lane is 3.5 m wide), measured from the
+    /// lane's nearest point of those a metre apart ahead. Along a curve this is not straight
+    /// ahead: a car parked at the kerb of the street the lane turns into lies straight ahead
+    /// of a car in the turn, but beside its lane. Infinite for an actor that does not drive.
     fn gap_ahead(&self, others: &[Obstacle], horizon_m: f64) -> f64 {
-        let mut gap = f64::INFINITY;
-        let my_half = match &self.motion {
-            Motion::Driving(d) => d.front_m,
-            _ => self.footprint.bounding_radius_m().min(CAR_HALF_LENGTH_M),
+        let Motion::Driving(d) = &self.motion else {
+            return f64::INFINITY;
         };
+        // Past the lane's end every sample is its end, and the first of them is the nearest:
+        // beyond it, "along" continues straight on.
+        let ahead: Vec<(f64, Vec2, Vec2)> = (0..=horizon_m.ceil() as usize)
+            .map(|k| {
+                let (p, t) = d.lane.at(d.s_m + k as f64);
+                (k as f64, p, t)
+            })
+            .collect();
+        let here = self.pose.position_m;
+        let mut gap = f64::INFINITY;
         for o in others {
-            if o.id == self.id {
+            if o.id == self.id || o.position.minus(here).norm() > horizon_m + 2.0 {
                 continue;
             }
-            let rel = self.pose.body_from_world(o.position);
-            // In the lane ahead: a lane is 3.5 m wide, so centres within 1.6 m laterally.
-            if rel.x > 0.0 && rel.x < horizon_m && rel.y.abs() < 1.6 {
-                gap = gap.min(rel.x - my_half - o.half_length_m);
+            let nearest = ahead.iter().min_by(|a, b| {
+                let (da, db) = (a.1.minus(o.position), b.1.minus(o.position));
+                da.dot(da).total_cmp(&db.dot(db))
+            });
+            let Some(&(k, p, t)) = nearest else { continue };
+            let rel = o.position.minus(p);
+            let along = k + rel.dot(t);
+            if along > 0.0 && along < horizon_m && t.cross(rel).abs() < 1.6 {
+                gap = gap.min(along - d.front_m - o.half_length_m);
             }
         }
         gap
@@ -614,7 +635,8 @@ impl Placement<'_> {
     }
 
     /// A parked car along the kerb of a road wide enough to keep a lane free (half-width
-    /// ≥ 4 m), wholly on the road, 5.5 m from every car (40 attempts).
+    /// ≥ 4 m), wholly on the road, clear of junctions ([`PARKED_CLEAR_OF_JUNCTION_M`]), 5.5 m
+    /// from every car (40 attempts).
     fn parked_car<R: Rng>(&self, actors: &[Actor], rng: &mut R) -> Option<Actor> {
         let net = self.net;
         for _attempt in 0..40 {
@@ -638,6 +660,7 @@ impl Placement<'_> {
                 .map(|(a, b)| pose.world_from_body(Vec2::new(a * CAR_HALF_LENGTH_M, b * 0.9)));
             let car = Actor::fixed(actors.len() as u32, ActorKind::Car, pose);
             if corners.iter().all(|&c| net.is_road(c))
+                && !net.junction_within(centre, PARKED_CLEAR_OF_JUNCTION_M)
                 && Self::far_from_cars(actors, centre, 5.5)
                 && self.clear(&car)
             {
@@ -857,5 +880,86 @@ mod tests {
             "{slowest}"
         );
         assert!((fastest_after - 10.0).abs() < 1e-9, "{fastest_after}");
+    }
+
+    /// A car on a lane east along y = −1.75, turning left at x ≈ 100 onto one north along
+    /// x = 101.75, driven 25 s with the obstacles `others`.
+    fn turn_left_past(others: &[Obstacle]) -> Actor {
+        use rand::SeedableRng;
+        let route = Route {
+            path: Polyline::new(vec![
+                Vec2::new(0.0, 0.0),
+                Vec2::new(60.0, 0.0),
+                Vec2::new(60.0, 100.0),
+            ])
+            .unwrap(),
+            junctions_m: vec![],
+            half_width_m: 4.0,
+        };
+        let (cfg, net) = (TrafficConfig::default(), net());
+        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let mut car = Actor::driving_car(0, &route, 0.0, 8.0, true);
+        for _ in 0..250 {
+            advance(&mut car, others, 0.1, &cfg, &net, &mut rng);
+        }
+        car
+    }
+
+    #[test]
+    fn a_car_in_a_turn_brakes_for_what_is_in_its_lane_not_for_what_is_straight_ahead() {
+        // Parked at the right kerb of the street it turns into, 2.75 m from its lane: straight
+        // ahead of the car halfway round (at 45°, near (59.5, 0.2)), beside its lane.
+        let kerb = Obstacle {
+            id: 9,
+            position: Vec2::new(64.5, 5.5),
+            half_length_m: CAR_HALF_LENGTH_M,
+        };
+        let car = turn_left_past(&[kerb]);
+        assert!(car.pose.position_m.y > 90.0, "{:?}", car.pose);
+        // Stopped in its lane 30 m up the new street: it queues behind it, the gap measured
+        // along the lane.
+        let stopped = Obstacle {
+            id: 9,
+            position: Vec2::new(61.75, 30.0),
+            half_length_m: CAR_HALF_LENGTH_M,
+        };
+        let car = turn_left_past(&[stopped]);
+        let gap = 30.0 - car.pose.position_m.y - 2.0 * CAR_HALF_LENGTH_M;
+        assert!(car.speed_mps < 0.01);
+        // (The lane's corner is offset along the mean of its two segments' normals, so its
+        // second segment leans a little: x = 61.56 at y = 23.)
+        assert!(
+            (car.pose.position_m.x - 61.75).abs() < 0.3,
+            "{:?}",
+            car.pose
+        );
+        assert!((0.5..=STANDSTILL_GAP_M + 0.5).contains(&gap), "gap {gap}");
+    }
+
+    #[test]
+    fn parked_cars_stand_clear_of_junctions() {
+        use rand::SeedableRng;
+        // Two 10 m streets crossing at (100, 100): the pixels flagged around the junction span
+        // x 97–102, y 98–103 (centres 97.5–101.5, 98.5–102.5); 10 m beyond them is clear.
+        let town = crate::testing::town();
+        let world = crate::world::World::from_polygons(&town.buildings, &town.roads, &town.extent);
+        let net = RoadNetwork::new(&world);
+        assert!(net.junction_within(Vec2::new(100.0, 100.0), 1.0));
+        assert!(net.junction_within(Vec2::new(100.0, 89.0), 10.0));
+        assert!(!net.junction_within(Vec2::new(100.0, 80.0), 10.0));
+        let cfg = TrafficConfig {
+            moving_cars: 0,
+            parked_cars: 20,
+            pedestrians: 0,
+            infrastructure: 0,
+            ..TrafficConfig::default()
+        };
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let cars = populate(&net, &cfg, &[], &mut rng);
+        assert!(cars.len() >= 10, "{}", cars.len());
+        for car in &cars {
+            let to_crossing = car.pose.position_m.minus(Vec2::new(100.0, 100.0)).norm();
+            assert!(to_crossing > 10.0, "{:?}", car.pose);
+        }
     }
 }

@@ -195,6 +195,31 @@ impl RoadNetwork {
         f64::from(best)
     }
 
+    /// Whether a junction of the skeleton (or the pixels flagged around one) lies within
+    /// `radius_m` of `p`.
+    pub fn junction_within(&self, p: Vec2, radius_m: f64) -> bool {
+        let reach = (radius_m / Self::RESOLUTION_M).ceil() as i64;
+        let Some(i) = self.index_of(p) else {
+            return false;
+        };
+        let (c, r) = ((i % self.cols) as i64, (i / self.cols) as i64);
+        (-reach..=reach).any(|dr| {
+            (-reach..=reach).any(|dc| {
+                let (cc, rr) = (c + dc, r + dr);
+                cc >= 0
+                    && rr >= 0
+                    && (cc as usize) < self.cols
+                    && (rr as usize) < self.rows
+                    && self.flags[rr as usize * self.cols + cc as usize] & JUNCTION != 0
+                    && self
+                        .centre(rr as usize * self.cols + cc as usize)
+                        .minus(p)
+                        .norm()
+                        <= radius_m
+            })
+        })
+    }
+
     /// Scanline fill of one polygon (rings, even–odd) at pixel centres.
     fn fill<'a>(
         &mut self,
