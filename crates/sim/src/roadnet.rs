@@ -21,9 +21,10 @@ const JUNCTION: u8 = 8;
 /// tolerance). The skeleton of a straight street wanders a pixel or two either side of its
 /// middle where the surface widens (bays, driveways, buffered vertices) and along a slant's
 /// staircase; kept, each wander is a corner, and a lane rounded through them weaves (the ego
-/// swung ±10° about once a second on such a street). 1.5 m drops those wanders and keeps every
-/// real bend, and stays well inside a lane's half of the road.
-const ROUTE_TOLERANCE_M: f64 = 1.5;
+/// swung ±10° about once a second on such a street). 1.0 m drops those wanders and keeps every
+/// real bend; the lane stays within 1 m of the road's middle plus its offset, and parked cars
+/// (placed from routes too) within 2 m of their kerb.
+const ROUTE_TOLERANCE_M: f64 = 1.0;
 
 /// A route: a polyline plus the arc lengths of the junctions it passes.
 #[derive(Clone, Debug)]
