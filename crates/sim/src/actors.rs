@@ -268,7 +268,9 @@ impl Actor {
     /// when its centre lies within 1.6 m of it (a lane is 3.5 m wide), measured from the
     /// lane's nearest point of those a metre apart ahead. Along a curve this is not straight
     /// ahead: a car parked at the kerb of the street the lane turns into lies straight ahead
-    /// of a car in the turn, but beside its lane. Infinite for an actor that does not drive.
+    /// of a car in the turn, but beside its lane. A car crossing from the right counts from
+    /// where its body can reach the lane (see the body). Infinite for an actor that does not
+    /// drive.
     fn gap_ahead(&self, others: &[Obstacle], horizon_m: f64) -> f64 {
         let Motion::Driving(d) = &self.motion else {
             return f64::INFINITY;
@@ -294,7 +296,14 @@ impl Actor {
             let Some(&(k, p, t)) = nearest else { continue };
             let rel = o.position.minus(p);
             let along = k + rel.dot(t);
-            if along > 0.0 && along < horizon_m && t.cross(rel).abs() < 1.6 {
+            // A car crossing the lane reaches into it by up to its half length times the sine
+            // of the angle between them; one coming from the right (driving on the right, it
+            // has the priority) counts from there, one from the left yields, so two cars
+            // meeting at a crossing do not both stop for good.
+            let side = t.cross(rel);
+            let crossing = t.cross(Vec2::from_angle(o.heading_rad)).abs() * o.half_length_m;
+            let reach = if side < 0.0 { 1.6 + crossing } else { 1.6 };
+            if along > 0.0 && along < horizon_m && side.abs() < reach {
                 gap = gap.min(along - d.front_m - o.half_length_m);
             }
         }
@@ -311,6 +320,8 @@ pub struct Obstacle {
     pub position: Vec2,
     /// Half length, metres.
     pub half_length_m: f64,
+    /// Heading, radians (x east, counter-clockwise).
+    pub heading_rad: f64,
 }
 
 /// The snapshot every car brakes for: cars and pedestrians (a pedestrian on a pavement never sits
@@ -323,6 +334,7 @@ pub fn obstacles(actors: &[Actor], extra: &[Obstacle]) -> Vec<Obstacle> {
             id: a.id,
             position: a.pose.position_m,
             half_length_m: CAR_HALF_LENGTH_M,
+            heading_rad: a.pose.heading_rad,
         })
         .chain(extra.iter().copied())
         .collect()
@@ -789,6 +801,7 @@ mod tests {
             id: 9,
             position: Vec2::new(60.0, -1.75),
             half_length_m: CAR_HALF_LENGTH_M,
+            heading_rad: 0.0,
         };
         for _ in 0..200 {
             advance(&mut car, &[leader], 0.1, &cfg, &net, &mut rng);
@@ -906,6 +919,41 @@ mod tests {
     }
 
     #[test]
+    fn a_car_brakes_for_a_car_crossing_from_the_right_and_not_for_one_from_the_left() {
+        // A car at (0, −1.75) heading east on a straight lane along y = −1.75. A car heading
+        // north whose centre is 6 m ahead and 3 m right of the lane, (6, −4.75), reaches
+        // 2.25 m (its half length) towards it: it counts (1.6 + 2.25 = 3.85 m > 3 m), bumper to
+        // bumper 6 − 2.25 − 2.25 = 1.5 m away. (On helsinki-short seed 11, a car turning across
+        // the ego's lane from the right was seen only once its centre was inside the ego, and
+        // both stood there for good.) The same car mirrored to the left, (6, 1.25) heading
+        // south, must yield and is not waited for: infinite.
+        let route = Route {
+            path: Polyline::new(vec![Vec2::new(0.0, 0.0), Vec2::new(100.0, 0.0)]).unwrap(),
+            junctions_m: vec![],
+            half_width_m: 4.0,
+        };
+        let car = Actor::driving_car(0, &route, 0.0, 8.0, true);
+        assert!(
+            (car.pose.position_m.y + 1.75).abs() < 1e-9,
+            "{:?}",
+            car.pose
+        );
+        let crossing = |y: f64, heading_rad: f64| Obstacle {
+            id: 9,
+            position: Vec2::new(6.0, y),
+            half_length_m: CAR_HALF_LENGTH_M,
+            heading_rad,
+        };
+        let from_right = car.gap_ahead(&[crossing(-4.75, std::f64::consts::FRAC_PI_2)], 40.0);
+        assert!((from_right - 1.5).abs() < 1e-9, "{from_right}");
+        let from_left = car.gap_ahead(&[crossing(1.25, -std::f64::consts::FRAC_PI_2)], 40.0);
+        assert!(from_left.is_infinite(), "{from_left}");
+        // Parked parallel at the right kerb, 3 m right of the lane: not in it.
+        let parked = car.gap_ahead(&[crossing(-4.75, 0.0)], 40.0);
+        assert!(parked.is_infinite(), "{parked}");
+    }
+
+    #[test]
     fn a_car_in_a_turn_brakes_for_what_is_in_its_lane_not_for_what_is_straight_ahead() {
         // Parked at the right kerb of the street it turns into, 2.75 m from its lane: straight
         // ahead of the car halfway round (at 45°, near (59.5, 0.2)), beside its lane.
@@ -913,6 +961,7 @@ mod tests {
             id: 9,
             position: Vec2::new(64.5, 5.5),
             half_length_m: CAR_HALF_LENGTH_M,
+            heading_rad: std::f64::consts::FRAC_PI_2,
         };
         let car = turn_left_past(&[kerb]);
         assert!(car.pose.position_m.y > 90.0, "{:?}", car.pose);
@@ -922,6 +971,7 @@ mod tests {
             id: 9,
             position: Vec2::new(61.75, 30.0),
             half_length_m: CAR_HALF_LENGTH_M,
+            heading_rad: std::f64::consts::FRAC_PI_2,
         };
         let car = turn_left_past(&[stopped]);
         let gap = 30.0 - car.pose.position_m.y - 2.0 * CAR_HALF_LENGTH_M;
