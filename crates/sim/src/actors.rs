@@ -89,7 +89,7 @@ const ROUTE_JOIN_M: f64 = 10.0;
 /// How many routes a car at the end of its lane draws, for one that does not turn back.
 const NEXT_ROUTE_DRAWS: usize = 4;
 /// Lateral acceleration a car accepts in a corner, m/s²: it slows to `√(a·R)` for an arc of
-/// radius R (3.9 m/s on the tightest turn), braking for it at [`BRAKE_MPS2`] beforehand.
+/// radius R (3.9 m/s on the tightest turn), braking for it at 3 m/s² beforehand (as for a stop).
 pub const CORNER_LATERAL_MPS2: f64 = 3.0;
 
 /// A car following a lane.
