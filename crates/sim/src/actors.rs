@@ -166,6 +166,19 @@ fn lane_offset_m(half_width_m: f64) -> f64 {
 }
 
 impl Actor {
+    /// Points of the lane a driving actor follows, every `step_m` metres from its start to its
+    /// end; none for an actor that does not drive.
+    pub fn lane_samples(&self, step_m: f64) -> Vec<Vec2> {
+        let Motion::Driving(d) = &self.motion else {
+            return Vec::new();
+        };
+        let length_m = d.lane.length_m();
+        let count = (length_m / step_m.max(0.01)).ceil() as usize;
+        (0..=count)
+            .map(|i| d.lane.at((i as f64 * step_m).min(length_m)).0)
+            .collect()
+    }
+
     /// A car on `route`, driving on the right, starting `start_m` along it.
     pub fn driving_car(id: u32, route: &Route, start_m: f64, cruise_mps: f64, stops: bool) -> Self {
         let driving = Driving::on_route(route, &[], cruise_mps, stops);
@@ -567,12 +580,29 @@ impl Walking {
     }
 }
 
+/// How far a parked car's long axis stays from the centre line of the lane kept clear, metres:
+/// its half width, the passing car's, and 0.3 m between them.
+pub const LANE_CLEARANCE_M: f64 = 0.9 + 0.9 + 0.3;
+
+/// Distance from `q` to the segment `a`–`b`, metres.
+fn distance_to_segment(q: Vec2, a: Vec2, b: Vec2) -> f64 {
+    let ab = b.minus(a);
+    let length_sq = ab.dot(ab);
+    let u = if length_sq > 0.0 {
+        (q.minus(a).dot(ab) / length_sq).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    q.minus(a.plus(ab.scale(u))).norm()
+}
+
 /// Places the scenario's actors on the road network. Fewer actors than asked are placed when the
 /// map has no room for them (the count placed is the length of the returned list).
 pub fn populate(
     net: &RoadNetwork,
     cfg: &TrafficConfig,
     keep_clear: &[(Pose2, Footprint)],
+    lane_kept_clear: &[Vec2],
     rng: &mut impl Rng,
 ) -> Vec<Actor> {
     let mut actors: Vec<Actor> = Vec::new();
@@ -583,6 +613,7 @@ pub fn populate(
         net,
         cfg,
         keep_clear,
+        lane_kept_clear,
     };
     for _ in 0..cfg.moving_cars {
         if let Some(car) = place.moving_car(&actors, rng) {
@@ -608,11 +639,12 @@ pub fn populate(
 }
 
 /// Where [`populate`] places actors: on `net`, with `cfg`'s speeds and durations, clear of
-/// `keep_clear`.
+/// `keep_clear`, and parked cars clear of the lane `lane_kept_clear` samples.
 struct Placement<'a> {
     net: &'a RoadNetwork,
     cfg: &'a TrafficConfig,
     keep_clear: &'a [(Pose2, Footprint)],
+    lane_kept_clear: &'a [Vec2],
 }
 
 impl Placement<'_> {
@@ -630,6 +662,18 @@ impl Placement<'_> {
         self.keep_clear
             .iter()
             .all(|(pose, shape)| !car.footprint.overlaps(&car.pose, shape, pose))
+    }
+
+    /// Whether a parked car at `pose` leaves a car room to pass along the lane kept clear (the
+    /// ego's): its long axis at least [`LANE_CLEARANCE_M`] from every sample of that lane. On a
+    /// street under 10 m wide a car parked at the kerb reaches into the lane, and the ego would
+    /// queue behind it for the rest of the drive.
+    fn clear_of_lane(&self, pose: &Pose2) -> bool {
+        let front = pose.world_from_body(Vec2::new(CAR_HALF_LENGTH_M, 0.0));
+        let back = pose.world_from_body(Vec2::new(-CAR_HALF_LENGTH_M, 0.0));
+        self.lane_kept_clear
+            .iter()
+            .all(|&q| distance_to_segment(q, back, front) >= LANE_CLEARANCE_M)
     }
 
     /// A moving car on a random route, 10 m from every car (20 attempts).
@@ -675,6 +719,7 @@ impl Placement<'_> {
                 && !net.junction_within(centre, PARKED_CLEAR_OF_JUNCTION_M)
                 && Self::far_from_cars(actors, centre, 5.5)
                 && self.clear(&car)
+                && self.clear_of_lane(&pose)
             {
                 return Some(car);
             }
@@ -987,6 +1032,53 @@ mod tests {
     }
 
     #[test]
+    fn parked_cars_leave_the_kept_lane_free() {
+        use rand::SeedableRng;
+        // The town's 10 m north–south street at x = 100: a car parked at its kerb stands
+        // 5 − 1.2 = 3.8 m from the middle, and the lane kept clear runs 1.75 m west of the middle
+        // (x = 98.25): the west kerb's cars (x = 96.2) would stand 2.05 m from it, under the 2.1 m
+        // clearance; the east kerb's (x = 103.8) 5.55 m.
+        let town = crate::testing::town();
+        let world = crate::world::World::from_polygons(&town.buildings, &town.roads, &town.extent);
+        let net = RoadNetwork::new(&world);
+        let cfg = TrafficConfig {
+            moving_cars: 0,
+            parked_cars: 30,
+            pedestrians: 0,
+            infrastructure: 0,
+            ..TrafficConfig::default()
+        };
+        let lane: Vec<Vec2> = (0..=400)
+            .map(|i| Vec2::new(98.25, i as f64 * 0.5))
+            .collect();
+        let in_lane = |cars: &[Actor]| {
+            cars.iter()
+                .filter(|car| {
+                    let p = car.pose.position_m;
+                    (p.x - 98.25).abs() < LANE_CLEARANCE_M && (0.0..=200.0).contains(&p.y)
+                })
+                .count()
+        };
+        let free = populate(
+            &net,
+            &cfg,
+            &[],
+            &[],
+            &mut rand::rngs::StdRng::seed_from_u64(5),
+        );
+        assert!(in_lane(&free) > 0, "the draw must reach the west kerb");
+        let kept = populate(
+            &net,
+            &cfg,
+            &[],
+            &lane,
+            &mut rand::rngs::StdRng::seed_from_u64(5),
+        );
+        assert!(kept.len() >= 10, "{}", kept.len());
+        assert_eq!(in_lane(&kept), 0);
+    }
+
+    #[test]
     fn parked_cars_stand_clear_of_junctions() {
         use rand::SeedableRng;
         // Two 10 m streets crossing at (100, 100): the pixels flagged around the junction span
@@ -1005,7 +1097,7 @@ mod tests {
             ..TrafficConfig::default()
         };
         let mut rng = rand::rngs::StdRng::seed_from_u64(3);
-        let cars = populate(&net, &cfg, &[], &mut rng);
+        let cars = populate(&net, &cfg, &[], &[], &mut rng);
         assert!(cars.len() >= 10, "{}", cars.len());
         for car in &cars {
             let to_crossing = car.pose.position_m.minus(Vec2::new(100.0, 100.0)).norm();

@@ -25,6 +25,9 @@ const SENSOR_STREAM: u64 = 0x9E37_79B9_7F4A_7C15;
 /// metres: farther ones would never be seen and the error would not be tested.
 const ERROR_BUILDING_REACH_M: f64 = 40.0;
 
+/// Spacing of the samples of the ego's lane that parked cars keep clear of, metres.
+const EGO_LANE_SAMPLE_M: f64 = 0.5;
+
 /// One simulated scan and when it was taken.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Frame {
@@ -97,10 +100,13 @@ impl Drive {
         // mount), and no car starts where the ego or its sensor is.
         let mut ego = Actor::driving_car(u32::MAX, &ego_route, 0.0, scenario.ego.speed_mps, false)
             .with_front_reach(scenario.sensor.mount_forward());
+        // Parked cars leave the ego's lane free: one standing in it would hold the ego for the
+        // rest of the drive.
         let mut actors = actors::populate(
             &net,
             &scenario.traffic,
             &[ego.clearance()],
+            &ego.lane_samples(EGO_LANE_SAMPLE_M),
             &mut traffic_rng,
         );
         let ego_id = actors.len() as u32;
