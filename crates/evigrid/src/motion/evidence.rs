@@ -28,7 +28,7 @@ use crate::grids::{N_SETS, OMEGA, class};
 use crate::params::{MotionParams, ResidualPolicy};
 
 use super::kalman::VelocityFilter;
-use super::tracks::Track;
+use super::tracks::{Track, is_moving};
 
 /// The motion evidence on one cell.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -74,11 +74,7 @@ pub(crate) fn track_mass(track: &Track, params: &MotionParams) -> MotionMass {
 /// displacement is within what the pose's error explains (`displaced_pose_sigmas`): it gives
 /// no evidence ([`track_mass`]).
 pub(crate) fn within_pose_error(track: &Track, params: &MotionParams) -> bool {
-    let [x, y] = track.velocity;
-    track.measurements > 0
-        && (track.measurements as usize) >= params.moving_after_measurements
-        && x.mean_mps.hypot(y.mean_mps) >= params.min_speed_mps
-        && !track.displaced
+    is_moving(track, params) && !track.displaced
 }
 
 /// The confidence that a track whose estimated speed `speed` is at least `min_speed_mps` moves

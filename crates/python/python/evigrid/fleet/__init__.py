@@ -216,9 +216,9 @@ def _run_on_ray(
         # Ray 2.60's owner aborts the driver when a cancel races with the reply of a task that
         # is finishing ("Tried to complete task that was not pending", task_manager.cc), also
         # without `force`. So the drives that have finished are collected first and only the
-        # others cancelled, which leaves that race a window of microseconds instead of the
-        # whole wait. A plain cancel interrupts the task, which `evigrid.run` notices between
-        # frames.
+        # others cancelled: the race is left only to a drive that finishes between that
+        # collection and its cancel. A plain cancel interrupts the task, which `evigrid.run`
+        # notices between frames.
         _collect_ready(ray, pending, specs, names, rows, fleet_dir, retries, timeout_s=0.0)
         say(f"evigrid fleet: interrupted; cancelling {len(pending)} drives")
         for ref in pending:
