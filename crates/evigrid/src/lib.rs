@@ -77,8 +77,9 @@ pub use pipeline::{
 pub use params::{
     AccumulatorParams, ClassRates, DecisionParams, DiscountMode, FusionParams, GridParams,
     GroundModel, LocalisationParams, MEMORY_BUDGET_BYTES, MIN_CELL_SIZE_M, MapParams, MotionParams,
-    Params, ParamsError, PoseRefinement, RefinementBlend, RefinementStart, ResidualPolicy,
-    SensorParams, SetRate, UnobservedCells, WINDOW_BYTES_PER_CELL, WindowParams, check_window_size,
+    Params, ParamsError, PoseRefinement, PriorSigmaSource, RefinementBlend, RefinementStart,
+    ResidualPolicy, SensorParams, SetRate, UnobservedCells, WINDOW_BYTES_PER_CELL, WindowParams,
+    check_window_size,
 };
 // The labels, the decision and the pignistic probability (SPEC §6).
 pub use decision::{betp, betp_cells, decide, decide_grid};

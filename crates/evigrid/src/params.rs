@@ -1725,10 +1725,12 @@ pub struct LocalisationParams {
     /// default `"information"` (chosen on the validation drives, `docs/motion.md`, "Pose
     /// refinement").
     pub blend: RefinementBlend,
-    /// `blend = "information"`: σ of the given position per axis, metres. By default 0.2
-    /// (chosen with the next three on the tuning drives).
+    /// `blend = "information"`: σ of the given position per axis, metres (with `prior_sigma =
+    /// "estimated"`, an upper bound). By default 0.2 (chosen with the next three on the tuning
+    /// drives).
     pub prior_sigma_m: f64,
-    /// `blend = "information"`: σ of the given rotation, degrees. By default 0.5.
+    /// `blend = "information"`: σ of the given rotation, degrees (with `prior_sigma =
+    /// "estimated"`, an upper bound). By default 0.5.
     pub prior_sigma_deg: f64,
     /// `blend = "information"`: σ of the registration in a direction every pair constrains,
     /// metres. By default 0.01.
@@ -1736,6 +1738,32 @@ pub struct LocalisationParams {
     /// `blend = "information"`: σ of the registration's start per axis, metres (what it is
     /// off by in a direction the scan does not constrain). By default 0.2.
     pub prediction_sigma_m: f64,
+    /// `blend = "information"`: `"fixed"`, the given pose's σ are `prior_sigma_m` and
+    /// `prior_sigma_deg`, or `"estimated"`, from the given poses' own scan-to-scan jitter
+    /// ([`odometry::PriorSigma`]). By default `"estimated"` (chosen on the validation drives,
+    /// `docs/motion.md`, "The given pose's σ from its own jitter").
+    pub prior_sigma: PriorSigmaSource,
+}
+
+/// Where the pose refinement takes the given pose's σ from (`[localisation] prior_sigma`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PriorSigmaSource {
+    /// `prior_sigma_m` and `prior_sigma_deg`.
+    Fixed,
+    /// Lowered below `prior_sigma_m` and `prior_sigma_deg` when the given poses' second
+    /// differences show less jitter.
+    #[default]
+    Estimated,
+}
+
+impl From<odometry::PriorSigma> for PriorSigmaSource {
+    fn from(source: odometry::PriorSigma) -> Self {
+        match source {
+            odometry::PriorSigma::Estimated => Self::Estimated,
+            _ => Self::Fixed,
+        }
+    }
 }
 
 /// How the pose refinement combines the registered and the given pose (`[localisation]
@@ -1776,6 +1804,7 @@ impl Default for LocalisationParams {
             prior_sigma_deg: refine.prior_sigma_deg,
             registration_sigma_m: refine.registration_sigma_m,
             prediction_sigma_m: refine.prediction_sigma_m,
+            prior_sigma: PriorSigmaSource::from(refine.prior_sigma),
         }
     }
 }
@@ -1836,6 +1865,10 @@ impl LocalisationParams {
             prior_sigma_deg: self.prior_sigma_deg,
             registration_sigma_m: self.registration_sigma_m,
             prediction_sigma_m: self.prediction_sigma_m,
+            prior_sigma: match self.prior_sigma {
+                PriorSigmaSource::Fixed => odometry::PriorSigma::Fixed,
+                PriorSigmaSource::Estimated => odometry::PriorSigma::Estimated,
+            },
             ..odometry::RefineParams::default()
         }
     }

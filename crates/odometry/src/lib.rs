@@ -43,6 +43,6 @@ pub use error::OdometryError;
 pub use params::OdometryParams;
 pub use pipeline::{FrameOutcome, FrameReport, MIN_USABLE_POINTS, Odometry};
 pub use refine::{
-    KeptReason, PLANAR_SPREAD_M, PREDICTION_LEVER_M, PoseRefiner, RefineBlend, RefineOutcome,
-    RefineParams, RefineStart, Refinement,
+    KeptReason, PLANAR_SPREAD_M, PREDICTION_LEVER_M, PoseRefiner, PriorSigma, RefineBlend,
+    RefineOutcome, RefineParams, RefineStart, Refinement, SIGMA_SAMPLES, SIGMA_WINDOW,
 };

@@ -23,6 +23,8 @@
 //! and its in-plane structure the rest; they get finer voxels (`planar_voxel_size_m`) than a
 //! 3-D scan's.
 
+use std::collections::VecDeque;
+
 use nalgebra::{Isometry3, Matrix6, Vector3, Vector6};
 
 use crate::OdometryError;
@@ -94,7 +96,46 @@ pub struct RefineParams {
     /// does not constrain, where the registration stays where it started (metres, default
     /// 0.2; the rotations get this over [`PREDICTION_LEVER_M`]).
     pub prediction_sigma_m: f64,
+    /// [`RefineBlend::Information`]: where the prior's σ comes from (default
+    /// [`PriorSigma::Estimated`], chosen on the validation drives, `docs/motion.md`).
+    pub prior_sigma: PriorSigma,
 }
+
+/// Where [`RefineBlend::Information`] takes the prior's σ from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[non_exhaustive]
+pub enum PriorSigma {
+    /// `prior_sigma_m` and `prior_sigma_deg`, whatever the priors are like.
+    Fixed,
+    /// `prior_sigma_m` and `prior_sigma_deg` as upper bounds, lowered when the priors
+    /// themselves show less jitter: twice the estimate `median |second difference| / (0.6745
+    /// · √6)` of the last [`SIGMA_WINDOW`] priors' horizontal positions and headings (in the
+    /// frame of the middle one), which is σ for a white noise added to each prior
+    /// independently (a vehicle's own acceleration adds `a·Δt²`, a centimetre at 10 Hz, and
+    /// the median ignores the few scans where a turn starts). The configured σ until
+    /// [`SIGMA_SAMPLES`] second differences have been seen; floored at 1 mm and 0.001°.
+    /// Exact priors are then kept nearly as given; noisy ones are pulled as configured.
+    #[default]
+    Estimated,
+}
+
+/// [`PriorSigma::Estimated`]: the second differences of this many scans are kept.
+pub const SIGMA_WINDOW: usize = 50;
+
+/// [`PriorSigma::Estimated`]: the estimate replaces the configured σ after this many second
+/// differences.
+pub const SIGMA_SAMPLES: usize = 10;
+
+/// [`PriorSigma::Estimated`] uses this many times the estimate (at most the configured σ): a
+/// median of 50 second differences scatters by about 20 % of σ, and a prior that seems a
+/// little better than configured should not be trusted more for it.
+const ESTIMATE_MARGIN: f64 = 2.0;
+
+/// The median absolute value of a zero-mean Gaussian is this times its σ; a second difference
+/// of independent errors of σ has σ·√6.
+const MEDIAN_OF_SECOND_DIFFERENCE: f64 = 0.674_489_750_196_081_7 * 2.449_489_742_783_178;
 
 /// How [`PoseRefiner`] combines the registered pose with the prior.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -159,6 +200,7 @@ impl Default for RefineParams {
             prior_sigma_deg: 0.5,
             registration_sigma_m: 0.01,
             prediction_sigma_m: 0.2,
+            prior_sigma: PriorSigma::Estimated,
         }
     }
 }
@@ -277,6 +319,8 @@ pub struct Refinement {
     frame: Vec<Vector3<f64>>,
     /// The scan's time (seconds), for the constant-velocity start.
     time_s: f64,
+    /// The pose given with the scan.
+    prior: Isometry3<f64>,
     /// [`RefineBlend::Information`]: the map frame's covariance after this scan, in the frame
     /// of `world_from_sensor` (twists right-multiplied on it).
     frame_covariance: Option<Matrix6<f64>>,
@@ -304,6 +348,11 @@ pub struct PoseRefiner {
     frame_covariance: Option<(Isometry3<f64>, Matrix6<f64>)>,
     /// Maps started so far (the first included): a new map has a new frame.
     map_starts: usize,
+    /// (time, prior) of the last three scans, oldest first: [`PriorSigma::Estimated`].
+    priors: Vec<(f64, Isometry3<f64>)>,
+    /// The last [`SIGMA_WINDOW`] scans' absolute second differences of the priors: position
+    /// (x and y of the middle prior's frame, metres) and heading (radians).
+    second_differences: VecDeque<([f64; 2], f64)>,
 }
 
 impl PoseRefiner {
@@ -320,6 +369,8 @@ impl PoseRefiner {
             track: Vec::with_capacity(2),
             frame_covariance: None,
             map_starts: 0,
+            priors: Vec::with_capacity(3),
+            second_differences: VecDeque::with_capacity(SIGMA_WINDOW),
             // As KISS-ICP: corrections under 0.1 m (bound at the range) are sampling noise, and
             // would shrink the threshold below the map's point spacing.
             threshold: AdaptiveThreshold::new(params.initial_threshold_m, 0.1, params.max_range_m),
@@ -393,6 +444,7 @@ impl PoseRefiner {
             voxel_size_m,
             frame,
             time_s,
+            prior: *prior,
             frame_covariance: None,
         };
         if refinement.frame.is_empty() {
@@ -470,10 +522,8 @@ impl PoseRefiner {
         let p = &self.params;
         let diagonal =
             |m: f64, rad: f64| Matrix6::from_diagonal(&Vector6::new(m, m, m, rad, rad, rad));
-        let prior = diagonal(
-            p.prior_sigma_m.powi(2),
-            p.prior_sigma_deg.to_radians().powi(2),
-        );
+        let (sigma_m, sigma_rad) = self.prior_sigmas();
+        let prior = diagonal(sigma_m.powi(2), sigma_rad.powi(2));
         let start = diagonal(
             p.prediction_sigma_m.powi(-2),
             (p.prediction_sigma_m / PREDICTION_LEVER_M).powi(-2),
@@ -497,6 +547,63 @@ impl PoseRefiner {
         let gain = predicted * innovation;
         let after = (Matrix6::identity() - gain) * predicted;
         (gain, 0.5 * (after + after.transpose()))
+    }
+
+    /// The prior's σ (metres, radians) that [`RefineBlend::Information`] uses: the configured
+    /// ones, or with [`PriorSigma::Estimated`] and enough scans, the estimate from the priors'
+    /// second differences.
+    pub fn prior_sigmas(&self) -> (f64, f64) {
+        let p = &self.params;
+        let configured = (p.prior_sigma_m, p.prior_sigma_deg.to_radians());
+        if p.prior_sigma != PriorSigma::Estimated || self.second_differences.len() < SIGMA_SAMPLES {
+            return configured;
+        }
+        let mut positions: Vec<f64> = self
+            .second_differences
+            .iter()
+            .flat_map(|(position, _)| *position)
+            .collect();
+        let mut headings: Vec<f64> = self.second_differences.iter().map(|d| d.1).collect();
+        let estimate = |values: &mut [f64], configured: f64, floor: f64| {
+            (ESTIMATE_MARGIN * median(values) / MEDIAN_OF_SECOND_DIFFERENCE)
+                .clamp(floor, configured.max(floor))
+        };
+        (
+            estimate(&mut positions, configured.0, MIN_SIGMA_M),
+            estimate(&mut headings, configured.1, MIN_SIGMA_RAD),
+        )
+    }
+
+    /// Records the second difference of the last three priors, when their times advance: the
+    /// motion from the middle one to the last less the motion from the first to the middle
+    /// (scaled to the same time step), in the middle one's frame.
+    fn observe_prior(&mut self, time_s: f64, prior: &Isometry3<f64>) {
+        if self.params.prior_sigma != PriorSigma::Estimated {
+            return;
+        }
+        if self.priors.len() == 3 {
+            self.priors.remove(0);
+        }
+        self.priors.push((time_s, *prior));
+        let [(first_s, first), (middle_s, middle), (last_s, last)] = self.priors.as_slice() else {
+            return;
+        };
+        let (before_s, after_s) = (middle_s - first_s, last_s - middle_s);
+        if !(before_s > 0.0 && after_s > 0.0 && (before_s + after_s).is_finite()) {
+            return;
+        }
+        let difference = lie::log(&(middle.inverse() * last))
+            - lie::log(&(first.inverse() * middle)) * (after_s / before_s);
+        if !difference.iter().all(|v| v.is_finite()) {
+            return;
+        }
+        if self.second_differences.len() == SIGMA_WINDOW {
+            self.second_differences.pop_front();
+        }
+        self.second_differences.push_back((
+            [difference[0].abs(), difference[1].abs()],
+            difference[5].abs(),
+        ));
     }
 
     /// The constant-velocity prediction of the pose at `time_s` in the map's frame, when
@@ -528,6 +635,7 @@ impl PoseRefiner {
     /// pose is the prior the map disagrees with), and after 10 refusals in a row the map starts
     /// again from the given pose.
     pub fn insert(&mut self, refinement: &Refinement) {
+        self.observe_prior(refinement.time_s, &refinement.prior);
         match refinement.outcome {
             RefineOutcome::Refined => {
                 self.threshold.observe(&refinement.correction);
@@ -597,6 +705,23 @@ impl PoseRefiner {
         let refinement = self.refine(points, prior, time_s);
         self.insert(&refinement);
         refinement
+    }
+}
+
+/// [`PriorSigma::Estimated`]'s floor on the position σ (metres): the filter's gain stays defined.
+const MIN_SIGMA_M: f64 = 1e-3;
+
+/// [`PriorSigma::Estimated`]'s floor on the rotation σ (radians, 0.001°).
+const MIN_SIGMA_RAD: f64 = 1.745_329_251_994_33e-5;
+
+/// The median of `values` (the mean of the middle two for an even count), which it sorts; 0
+/// for none.
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    match values.len() {
+        0 => 0.0,
+        n if n % 2 == 1 => values[n / 2],
+        n => 0.5 * (values[n / 2 - 1] + values[n / 2]),
     }
 }
 
@@ -1136,6 +1261,109 @@ mod tests {
         let mut fresh = PoseRefiner::new(RefineParams::default()).expect("valid");
         fresh.insert(&alone);
         assert_eq!(refiner.map_voxels(), fresh.map_voxels());
+    }
+
+    /// A refiner estimating the prior's σ, fed empty scans every 0.1 s with `priors`.
+    fn estimating(priors: impl IntoIterator<Item = Isometry3<f64>>) -> PoseRefiner {
+        let mut refiner = PoseRefiner::new(RefineParams {
+            prior_sigma: PriorSigma::Estimated,
+            ..RefineParams::default()
+        })
+        .expect("valid");
+        for (k, prior) in priors.into_iter().enumerate() {
+            refiner.refine_and_insert(&[], &prior, 0.1 * k as f64);
+        }
+        refiner
+    }
+
+    #[test]
+    fn the_prior_sigma_is_estimated_from_second_differences() {
+        let configured = (0.2, 0.5_f64.to_radians());
+        // Too few scans (two second differences from four): the configured σ.
+        let early = estimating((0..4).map(|k| level(f64::from(k), 0.0, 0.0)));
+        assert_eq!(early.prior_sigmas(), configured);
+        // A steady drive along x at 10 m/s: every second difference is 0, so the floors.
+        let steady = estimating((0..20).map(|k| level(f64::from(k), 0.0, 0.0)));
+        assert_eq!(steady.prior_sigmas(), (MIN_SIGMA_M, MIN_SIGMA_RAD));
+        // Every other prior 0.1 m to the left (y): each second difference of y is ±0.2 m
+        // (0.1 − 2·0 + 0.1, or 0 − 2·0.1 + 0), of x 0. The median of |x| and |y| together is
+        // the mean of the middle two, 0 and 0.2: σ = 0.1 / (0.6745·√6) = 0.060527 m, used
+        // twice, 0.121054 m (under the configured 0.2); the heading's, all 0, is floored.
+        let zigzag = estimating((0..20).map(|k| level(f64::from(k), 0.1 * f64::from(k % 2), 0.0)));
+        let (sigma_m, sigma_rad) = zigzag.prior_sigmas();
+        assert!((sigma_m - 0.121_054).abs() < 1e-6, "{sigma_m}");
+        assert_eq!(sigma_rad, MIN_SIGMA_RAD);
+        // Standing, every other prior turned 0.2°: heading second differences ±0.4°, so σ =
+        // 0.4° / 1.65216 = 0.242108°, used twice, 0.484216°; the positions' are 0, floored.
+        let turning =
+            estimating((0..20).map(|k| level(0.0, 0.0, (0.2 * f64::from(k % 2)).to_radians())));
+        let (sigma_m, sigma_rad) = turning.prior_sigmas();
+        assert_eq!(sigma_m, MIN_SIGMA_M);
+        assert!(
+            (sigma_rad.to_degrees() - 0.484_216).abs() < 1e-6,
+            "{sigma_rad}"
+        );
+        // Every other prior 0.3 m to the left and 1° turned: twice 0.3 / 1.65216 is 0.363 m,
+        // twice 2° / 1.65216 is 2.42°, both above the configured σ, which bound them.
+        let rough = estimating((0..20).map(|k| {
+            let off = f64::from(k % 2);
+            level(f64::from(k), 0.3 * off, off.to_radians())
+        }));
+        assert_eq!(rough.prior_sigmas(), configured);
+        // `Fixed` keeps the configured σ whatever the priors.
+        let mut fixed = PoseRefiner::new(RefineParams {
+            prior_sigma: PriorSigma::Fixed,
+            ..RefineParams::default()
+        })
+        .expect("valid");
+        for k in 0..20 {
+            fixed.refine_and_insert(&[], &level(f64::from(k), 0.0, 0.0), 0.1 * f64::from(k));
+        }
+        assert_eq!(fixed.prior_sigmas(), configured);
+    }
+
+    /// `scans` priors along x at 8 m/s with a deterministic Gaussian noise (a linear
+    /// congruential generator through Box–Muller) of `sigma_m` per axis and `sigma_deg`.
+    fn noisy_priors(scans: u32, sigma_m: f64, sigma_deg: f64) -> Vec<Isometry3<f64>> {
+        let mut state: u64 = 12_345;
+        let mut uniform = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let mut gaussian = move || {
+            let (u, v) = (uniform(), uniform());
+            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        };
+        (0..scans)
+            .map(|k| {
+                level(
+                    0.8 * f64::from(k) + sigma_m * gaussian(),
+                    sigma_m * gaussian(),
+                    sigma_deg.to_radians() * gaussian(),
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_prior_sigma_estimate_follows_a_white_noise() {
+        // 0.05 m and 0.1°: the estimate from the last 50 second differences (their median
+        // scatters by about 20 % of σ), doubled, within 25 % of 0.1 m and 0.2°.
+        let (sigma_m, sigma_rad) = estimating(noisy_priors(200, 0.05, 0.1)).prior_sigmas();
+        assert!((sigma_m / 0.1 - 1.0).abs() < 0.25, "{sigma_m}");
+        assert!(
+            (sigma_rad / 0.2_f64.to_radians() - 1.0).abs() < 0.25,
+            "{sigma_rad}"
+        );
+        // A GNSS/INS's 0.2 m and 0.5°, as configured: doubled, the estimate is beyond the
+        // configured σ, which it keeps.
+        let configured = (0.2, 0.5_f64.to_radians());
+        assert_eq!(
+            estimating(noisy_priors(200, 0.2, 0.5)).prior_sigmas(),
+            configured
+        );
     }
 
     #[test]
