@@ -6,7 +6,8 @@
 //! the GIL released and, every 50 ms, takes it back to let Python see signals. On Ctrl-C it
 //! raises the session's stop flag: the session stops between frames, finishes every output (the
 //! summary marked incomplete), and only then is `KeyboardInterrupt` raised, carrying that
-//! summary.
+//! summary. The caller's `stop` callable, asked at the same moments, stops the drive the same
+//! way without a signal; the summary is then returned (a stop that was asked for is no error).
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -37,14 +38,18 @@ const SIGNAL_POLL: Duration = Duration::from_millis(50);
 ///
 /// The GIL is released while the drive runs, so other threads run meanwhile. Ctrl-C stops the
 /// drive between frames; the outputs are finished (the summary marked incomplete) before
-/// `KeyboardInterrupt` is raised, with the summary as its `summary` attribute. A drive that
-/// cannot be used raises `evigrid.InputError`, an output that cannot be written
+/// `KeyboardInterrupt` is raised, with the summary as its `summary` attribute. `stop`, a
+/// callable without arguments, is called every 50 ms while the drive runs (on the calling
+/// thread, with the GIL); once it returns a true value the drive stops between frames in the
+/// same way, and the summary, marked incomplete, is returned; an exception it raises stops the
+/// drive and is raised after the outputs are finished, as a signal handler's would be. A drive
+/// that cannot be used raises `evigrid.InputError`, an output that cannot be written
 /// `evigrid.FileError`; when frames had run, the exception's `summary` says what was done.
 #[pyfunction]
 #[pyo3(signature = (
     source, *, out, config=None, method="evigrid", map=None, origin=None, poses=None,
     pose_format=None, calib=None, times=None, mounting=None, cloud_topic=None, pose_source=None,
-    max_frames=None, strict=false, force=false, mcap=true,
+    max_frames=None, strict=false, force=false, mcap=true, stop=None,
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn run<'py>(
@@ -66,7 +71,16 @@ pub fn run<'py>(
     strict: bool,
     force: bool,
     mcap: bool,
+    stop: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let asked = stop.filter(|s| !s.is_none());
+    if let Some(asked) = asked
+        && !asked.is_callable()
+    {
+        return Err(input_error(
+            "stop: must be a callable without arguments (e.g. threading.Event().is_set)",
+        ));
+    }
     let args = DriveArgs {
         poses,
         pose_format,
@@ -86,14 +100,16 @@ pub fn run<'py>(
     };
     let stop = AtomicBool::new(false);
     let mut interrupted: Option<PyErr> = None;
-    let ran = run_detached(py, &spec, config, out.as_ref(), &stop, &mut interrupted)?;
+    let ran = run_detached(py, &spec, config, out.as_ref(), (&stop, asked), &mut interrupted)?;
     let (summary, error) = match ran {
         Ok(ran) => ran,
         Err(RunError::OutDir(e)) => return Err(out_dir_error(e)),
         Err(RunError::Output(e)) => return Err(file_error(e.to_string())),
         Err(RunError::Session(e)) => return Err(interrupted.unwrap_or(session_error(py, e))),
     };
-    let Some(error) = error else {
+    // Stopped as `stop` asked: what was done, marked incomplete, is the result.
+    let asked_stop = stop.load(Ordering::Relaxed) && interrupted.is_none();
+    let Some(error) = error.filter(|e| !(asked_stop && e.is_interrupted())) else {
         return summary_dict(py, &summary);
     };
     // The signal's own exception (KeyboardInterrupt, or what a Python handler raised), or the
@@ -145,14 +161,15 @@ fn check_out(
 }
 
 /// Runs the drive on a thread of its own ([`run_drive`]) while this one waits with the GIL
-/// released, taking it back every [`SIGNAL_POLL`] to let Python see signals: the first raises
-/// `stop` and is kept in `interrupted`.
+/// released, taking it back every [`SIGNAL_POLL`] to let Python see signals and to ask the
+/// caller's `asked` callable: the first signal, or what `asked` raised, raises `stop` and is kept
+/// in `interrupted`; a true answer of `asked` raises `stop` alone.
 fn run_detached(
     py: Python<'_>,
     spec: &drive::DriveSpec,
     config: SessionConfig,
     out: Option<&Outputs>,
-    stop: &AtomicBool,
+    (stop, asked): (&AtomicBool, Option<&Bound<'_, PyAny>>),
     interrupted: &mut Option<PyErr>,
 ) -> PyResult<Result<(Summary, Option<SessionError>), RunError>> {
     std::thread::scope(|scope| {
@@ -181,6 +198,18 @@ fn run_detached(
             {
                 stop.store(true, Ordering::Relaxed);
                 *interrupted = Some(error);
+            }
+            if let Some(asked) = asked
+                && !stop.load(Ordering::Relaxed)
+            {
+                match asked.call0().and_then(|answer| answer.is_truthy()) {
+                    Ok(false) => {}
+                    Ok(true) => stop.store(true, Ordering::Relaxed),
+                    Err(error) => {
+                        stop.store(true, Ordering::Relaxed);
+                        *interrupted = Some(error);
+                    }
+                }
             }
         }
     })

@@ -312,7 +312,57 @@ def test_a_corrupt_drive_fails_alone_and_the_command_exits_1(local_ray, drives, 
     assert "[3/3]" in done.stderr
 
 
-def test_ctrl_c_cancels_the_drives_and_still_writes_the_table(local_ray, drives, tmp_path):
+def _interrupted_table_is_whole(out: Path, count: int) -> List[Dict[str, Any]]:
+    """The table after Ctrl-C: every drive a row, ok with its folder or interrupted without
+    one, no task left writing (``.partial/`` removed)."""
+    rows = _rows(out)
+    assert len(rows) == count, rows
+    for row in rows:
+        folder = out / row["name"]
+        assert row["status"] in ("ok", "interrupted"), row
+        assert folder.is_dir() == (row["status"] == "ok"), row
+        if row["status"] == "ok":
+            assert row["frames"] == PART_FRAMES and (folder / evigrid.fleet.STAMP).is_file(), row
+        else:
+            assert row["error"].startswith("stopped by Ctrl-C"), row
+            assert row["frames"] is None and row["out"] is None, row
+    assert not (out / ".partial").exists()
+    return rows
+
+
+def _when(out: Path, trigger: "tuple[str, float]", deadline_s: float = 120.0) -> str:
+    """Waits, polling every 5 ms, until the fleet writing into ``out`` reaches ``trigger``:
+    ``("frames", k)`` a drive being written has k frames in its frames.jsonl; ``("folder", s)``
+    s seconds after the first drive's folder was moved into place. Returns the drive's name."""
+    kind, value = trigger
+    end = time.monotonic() + deadline_s
+    while time.monotonic() < end:
+        if kind == "frames":
+            for log in (out / ".partial").glob("*/out/frames.jsonl"):
+                try:
+                    if log.read_text().count("\n") >= value:
+                        return log.parent.parent.name
+                except OSError:
+                    pass
+        else:
+            done = [stamp.parent.name for stamp in out.glob(f"*/{evigrid.fleet.STAMP}")]
+            if done:
+                time.sleep(value)
+                return done[0]
+        time.sleep(0.005)
+    raise AssertionError(f"the fleet in {out} never reached {trigger}")
+
+
+# Ctrl-C across the window where a drive finishes: in the middle of one, at its last frame (its
+# outputs being finished), as its folder is moved into place (its task about to reply), and
+# 0.05 s and 0.3 s after (the reply on its way, the driver collecting it).
+CTRL_C_MOMENTS = [("frames", 5), ("frames", PART_FRAMES), ("folder", 0.0), ("folder", 0.05), ("folder", 0.3)]
+
+
+@pytest.mark.parametrize("moment", CTRL_C_MOMENTS, ids=lambda m: f"{m[0]}-{m[1]}")
+def test_ctrl_c_stops_every_drive_by_itself_and_writes_the_table(
+    local_ray, drives, tmp_path, moment
+):
     out = tmp_path / "out"
     command = [
         sys.executable,
@@ -325,24 +375,46 @@ def test_ctrl_c_cancels_the_drives_and_still_writes_the_table(local_ray, drives,
         local_ray,
     ]
     fleet = subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
-    lines = []
-    for line in fleet.stderr:
-        lines.append(line)
-        if "[1/4]" in line:
-            fleet.send_signal(signal.SIGINT)
-            break
-    rest = fleet.communicate(timeout=120)[1]
-    assert fleet.returncode == 130, "".join(lines) + rest
-    rows = _rows(out)
+    try:
+        name = _when(out, moment)
+        fleet.send_signal(signal.SIGINT)
+        err = fleet.communicate(timeout=120)[1]
+    finally:
+        fleet.kill()
+    # Exit 130 (a driver that aborted would end on SIGABRT), the table whole, nothing cancelled.
+    assert fleet.returncode == 130, err
+    rows = _interrupted_table_is_whole(out, PARTS)
     statuses = [row["status"] for row in rows]
-    assert statuses.count("ok") >= 1 and statuses.count("interrupted") >= 1, statuses
-    for row in rows:
-        folder = out / row["name"]
-        assert folder.is_dir() == (row["status"] == "ok"), row
-        if row["status"] == "interrupted":
-            assert row["error"] == "cancelled by Ctrl-C" and row["frames"] is None
-    assert not (out / ".partial").exists()
-    assert "interrupted; the table holds what finished" in rest
+    # Shown with the test's output when it fails (and with -rP): what each drive came to.
+    print(moment, [(row["name"], row["status"], row["error"]) for row in rows])
+    assert "interrupted" in statuses, statuses
+    if moment[0] == "folder":
+        assert next(row for row in rows if row["name"] == name)["status"] == "ok", rows
+    assert "evigrid fleet: interrupted; stopping" in err, err
+    assert "interrupted; the table holds what finished" in err, err
+    assert "cancel" not in err.lower() and "Check failed" not in err, err
+
+
+def test_ctrl_c_in_python_raises_keyboard_interrupt_after_the_table(local_ray, drives, tmp_path):
+    out = tmp_path / "out"
+    lines: List[str] = []
+
+    def ctrl_c() -> None:
+        _when(out, ("frames", 3))
+        os.kill(os.getpid(), signal.SIGINT)
+
+    sender = threading.Thread(target=ctrl_c)
+    sender.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            evigrid.fleet.run([str(p) for p in drives["parts"]], out=out, progress=lines.append)
+    finally:
+        sender.join()
+    rows = _interrupted_table_is_whole(out, PARTS)
+    assert [row["status"] for row in rows].count("interrupted") >= 2, rows
+    assert any(line.startswith("evigrid fleet: interrupted; stopping") for line in lines), lines
+    # The fleet gave SIGINT back: Python's own handler is in place again.
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
 def test_a_worker_killed_during_a_drive_is_retried_and_gives_the_same_result(
@@ -438,31 +510,96 @@ def test_a_two_node_cluster_runs_tasks_on_both_nodes(local_ray, drives, singles,
         cluster.shutdown()
 
 
-def test_a_drive_finished_when_ctrl_c_comes_is_collected_and_never_cancelled():
-    """Ray 2.60 aborts the driver when a cancel races with a finishing task's reply, so the
-    fleet collects what has finished before it cancels (a fake Ray: no timing involved)."""
-    from evigrid.fleet import _collect_ready
-    from evigrid.fleet._drives import DriveSpec
+class _FakeRay:
+    """Ray's ``wait`` over tasks that end as told, and no ``cancel`` at all: the fleet must
+    never cancel (Ray 2.60 aborts the driver when a cancel races with a finishing task's reply).
+    ``ends``: for each task, ``"done"`` (ended before Ctrl-C), ``"stops"`` (ends once the stop
+    file exists), or ``"stuck"`` (never ends). ``on_wait`` runs at every wait."""
 
-    class FakeRay:
-        def __init__(self, finished):
-            self.finished, self.cancelled = set(finished), []
+    def __init__(self, ends, stop, on_wait=lambda: None):
+        self.ends, self.stop, self.on_wait, self.waits = ends, stop, on_wait, 0
 
-        def wait(self, refs, num_returns, timeout):
-            ready = [ref for ref in refs if ref in self.finished]
-            return ready, [ref for ref in refs if ref not in self.finished]
+    def wait(self, refs, num_returns, timeout):
+        self.waits += 1
+        self.on_wait()
+        stopped = os.path.exists(self.stop)
+        ready = [
+            ref
+            for ref in refs
+            if self.ends[ref] == "done" or (self.ends[ref] == "stops" and stopped)
+        ][:num_returns]
+        if not ready:
+            time.sleep(min(timeout, 0.01))
+        return ready, [ref for ref in refs if ref not in ready]
 
-        def get(self, ref):
-            return {"summary": {"frames": 10}, "attempt": 1}
 
-        def cancel(self, ref, force):
-            self.cancelled.append(ref)
+def _stop_with(fake, ctrl_c, tmp_path, wait_s):
+    from evigrid.fleet import _stop
 
-    fake = FakeRay(finished={"b"})
-    specs = [DriveSpec(given=n, path=n, options={}) for n in ("a", "b")]
-    pending = {"a": 0, "b": 1}
-    rows = [None, None]
-    _collect_ready(fake, pending, specs, ["a", "b"], rows, "/nowhere", 0, timeout_s=0.0)
-    assert pending == {"a": 0}
-    assert rows[0] is None and rows[1]["status"] == "ok" and rows[1]["frames"] == 10
-    assert fake.cancelled == []
+    pending = {ref: k for k, ref in enumerate(fake.ends)}
+    collected: List[str] = []
+
+    def collect(ready):
+        for ref in ready:
+            collected.append(ref)
+            del pending[ref]
+
+    why = _stop(fake, pending, collect, str(tmp_path), "run1", ctrl_c, wait_s=wait_s)
+    return why, collected, pending
+
+
+def test_after_ctrl_c_the_tasks_are_asked_to_stop_by_a_file_and_collected_never_cancelled(
+    tmp_path,
+):
+    from evigrid.fleet import _CtrlC
+    from evigrid.fleet._task import stop_file
+
+    stop = stop_file(str(tmp_path), "run1")
+    fake = _FakeRay({"a": "done", "b": "stops", "c": "stuck"}, stop)
+    ctrl_c = _CtrlC()
+    ctrl_c.count = 1
+    started = time.monotonic()
+    why, collected, pending = _stop_with(fake, ctrl_c, tmp_path, wait_s=0.5)
+    # The task that had ended and the one that stopped are collected; the stuck one is left
+    # (to Ray's shutdown) once the wait is over, and its row says so.
+    assert sorted(collected) == ["a", "b"] and list(pending) == ["c"]
+    assert os.path.isfile(stop) and Path(stop).parent.name == ".partial"
+    assert why == "did not stop within 0.5 s of Ctrl-C (left to Ray's shutdown)"
+    assert 0.5 <= time.monotonic() - started < 5.0
+
+
+def test_a_second_ctrl_c_ends_the_wait_for_the_tasks(tmp_path):
+    from evigrid.fleet import _CtrlC
+    from evigrid.fleet._task import stop_file
+
+    ctrl_c = _CtrlC()
+    ctrl_c.count = 1
+
+    def press_again() -> None:
+        if fake.waits == 3:
+            ctrl_c.count += 1
+
+    fake = _FakeRay({"a": "stuck"}, stop_file(str(tmp_path), "run1"), press_again)
+    started = time.monotonic()
+    why, collected, pending = _stop_with(fake, ctrl_c, tmp_path, wait_s=60.0)
+    assert time.monotonic() - started < 5.0 and fake.waits == 3
+    assert collected == [] and list(pending) == ["a"]
+    assert why == "still running at the second Ctrl-C (left to Ray's shutdown)"
+
+
+def test_a_task_asked_to_stop_before_it_starts_does_no_work(tmp_path):
+    """The stop file of the task's own fleet run stops it; another run's does not."""
+    from evigrid.fleet._task import run_drive, stop_file
+
+    stop = Path(stop_file(str(tmp_path), "run1"))
+    stop.parent.mkdir()
+    stop.write_text("")
+    stale = tmp_path / ".partial" / "a-drive"
+    stale.mkdir()
+    result = run_drive("/no/such/drive", "a-drive", str(tmp_path), {}, {}, "run1")
+    assert result == {"interrupted": "stopped by Ctrl-C before it started", "attempt": 1}
+    # What a dead attempt left is removed; nothing new is written.
+    assert sorted(p.name for p in stop.parent.iterdir()) == [stop.name]
+    # Another fleet run's stop file: the drive runs (and fails: it does not exist).
+    other = run_drive("/no/such/drive", "a-drive", str(tmp_path), {}, {}, "run2")
+    assert "/no/such/drive" in other["error"], other

@@ -202,6 +202,47 @@ def test_ctrl_c_in_a_long_run_finishes_the_outputs_then_raises_keyboard_interrup
     assert not list(out.rglob("*.tmp*")), "a temporary file was left"
 
 
+def test_a_run_asked_to_stop_by_its_stop_callable_finishes_the_outputs_and_returns(kitti, tmp_path):
+    out = tmp_path / "out"
+    asked = []
+
+    def stop() -> bool:
+        asked.append(time.monotonic())
+        log = out / "frames.jsonl"
+        return log.is_file() and log.read_text().count("\n") >= 3
+
+    summary = evigrid.run(kitti, out=out, mcap=False, stop=stop)
+    assert summary["complete"] is False and summary["stopped"] == "interrupted (stop requested)"
+    assert 3 <= summary["frames"] < 40
+    with open(out / "summary.json", encoding="utf-8") as file:
+        assert json.load(file)["frames"] == summary["frames"]
+    assert (out / "classes.json").is_file()
+    assert not list(out.rglob("*.tmp*")), "a temporary file was left"
+    # Asked every 50 ms, not after the stop.
+    assert len(asked) >= 2 and max(b - a for a, b in zip(asked, asked[1:])) < 1.0
+
+
+def test_a_run_whose_stop_callable_never_says_stop_is_complete(kitti):
+    summary = evigrid.run(kitti, out=None, max_frames=5, stop=lambda: False)
+    assert summary["complete"] is True and summary["frames"] == 5
+
+
+def test_what_the_stop_callable_raises_stops_the_run_and_is_raised_with_the_summary(kitti, tmp_path):
+    def stop() -> bool:
+        raise RuntimeError("the stop callable's own error")
+
+    with pytest.raises(RuntimeError, match="the stop callable's own error") as raised:
+        evigrid.run(kitti, out=tmp_path / "out", mcap=False, stop=stop)
+    assert raised.value.summary["complete"] is False
+    assert raised.value.summary["frames"] < 40
+
+
+def test_a_stop_that_is_not_callable_is_an_input_error(kitti, tmp_path):
+    with pytest.raises(evigrid.InputError, match="stop: must be a callable"):
+        evigrid.run(kitti, out=tmp_path / "out", stop=True)
+    assert not (tmp_path / "out").exists()
+
+
 def test_the_gil_is_released_while_a_session_steps(kitti):
     frames = list(evigrid.open_drive(kitti, max_frames=4))
     session = evigrid.Session({"window": {"width_cells": 1000, "height_cells": 1000}})

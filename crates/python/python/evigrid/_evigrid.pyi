@@ -5,7 +5,7 @@
 """
 
 import os
-from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -150,6 +150,9 @@ def run(
     # an input (evigrid.InputError).
     force: bool = False,
     mcap: bool = True,
+    # Called every 50 ms while the drive runs; a true answer stops it between frames, and the
+    # summary (marked incomplete) is returned.
+    stop: Optional[Callable[[], object]] = None,
 ) -> Dict[str, Any]: ...
 
 # A mass function as the Python layer passes it: (label, frame names, [(set names, mass)]).

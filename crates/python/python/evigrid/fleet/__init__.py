@@ -18,8 +18,9 @@ kilobytes per drive and the driver's memory does not grow with the fleet.
 Failures stay alone: a drive evigrid refuses is a ``failed`` row naming its error while the
 others run; a worker killed during a drive is retried (``retries``, default 2); a drive's folder
 appears whole by one rename, never half-written. Rerunning the same call skips the drives whose
-folder holds a complete run with the same options (``resumed`` in the table). Ctrl-C cancels the
-tasks, writes the table of what finished, then raises ``KeyboardInterrupt``.
+folder holds a complete run with the same options (``resumed`` in the table). Ctrl-C asks every
+task to stop at its next frame (a stop file each task looks for; never ``ray.cancel``), waits for
+them, writes the table of what finished, then raises ``KeyboardInterrupt``.
 
 Example (needs ``pip install "evigrid[fleet]"``)::
 
@@ -36,7 +37,9 @@ import json
 import logging
 import os
 import shutil
+import signal
 import sys
+import threading
 import time
 import uuid
 from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Union
@@ -46,16 +49,19 @@ from evigrid._errors import InputError
 from evigrid.fleet._drives import DRIVE_OPTIONS, DriveArg, DriveSpec, drive_specs, folder_names
 from evigrid.fleet._report import write_report
 from evigrid.fleet._table import COLUMNS, STATUSES, failed_row, ok_row, write_table
-from evigrid.fleet._task import PARTIAL, STAMP, one_line, read_stamp, run_drive
+from evigrid.fleet._task import PARTIAL, STAMP, one_line, read_stamp, run_drive, stop_file
 
 __all__ = ["COLUMNS", "DRIVE_OPTIONS", "MARKER", "STAMP", "STATUSES", "run"]
 
 MARKER = ".evigrid-fleet"
 """The file that marks a folder as a fleet's output, so that a rerun may write into it."""
 
-# How long, after Ctrl-C, the driver waits for the cancelled tasks to end before it writes the
-# table anyway.
-_CANCEL_WAIT_S = 10.0
+# How long, after Ctrl-C, the driver waits for the tasks to stop before it writes the table
+# anyway.
+_STOP_WAIT_S = 10.0
+
+# How often the driver looks at Ctrl-C while it waits for the tasks.
+_POLL_S = 0.25
 
 Config = Union[str, "os.PathLike[str]", Mapping[str, Any], None]
 
@@ -133,29 +139,37 @@ def run(
     say(f"evigrid fleet: {len(specs)} drives, {resumed} done before (skipped), {len(todo)} to run")
 
     interrupted, settled = False, True
-    if todo:
-        interrupted, settled = _run_on_ray(
-            specs,
-            names,
-            todo,
-            rows,
-            fleet_dir,
-            options,
-            common_key,
-            address=address,
-            num_cpus=num_cpus,
-            retries=retries,
-            cpus_per_drive=cpus_per_drive,
-            say=say,
-        )
-    final = [
-        row if row is not None else failed_row(specs[i].given, names[i], "interrupted", "not run")
-        for i, row in enumerate(rows)
-    ]
-    table = write_table(final, os.path.join(fleet_dir, "fleet.parquet"))
-    write_report(final, fleet_dir, time.perf_counter() - started)
-    if settled:
-        _remove_partial(fleet_dir)
+    ctrl_c = _CtrlC()
+    try:
+        if todo:
+            interrupted, settled = _run_on_ray(
+                specs,
+                names,
+                todo,
+                rows,
+                fleet_dir,
+                options,
+                common_key,
+                address=address,
+                num_cpus=num_cpus,
+                retries=retries,
+                cpus_per_drive=cpus_per_drive,
+                say=say,
+                ctrl_c=ctrl_c,
+            )
+        final = [
+            row
+            if row is not None
+            else failed_row(specs[i].given, names[i], "interrupted", "not run")
+            for i, row in enumerate(rows)
+        ]
+        table = write_table(final, os.path.join(fleet_dir, "fleet.parquet"))
+        write_report(final, fleet_dir, time.perf_counter() - started)
+        if settled:
+            _remove_partial(fleet_dir)
+    finally:
+        ctrl_c.uninstall()
+    interrupted = interrupted or ctrl_c.pressed
     ok = sum(row["status"] == "ok" for row in final)
     say(f"evigrid fleet: {ok} of {len(final)} drives ok; table {fleet_dir}/fleet.parquet")
     if interrupted:
@@ -177,11 +191,22 @@ def _run_on_ray(
     retries: int,
     cpus_per_drive: int,
     say: Callable[[str], None],
+    ctrl_c: "_CtrlC",
 ) -> "tuple[bool, bool]":
     """Runs the drives ``todo`` as Ray tasks, filling their rows. Returns whether Ctrl-C
-    stopped it, and whether every task has ended (else one may still write under ``.partial``)."""
+    stopped it, and whether every task has ended (else one may still write under ``.partial``).
+    ``ctrl_c`` takes Ctrl-C from the moment Ray is connected (until the caller uninstalls it)."""
     ray = _import_ray(local=address is None)
-    started_ray = _connect(ray, address, num_cpus)
+    try:
+        # Ctrl-C stays KeyboardInterrupt here: joining a cluster that does not answer can take
+        # a minute.
+        started_ray = _connect(ray, address, num_cpus)
+    except KeyboardInterrupt:
+        # While Ray started: no drive ran.
+        if address is None and ray.is_initialized():
+            ray.shutdown()
+        return True, True
+    ctrl_c.install()
     run_id = uuid.uuid4().hex
     task = ray.remote(run_drive)
     task_options = {
@@ -191,71 +216,126 @@ def _run_on_ray(
         "runtime_env": {"env_vars": {"RAYON_NUM_THREADS": str(cpus_per_drive)}},
     }
     pending: Dict[Any, int] = {}
+    done_count = len(specs) - len(todo)
+
+    def collect(ready: List[Any]) -> None:
+        nonlocal done_count
+        for ref in ready:
+            i = pending[ref]
+            rows[i] = _collect(ray, ref, specs[i], names[i], fleet_dir, retries)
+            # Only once its row is filled: a KeyboardInterrupt raised meanwhile leaves the
+            # task pending, to be collected again.
+            del pending[ref]
+            done_count += 1
+            say(_progress_line(done_count, len(specs), rows[i]))
+
     try:
-        for i in todo:
-            spec = specs[i]
-            ref = task.options(name=f"evigrid-fleet {names[i]}", **task_options).remote(
-                spec.path,
-                names[i],
-                fleet_dir,
-                {**options, **spec.options},
-                _key(spec, common_key),
-                run_id,
-            )
-            pending[ref] = i
-        done_count = len(specs) - len(todo)
-        while pending:
-            ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
-            for ref in ready:
-                i = pending.pop(ref)
-                rows[i] = _collect(ray, ref, specs[i], names[i], fleet_dir, retries)
-                done_count += 1
-                say(_progress_line(done_count, len(specs), rows[i]))
-        return False, True
-    except KeyboardInterrupt:
-        # Ray 2.60's owner aborts the driver when a cancel races with the reply of a task that
-        # is finishing ("Tried to complete task that was not pending", task_manager.cc), also
-        # without `force`. So the drives that have finished are collected first and only the
-        # others cancelled: the race is left only to a drive that finishes between that
-        # collection and its cancel. A plain cancel interrupts the task, which `evigrid.run`
-        # notices between frames.
-        _collect_ready(ray, pending, specs, names, rows, fleet_dir, retries, timeout_s=0.0)
-        say(f"evigrid fleet: interrupted; cancelling {len(pending)} drives")
-        for ref in pending:
-            ray.cancel(ref, force=False)
-        deadline = time.monotonic() + _CANCEL_WAIT_S
-        while pending and time.monotonic() < deadline:
-            _collect_ready(ray, pending, specs, names, rows, fleet_dir, retries, timeout_s=0.5)
+        try:
+            for i in todo:
+                if ctrl_c.pressed:
+                    break
+                spec = specs[i]
+                ref = task.options(name=f"evigrid-fleet {names[i]}", **task_options).remote(
+                    spec.path,
+                    names[i],
+                    fleet_dir,
+                    {**options, **spec.options},
+                    _key(spec, common_key),
+                    run_id,
+                )
+                pending[ref] = i
+            while pending and not ctrl_c.pressed:
+                ready, _ = ray.wait(list(pending), num_returns=1, timeout=_POLL_S)
+                collect(ready)
+        except KeyboardInterrupt:
+            # Raised here when this is not the main thread, or the caller's own SIGINT handler
+            # raised it (else `_CtrlC` takes the signal).
+            ctrl_c.count += 1
+        if not ctrl_c.pressed:
+            return False, True
+        say(f"evigrid fleet: interrupted; stopping {len(pending)} drives")
+        why = _stop(ray, pending, collect, fleet_dir, run_id, ctrl_c, wait_s=_STOP_WAIT_S)
+        for i in pending.values():
+            rows[i] = failed_row(specs[i].given, names[i], "interrupted", why)
         return True, not pending
     finally:
         if started_ray:
             ray.shutdown()
 
 
-def _collect_ready(
+class _CtrlC:
+    """Ctrl-C as a count the fleet looks at between its waits, rather than ``KeyboardInterrupt``
+    raised wherever the driver is (in the middle of collecting a result, or inside Ray).
+
+    Installed only in the main thread, over Python's default SIGINT handler; elsewhere, or over
+    the caller's own handler, Ctrl-C stays ``KeyboardInterrupt``, which the fleet counts here.
+    """
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._previous: Any = None
+
+    @property
+    def pressed(self) -> bool:
+        """Whether Ctrl-C was pressed."""
+        return self.count > 0
+
+    def install(self) -> None:
+        """Takes SIGINT, where it may (the main thread, Python's default handler)."""
+        if (
+            self._previous is None
+            and threading.current_thread() is threading.main_thread()
+            and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        ):
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+
+    def uninstall(self) -> None:
+        """Gives SIGINT back to the handler before :meth:`install`."""
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
+
+    def _handle(self, _signum: int, _frame: Any) -> None:
+        self.count += 1
+
+
+def _stop(
     ray: Any,
     pending: Dict[Any, int],
-    specs: List[DriveSpec],
-    names: List[str],
-    rows: List[Optional[Dict[str, Any]]],
+    collect: Callable[[List[Any]], None],
     fleet_dir: str,
-    retries: int,
+    run_id: str,
+    ctrl_c: _CtrlC,
     *,
-    timeout_s: float,
-) -> None:
-    """After Ctrl-C: fills the rows of the pending drives that have ended within ``timeout_s``.
-    A drive that finished keeps its result; any other is interrupted."""
-    if not pending:
-        return
-    ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=timeout_s)
-    for ref in ready:
-        i = pending.pop(ref)
-        row = _collect(ray, ref, specs[i], names[i], fleet_dir, retries)
-        rows[i] = (
-            row
-            if row["status"] == "ok"
-            else failed_row(specs[i].given, names[i], "interrupted", "cancelled by Ctrl-C")
-        )
+    wait_s: float,
+) -> str:
+    """Asks every task to stop (the stop file each looks for between frames), then collects
+    the tasks as they end, for up to ``wait_s`` seconds or until Ctrl-C is pressed again.
+    Returns the error of the rows of the tasks still running then.
+
+    No task is cancelled: Ray 2.60's owner aborts the driver when a cancel races with the reply
+    of a task that is finishing ("Tried to complete task that was not pending",
+    task_manager.cc), also without ``force``. Each task ends by itself, with its result (a drive
+    that finished meanwhile is ok) or ``interrupted``; one that does not end in time (a worker
+    stuck in a long read) stays in ``pending``, left to Ray's shutdown.
+    """
+    stop = stop_file(fleet_dir, run_id)
+    os.makedirs(os.path.dirname(stop), exist_ok=True)
+    with open(stop, "w", encoding="utf-8") as file:
+        file.write("Ctrl-C: every task of this fleet run stops at its next frame\n")
+    presses = ctrl_c.count
+    deadline = time.monotonic() + wait_s
+    try:
+        while pending and time.monotonic() < deadline and ctrl_c.count == presses:
+            timeout = max(0.0, min(_POLL_S, deadline - time.monotonic()))
+            ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=timeout)
+            collect(ready)
+    except KeyboardInterrupt:
+        # Ctrl-C again, where `_CtrlC` could not take it.
+        ctrl_c.count += 1
+    if ctrl_c.count > presses:
+        return "still running at the second Ctrl-C (left to Ray's shutdown)"
+    return f"did not stop within {wait_s:g} s of Ctrl-C (left to Ray's shutdown)"
 
 
 def _collect(
@@ -267,6 +347,7 @@ def _collect(
     try:
         result = ray.get(ref)
     except exceptions.TaskCancelledError:
+        # Cancelled by the caller's own `ray.cancel`: the fleet never cancels.
         return failed_row(spec.given, name, "interrupted", "cancelled")
     except exceptions.RayTaskError as error:
         cause = error.cause
@@ -285,6 +366,10 @@ def _collect(
         return failed_row(spec.given, name, "failed", f"{type(error).__name__}: {one_line(error)}")
     if "error" in result:
         return failed_row(spec.given, name, "failed", result["error"], result.get("attempt"))
+    if "interrupted" in result:
+        return failed_row(
+            spec.given, name, "interrupted", result["interrupted"], result.get("attempt")
+        )
     return ok_row(spec.given, name, os.path.join(fleet_dir, name), result, resumed=False)
 
 
@@ -411,5 +496,6 @@ def _digest(data: bytes) -> str:
 
 
 def _remove_partial(fleet_dir: str) -> None:
-    """Removes what killed or cancelled tasks left half-written, once no task is alive."""
+    """Removes what killed or stopped tasks left half-written (and the stop file), once no task
+    is alive."""
     shutil.rmtree(os.path.join(fleet_dir, PARTIAL), ignore_errors=True)

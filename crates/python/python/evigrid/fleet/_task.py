@@ -4,6 +4,12 @@ staged and moved into place whole, and a few figures back to the driver.
 A drive's folder appears by one rename once every output and the stamp are written, so a worker
 killed at any moment leaves the folder either complete (from an earlier run) or absent; what it
 was writing stays under ``.partial/`` and the next attempt removes it.
+
+A task stops by itself: on Ctrl-C the driver writes the stop file ``.partial/stop-<run>``
+(:func:`stop_file`), which the task looks for before it starts and which ``evigrid.run`` asks
+about every 50 ms (its ``stop``): the drive stops at its next frame, what it wrote is removed, and
+the task returns ``{"interrupted": why}``. No ``ray.cancel`` is needed, so none can race with the
+reply of a task that is finishing.
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ import sys
 import time
 from typing import Any, Dict, Optional
 
-__all__ = ["PARTIAL", "STAMP", "one_line", "read_stamp", "run_drive"]
+__all__ = ["PARTIAL", "STAMP", "one_line", "read_stamp", "run_drive", "stop_file"]
 
 PARTIAL = ".partial"
 """The fleet folder's sub-folder where drives are written before they are moved into place."""
@@ -36,14 +42,18 @@ def run_drive(
     """Runs one drive into ``fleet_dir/name`` and returns its summary and figures (no grid).
 
     A drive evigrid refuses (bad input, unreadable file) comes back as ``{"error": message}``:
-    trying again would not help, so it is not raised for Ray to retry. Anything else raises, and
-    a dead worker is retried by Ray.
+    trying again would not help, so it is not raised for Ray to retry. A drive stopped by the
+    fleet's stop file comes back as ``{"interrupted": why}``, its staged outputs removed.
+    Anything else raises, and a dead worker is retried by Ray.
     """
     import evigrid  # in the worker
 
+    stop = stop_file(fleet_dir, run_id)
     staging = os.path.join(fleet_dir, PARTIAL, name)
     attempt = _previous_attempt(staging, run_id) + 1
     shutil.rmtree(staging, ignore_errors=True)
+    if os.path.lexists(stop):
+        return {"interrupted": "stopped by Ctrl-C before it started", "attempt": attempt}
     os.makedirs(staging)
     _write_json(
         os.path.join(staging, "worker.json"),
@@ -59,7 +69,7 @@ def run_drive(
     out = os.path.join(staging, "out")
     cpu_start, wall_start = time.process_time(), time.perf_counter()
     try:
-        summary = evigrid.run(path, out=out, **options)
+        summary = evigrid.run(path, out=out, stop=lambda: os.path.lexists(stop), **options)
     except evigrid.Error as error:
         shutil.rmtree(staging, ignore_errors=True)
         return {"error": one_line(error), "attempt": attempt}
@@ -70,6 +80,9 @@ def run_drive(
     cpu_s = time.process_time() - cpu_start
     if not summary.get("complete", False):
         shutil.rmtree(staging, ignore_errors=True)
+        if os.path.lexists(stop):
+            frames = summary.get("frames") or 0
+            return {"interrupted": f"stopped by Ctrl-C after {frames} frames", "attempt": attempt}
         return {"error": f"stopped: {summary.get('stopped')}", "attempt": attempt}
     duration_s, moving_objects = _frames_figures(os.path.join(out, "frames.jsonl"))
     import ray  # in the worker
@@ -88,6 +101,12 @@ def run_drive(
     _move_into_place(out, os.path.join(fleet_dir, name), staging)
     shutil.rmtree(staging, ignore_errors=True)
     return result
+
+
+def stop_file(fleet_dir: str, run_id: str) -> str:
+    """The file whose presence asks every task of the fleet run ``run_id`` to stop (each run has
+    its own, so that one left by an interrupted run stops no later run)."""
+    return os.path.join(fleet_dir, PARTIAL, f"stop-{run_id}")
 
 
 def read_stamp(folder: str) -> Optional[Dict[str, Any]]:
