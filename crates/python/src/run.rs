@@ -42,14 +42,17 @@ const SIGNAL_POLL: Duration = Duration::from_millis(50);
 /// callable without arguments, is called every 50 ms while the drive runs (on the calling
 /// thread, with the GIL); once it returns a true value the drive stops between frames in the
 /// same way, and the summary, marked incomplete, is returned; an exception it raises stops the
-/// drive and is raised after the outputs are finished, as a signal handler's would be. A drive
-/// that cannot be used raises `evigrid.InputError`, an output that cannot be written
-/// `evigrid.FileError`; when frames had run, the exception's `summary` says what was done.
+/// drive and is raised after the outputs are finished, as a signal handler's would be.
+/// `threads`: the drive runs on a thread pool of its own of that many threads (default:
+/// evigrid's shared pool, one thread per CPU or `RAYON_NUM_THREADS`); the outputs do not depend
+/// on it. A drive that cannot be used raises `evigrid.InputError`, an output that cannot be
+/// written `evigrid.FileError`; when frames had run, the exception's `summary` says what was
+/// done.
 #[pyfunction]
 #[pyo3(signature = (
     source, *, out, config=None, method="evigrid", map=None, origin=None, poses=None,
     pose_format=None, calib=None, times=None, mounting=None, cloud_topic=None, pose_source=None,
-    max_frames=None, strict=false, force=false, mcap=true, stop=None,
+    max_frames=None, strict=false, force=false, mcap=true, stop=None, threads=None,
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn run<'py>(
@@ -72,6 +75,7 @@ pub fn run<'py>(
     force: bool,
     mcap: bool,
     stop: Option<&Bound<'py, PyAny>>,
+    threads: Option<usize>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let asked = stop.filter(|s| !s.is_none());
     if let Some(asked) = asked
@@ -81,6 +85,7 @@ pub fn run<'py>(
             "stop: must be a callable without arguments (e.g. threading.Event().is_set)",
         ));
     }
+    let pool = threads.map(thread_pool).transpose()?;
     let args = DriveArgs {
         poses,
         pose_format,
@@ -100,7 +105,12 @@ pub fn run<'py>(
     };
     let stop = AtomicBool::new(false);
     let mut interrupted: Option<PyErr> = None;
-    let ran = run_detached(py, &spec, config, out.as_ref(), (&stop, asked), &mut interrupted)?;
+    let ran = run_detached(
+        py,
+        (&spec, config, out.as_ref(), pool.as_ref()),
+        (&stop, asked),
+        &mut interrupted,
+    )?;
     let (summary, error) = match ran {
         Ok(ran) => ran,
         Err(RunError::OutDir(e)) => return Err(out_dir_error(e)),
@@ -166,9 +176,12 @@ fn check_out(
 /// in `interrupted`; a true answer of `asked` raises `stop` alone.
 fn run_detached(
     py: Python<'_>,
-    spec: &drive::DriveSpec,
-    config: SessionConfig,
-    out: Option<&Outputs>,
+    (spec, config, out, pool): (
+        &drive::DriveSpec,
+        SessionConfig,
+        Option<&Outputs>,
+        Option<&rayon::ThreadPool>,
+    ),
     (stop, asked): (&AtomicBool, Option<&Bound<'_, PyAny>>),
     interrupted: &mut Option<PyErr>,
 ) -> PyResult<Result<(Summary, Option<SessionError>), RunError>> {
@@ -177,7 +190,11 @@ fn run_detached(
         // Waited on with the GIL released, from this thread only.
         let finished = std::sync::Mutex::new(finished);
         scope.spawn(move || {
-            let _ = done.send(run_drive(spec, config, out, stop));
+            let ran = match pool {
+                Some(pool) => pool.install(|| run_drive(spec, config, out, stop)),
+                None => run_drive(spec, config, out, stop),
+            };
+            let _ = done.send(ran);
         });
         loop {
             let waited = py.detach(|| match finished.lock() {
@@ -213,6 +230,22 @@ fn run_detached(
             }
         }
     })
+}
+
+/// A thread pool of `threads` threads for one run, or why not.
+fn thread_pool(threads: usize) -> PyResult<rayon::ThreadPool> {
+    if threads == 0 {
+        return Err(input_error("threads 0: must be 1 or more"));
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .thread_name(|k| format!("evigrid-run-{k}"))
+        .build()
+        .map_err(|e| {
+            pyo3::exceptions::PyRuntimeError::new_err(format!(
+                "threads {threads}: the thread pool cannot be started: {e}"
+            ))
+        })
 }
 
 /// Where the outputs go, when they do.

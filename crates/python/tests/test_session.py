@@ -202,7 +202,9 @@ def test_ctrl_c_in_a_long_run_finishes_the_outputs_then_raises_keyboard_interrup
     assert not list(out.rglob("*.tmp*")), "a temporary file was left"
 
 
-def test_a_run_asked_to_stop_by_its_stop_callable_finishes_the_outputs_and_returns(kitti, tmp_path):
+def test_a_run_asked_to_stop_by_its_stop_callable_finishes_the_outputs_and_returns(
+    kitti, tmp_path
+):
     out = tmp_path / "out"
     asked = []
 
@@ -227,7 +229,9 @@ def test_a_run_whose_stop_callable_never_says_stop_is_complete(kitti):
     assert summary["complete"] is True and summary["frames"] == 5
 
 
-def test_what_the_stop_callable_raises_stops_the_run_and_is_raised_with_the_summary(kitti, tmp_path):
+def test_what_the_stop_callable_raises_stops_the_run_and_is_raised_with_the_summary(
+    kitti, tmp_path
+):
     def stop() -> bool:
         raise RuntimeError("the stop callable's own error")
 
@@ -241,6 +245,35 @@ def test_a_stop_that_is_not_callable_is_an_input_error(kitti, tmp_path):
     with pytest.raises(evigrid.InputError, match="stop: must be a callable"):
         evigrid.run(kitti, out=tmp_path / "out", stop=True)
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="thread names from /proc")
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_run_with_threads_runs_on_a_pool_of_that_many_threads_and_decides_the_same(
+    kitti, threads
+):
+    seen = set()
+
+    def threads_now() -> bool:
+        # Asked every 50 ms while the drive runs: the names of this process's threads.
+        for task in os.listdir("/proc/self/task"):
+            try:
+                with open(f"/proc/self/task/{task}/comm", encoding="utf-8") as file:
+                    seen.add(file.read().strip())
+            except OSError:
+                pass
+        return False
+
+    summary = evigrid.run(kitti, out=None, max_frames=12, threads=threads, stop=threads_now)
+    assert {name for name in seen if name.startswith("evigrid-run-")} == {
+        f"evigrid-run-{k}" for k in range(threads)
+    }
+    assert summary["final_classes"] == evigrid.run(kitti, out=None, max_frames=12)["final_classes"]
+
+
+def test_threads_0_is_an_input_error(kitti):
+    with pytest.raises(evigrid.InputError, match="threads 0: must be 1 or more"):
+        evigrid.run(kitti, out=None, threads=0)
 
 
 def test_the_gil_is_released_while_a_session_steps(kitti):

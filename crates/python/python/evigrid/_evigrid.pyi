@@ -153,6 +153,8 @@ def run(
     # Called every 50 ms while the drive runs; a true answer stops it between frames, and the
     # summary (marked incomplete) is returned.
     stop: Optional[Callable[[], object]] = None,
+    # The drive's own thread pool of that many threads (default: the shared pool).
+    threads: Optional[int] = None,
 ) -> Dict[str, Any]: ...
 
 # A mass function as the Python layer passes it: (label, frame names, [(set names, mass)]).
