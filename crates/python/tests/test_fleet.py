@@ -551,7 +551,7 @@ class _FakeRay:
         return ready, [ref for ref in refs if ref not in ready]
 
 
-def _stop_with(fake, ctrl_c, tmp_path, wait_s):
+def _stop_with(fake, ctrl_c, fleet_dir, wait_s, say=lambda line: None):
     from evigrid.fleet import _stop
 
     pending = {ref: k for k, ref in enumerate(fake.ends)}
@@ -562,7 +562,7 @@ def _stop_with(fake, ctrl_c, tmp_path, wait_s):
             collected.append(ref)
             del pending[ref]
 
-    why = _stop(fake, pending, collect, str(tmp_path), "run1", ctrl_c, wait_s=wait_s)
+    why = _stop(fake, pending, collect, str(fleet_dir), "run1", ctrl_c, wait_s=wait_s, say=say)
     return why, collected, pending
 
 
@@ -621,3 +621,20 @@ def test_a_task_asked_to_stop_before_it_starts_does_no_work(tmp_path):
     # Another fleet run's stop file: the drive runs (and fails: it does not exist).
     other = run_drive("/no/such/drive", "a-drive", str(tmp_path), {}, {}, "run2")
     assert "/no/such/drive" in other["error"], other
+
+
+def test_a_stop_file_that_cannot_be_written_is_said_and_the_wait_still_ends(tmp_path):
+    from evigrid.fleet import _CtrlC
+    from evigrid.fleet._task import stop_file
+
+    # A file where the fleet folder should be: `.partial/` cannot be made in it.
+    fleet_dir = tmp_path / "not-a-folder"
+    fleet_dir.write_text("")
+    fake = _FakeRay({"a": "done", "b": "stops"}, stop_file(str(fleet_dir), "run1"))
+    ctrl_c = _CtrlC()
+    ctrl_c.count = 1
+    lines: List[str] = []
+    why, collected, pending = _stop_with(fake, ctrl_c, fleet_dir, 0.3, lines.append)
+    assert collected == ["a"] and list(pending) == ["b"]
+    assert why == "did not stop within 0.3 s of Ctrl-C (left to Ray's shutdown)"
+    assert len(lines) == 1 and "cannot be written" in lines[0] and "the drives run on" in lines[0]

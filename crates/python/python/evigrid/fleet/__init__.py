@@ -253,7 +253,9 @@ def _run_on_ray(
         if not ctrl_c.pressed:
             return False, True
         say(f"evigrid fleet: interrupted; stopping {len(pending)} drives")
-        why = _stop(ray, pending, collect, fleet_dir, run_id, ctrl_c, wait_s=_STOP_WAIT_S)
+        why = _stop(
+            ray, pending, collect, fleet_dir, run_id, ctrl_c, wait_s=_STOP_WAIT_S, say=say
+        )
         for i in pending.values():
             rows[i] = failed_row(specs[i].given, names[i], "interrupted", why)
         return True, not pending
@@ -307,6 +309,7 @@ def _stop(
     ctrl_c: _CtrlC,
     *,
     wait_s: float,
+    say: Callable[[str], None] = lambda line: None,
 ) -> str:
     """Asks every task to stop (the stop file each looks for between frames), then collects
     the tasks as they end, for up to ``wait_s`` seconds or until Ctrl-C is pressed again.
@@ -319,9 +322,13 @@ def _stop(
     stuck in a long read) stays in ``pending``, left to Ray's shutdown.
     """
     stop = stop_file(fleet_dir, run_id)
-    os.makedirs(os.path.dirname(stop), exist_ok=True)
-    with open(stop, "w", encoding="utf-8") as file:
-        file.write("Ctrl-C: every task of this fleet run stops at its next frame\n")
+    try:
+        os.makedirs(os.path.dirname(stop), exist_ok=True)
+        with open(stop, "w", encoding="utf-8") as file:
+            file.write("Ctrl-C: every task of this fleet run stops at its next frame\n")
+    except OSError as error:
+        # The tasks will not stop; the table is still written, after the wait.
+        say(f"evigrid fleet: {stop}: cannot be written ({error.strerror}); the drives run on")
     presses = ctrl_c.count
     deadline = time.monotonic() + wait_s
     try:
