@@ -35,7 +35,7 @@ from pathlib import Path
 # this process's priority, as evigrid.fleet starts a local instance (Ray's default is niceness
 # 15, which on a shared machine measures the other tenants, not the fleet).
 os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
-os.environ.setdefault("RAY_worker_niceness", str(os.nice(0)))
+os.environ.setdefault("RAY_worker_niceness", "0")  # an increment on this process's niceness
 
 import evigrid  # noqa: E402
 import evigrid.fleet  # noqa: E402

@@ -502,6 +502,37 @@ def test_a_drive_whose_worker_dies_on_every_attempt_fails_alone(local_ray, drive
     assert not (out / "2011_09_26").exists() and not (out / ".partial").exists()
 
 
+@pytest.mark.skipif(not hasattr(os, "nice"), reason="niceness is POSIX")
+def test_a_local_fleet_runs_its_drives_at_the_commands_own_niceness(drives, tmp_path):
+    """`python -m evigrid.fleet` under `nice -n 3` starts its own Ray instance, whose workers
+    must run at the command's niceness: Ray adds RAY_worker_niceness to what they inherit."""
+    out = tmp_path / "out"
+    niced = (
+        "import os, runpy; os.nice(3); "
+        "runpy.run_module('evigrid.fleet', run_name='__main__', alter_sys=True)"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("RAY_worker_niceness", "RAY_ADDRESS")}
+    command = [sys.executable, "-c", niced, str(drives["parts"][0]), "--out", str(out)]
+    fleet = subprocess.Popen(
+        [*command, "--num-cpus", "1"], stderr=subprocess.PIPE, text=True, env=env
+    )
+    seen = None
+    try:
+        deadline = time.monotonic() + 120
+        while seen is None and fleet.poll() is None and time.monotonic() < deadline:
+            for worker in (out / ".partial").glob("*/worker.json"):
+                try:
+                    seen = json.loads(worker.read_text())["niceness"]
+                except (OSError, ValueError):
+                    pass
+            time.sleep(0.005)
+        err = fleet.communicate(timeout=120)[1]
+    finally:
+        fleet.kill()
+    assert fleet.returncode == 0, err
+    assert seen == min(19, os.nice(0) + 3), (seen, err)
+
+
 # ---------------------------------------------------------------------------------------------
 # On a cluster of two nodes on this machine (last: it replaces the local instance).
 

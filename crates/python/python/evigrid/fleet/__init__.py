@@ -420,10 +420,10 @@ def _connect(ray: Any, address: Optional[str], num_cpus: Optional[int]) -> bool:
         return False
     quiet = {"log_to_driver": False, "logging_level": logging.WARNING}
     if address is None:
-        # Ray runs its workers at niceness 15; the drives of a local fleet run at the caller's
-        # own priority, as `evigrid run` would (read by the raylet this call starts).
-        if hasattr(os, "nice"):
-            os.environ.setdefault("RAY_worker_niceness", str(os.nice(0)))
+        # Ray makes its workers 15 nicer than the raylet this call starts (a `nice(15)` in each
+        # worker, an increment); the drives of a local fleet run at the caller's own priority,
+        # as `evigrid run` would: no increment, the workers inherit this process's niceness.
+        os.environ.setdefault("RAY_worker_niceness", "0")
         ray.init(num_cpus=num_cpus, include_dashboard=False, **quiet)
     else:
         ray.init(address=address, **quiet)

@@ -63,6 +63,7 @@ def run_drive(
             "drive": path,
             "host": socket.gethostname(),
             "pid": os.getpid(),
+            "niceness": os.nice(0) if hasattr(os, "nice") else None,
             "started": time.time(),
         },
     )
