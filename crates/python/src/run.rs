@@ -9,9 +9,10 @@
 //! summary. The caller's `stop` callable, asked at the same moments, stops the drive the same
 //! way without a signal; the summary is then returned (a stop that was asked for is no error).
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc;
+use std::sync::{Arc, Mutex, mpsc};
 use std::time::Duration;
 
 use output::out_dir::{OutDir, OutDirError};
@@ -43,9 +44,9 @@ const SIGNAL_POLL: Duration = Duration::from_millis(50);
 /// thread, with the GIL); once it returns a true value the drive stops between frames in the
 /// same way, and the summary, marked incomplete, is returned; an exception it raises stops the
 /// drive and is raised after the outputs are finished, as a signal handler's would be.
-/// `threads`: the drive runs on a thread pool of its own of that many threads (default:
-/// evigrid's shared pool, one thread per CPU or `RAYON_NUM_THREADS`); the outputs do not depend
-/// on it. A drive that cannot be used raises `evigrid.InputError`, an output that cannot be
+/// `threads`: the drive runs on a thread pool of that many threads, kept for the next runs with
+/// the same `threads` (default: evigrid's shared pool, one thread per CPU or
+/// `RAYON_NUM_THREADS`); the outputs do not depend on it. A drive that cannot be used raises `evigrid.InputError`, an output that cannot be
 /// written `evigrid.FileError`; when frames had run, the exception's `summary` says what was
 /// done.
 #[pyfunction]
@@ -180,7 +181,7 @@ fn run_detached(
         &drive::DriveSpec,
         SessionConfig,
         Option<&Outputs>,
-        Option<&rayon::ThreadPool>,
+        Option<&Arc<rayon::ThreadPool>>,
     ),
     (stop, asked): (&AtomicBool, Option<&Bound<'_, PyAny>>),
     interrupted: &mut Option<PyErr>,
@@ -232,20 +233,34 @@ fn run_detached(
     })
 }
 
-/// A thread pool of `threads` threads for one run, or why not.
-fn thread_pool(threads: usize) -> PyResult<rayon::ThreadPool> {
+/// The thread pools of `run(threads=...)` by size, kept for the next runs: a pool started for
+/// every run made each drive start its threads again (and their allocator arenas), which in a
+/// Ray worker cost a third more wall time than the shared pool at the same CPU time.
+static POOLS: Mutex<BTreeMap<usize, Arc<rayon::ThreadPool>>> = Mutex::new(BTreeMap::new());
+
+/// The thread pool of `threads` threads (started on first use, then kept), or why not.
+fn thread_pool(threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
     if threads == 0 {
         return Err(input_error("threads 0: must be 1 or more"));
     }
-    rayon::ThreadPoolBuilder::new()
+    let mut pools = POOLS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if let Some(pool) = pools.get(&threads) {
+        return Ok(Arc::clone(pool));
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
-        .thread_name(|k| format!("evigrid-run-{k}"))
+        .thread_name(move |k| format!("evigrid-p{threads}-{k}"))
         .build()
         .map_err(|e| {
             pyo3::exceptions::PyRuntimeError::new_err(format!(
                 "threads {threads}: the thread pool cannot be started: {e}"
             ))
-        })
+        })?;
+    let pool = Arc::new(pool);
+    pools.insert(threads, Arc::clone(&pool));
+    Ok(pool)
 }
 
 /// Where the outputs go, when they do.

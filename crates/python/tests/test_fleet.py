@@ -669,3 +669,27 @@ def test_a_stop_file_that_cannot_be_written_is_said_and_the_wait_still_ends(tmp_
     assert collected == ["a"] and list(pending) == ["b"]
     assert why == "did not stop within 0.3 s of Ctrl-C (left to Ray's shutdown)"
     assert len(lines) == 1 and "cannot be written" in lines[0] and "the drives run on" in lines[0]
+
+
+def test_a_workers_shared_pool_is_sized_at_its_first_drive_and_other_sizes_get_their_own():
+    from evigrid.fleet import _task
+
+    saved = (_task._shared_pool, os.environ.pop("RAYON_NUM_THREADS", None))
+    try:
+        _task._shared_pool = None
+        # The first drive sizes the shared pool (started at its first use, by the drive).
+        assert _task._sized_threads({"method": "evigrid", "threads": 1}) == {"method": "evigrid"}
+        assert os.environ["RAYON_NUM_THREADS"] == "1"
+        assert _task._sized_threads({"threads": 1}) == {}
+        # Another size: a pool of its own.
+        assert _task._sized_threads({"threads": 2}) == {"threads": 2}
+        # A size the user set wins for the shared pool.
+        _task._shared_pool = None
+        os.environ["RAYON_NUM_THREADS"] = "4"
+        assert _task._sized_threads({"threads": 2}) == {"threads": 2}
+        assert _task._sized_threads({"threads": 4}) == {}
+    finally:
+        _task._shared_pool = saved[0]
+        os.environ.pop("RAYON_NUM_THREADS", None)
+        if saved[1] is not None:
+            os.environ["RAYON_NUM_THREADS"] = saved[1]

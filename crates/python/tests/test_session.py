@@ -265,8 +265,8 @@ def test_a_run_with_threads_runs_on_a_pool_of_that_many_threads_and_decides_the_
         return False
 
     summary = evigrid.run(kitti, out=None, max_frames=12, threads=threads, stop=threads_now)
-    assert {name for name in seen if name.startswith("evigrid-run-")} == {
-        f"evigrid-run-{k}" for k in range(threads)
+    assert {name for name in seen if name.startswith(f"evigrid-p{threads}-")} == {
+        f"evigrid-p{threads}-{k}" for k in range(threads)
     }
     assert summary["final_classes"] == evigrid.run(kitti, out=None, max_frames=12)["final_classes"]
 

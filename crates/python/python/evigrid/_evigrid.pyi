@@ -153,7 +153,7 @@ def run(
     # Called every 50 ms while the drive runs; a true answer stops it between frames, and the
     # summary (marked incomplete) is returned.
     stop: Optional[Callable[[], object]] = None,
-    # The drive's own thread pool of that many threads (default: the shared pool).
+    # A thread pool of that many threads, kept for the next runs (default: the shared pool).
     threads: Optional[int] = None,
 ) -> Dict[str, Any]: ...
 

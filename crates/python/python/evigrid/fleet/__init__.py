@@ -209,10 +209,10 @@ def _run_on_ray(
     ctrl_c.install()
     run_id = uuid.uuid4().hex
     task = ray.remote(run_drive)
-    # evigrid's threads are sized to the task's CPUs by `evigrid.run(threads=...)`, not by a
-    # runtime environment (RAYON_NUM_THREADS): Ray starts workers of their own for a task with
-    # one, even of environment variables alone, so the workers it had already started would sit
-    # idle while new ones start (seconds each on a loaded machine).
+    # evigrid's threads are sized to the task's CPUs in the worker (`_task._sized_threads`), not
+    # by a runtime environment (RAYON_NUM_THREADS): Ray starts workers of their own for a task
+    # with one, even of environment variables alone, so the workers it had already started
+    # would sit idle while new ones start (seconds each on a loaded machine).
     task_options = {"num_cpus": cpus_per_drive, "max_retries": retries, "retry_exceptions": False}
     pending: Dict[Any, int] = {}
     done_count = len(specs) - len(todo)
