@@ -46,9 +46,9 @@ const SIGNAL_POLL: Duration = Duration::from_millis(50);
 /// drive and is raised after the outputs are finished, as a signal handler's would be.
 /// `threads`: the drive runs on a thread pool of that many threads, kept for the next runs with
 /// the same `threads` (default: evigrid's shared pool, one thread per CPU or
-/// `RAYON_NUM_THREADS`); the outputs do not depend on it. A drive that cannot be used raises `evigrid.InputError`, an output that cannot be
-/// written `evigrid.FileError`; when frames had run, the exception's `summary` says what was
-/// done.
+/// `RAYON_NUM_THREADS`); the outputs do not depend on it. A drive that cannot be used raises
+/// `evigrid.InputError`, an output that cannot be written `evigrid.FileError`; when frames had
+/// run, the exception's `summary` says what was done.
 #[pyfunction]
 #[pyo3(signature = (
     source, *, out, config=None, method="evigrid", map=None, origin=None, poses=None,
@@ -233,9 +233,8 @@ fn run_detached(
     })
 }
 
-/// The thread pools of `run(threads=...)` by size, kept for the next runs: a pool started for
-/// every run made each drive start its threads again (and their allocator arenas), which in a
-/// Ray worker cost a third more wall time than the shared pool at the same CPU time.
+/// The thread pools of `run(threads=...)` by size, kept for the next runs as the shared pool is
+/// (rather than starting a drive's threads again for every drive).
 static POOLS: Mutex<BTreeMap<usize, Arc<rayon::ThreadPool>>> = Mutex::new(BTreeMap::new());
 
 /// The thread pool of `threads` threads (started on first use, then kept), or why not.
