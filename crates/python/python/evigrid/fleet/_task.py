@@ -114,7 +114,7 @@ def _sized_threads(options: Dict[str, Any]) -> Dict[str, Any]:
     (``options["threads"]``): by the worker's shared pool when it is, or can still be, of that
     size (``RAYON_NUM_THREADS``, read when the pool starts, at the first drive), else by a pool
     of that size (``evigrid.run(threads=...)``). The shared pool first: inside a Ray worker a
-    drive on a pool of its own measured a third slower (wall time; the same CPU time), for
+    drive on a pool of its own measured 25-100 % slower (wall time; the same CPU time), for
     reasons not found."""
     global _shared_pool
     options = dict(options)
