@@ -23,6 +23,10 @@
 //! that are truth M (`M75%`: 75-99 %). With `DIAGNOSE_STARTED` set, each miss says how many
 //! frames back, within [`STARTED_FRAMES`], its cell was last truth S (a road user that has just
 //! started), or "not S lately".
+//! With `DIAGNOSE_PERSIST` set, each false M says how many frames back its cell last took
+//! moving evidence from the stage (`Moving` or `EnteredSeenFree`), "Mev now" this frame, or
+//! "Mev never" within the seed: M kept by the fusion after the evidence went, or made by the
+//! fusion step's own free→occupied conflict.
 
 mod common;
 
@@ -55,6 +59,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The truth of the last `STARTED_FRAMES` frames of the seed, newest last
     // (`DIAGNOSE_STARTED`).
     let mut truths: std::collections::VecDeque<Vec<Label>> = std::collections::VecDeque::new();
+    let persist = std::env::var_os("DIAGNOSE_PERSIST").is_some();
+    // The frame at which each cell last took moving evidence (`DIAGNOSE_PERSIST`).
+    let mut last_evidence: std::collections::HashMap<u32, usize> = std::collections::HashMap::new();
     evaluate_observed(
         &map,
         &scenario,
@@ -65,6 +72,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &mut |f| {
             if f.frame == 0 {
                 truths.clear();
+                last_evidence.clear();
             }
             let window = f.front_end.window();
             let sensor = f.front_end.sensor_grid();
@@ -79,6 +87,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .motion()
                 .map(|m| m.cell_states().iter().map(|r| (r.idx, *r)).collect())
                 .unwrap_or_default();
+            if persist {
+                for s in states.values() {
+                    if matches!(s.state, CellMotion::Moving | CellMotion::EnteredSeenFree) {
+                        last_evidence.insert(s.idx, f.frame);
+                    }
+                }
+            }
             // Per cluster: its labelled cells and how many are truth M (`DIAGNOSE_DETAIL`).
             let mut composition: std::collections::HashMap<u32, (u32, u32)> =
                 std::collections::HashMap::new();
@@ -135,7 +150,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let missed = truth == Label::M && decided != Label::M;
                 if truth == Label::M && decided == Label::M {
                     // The hits, so that moving IoU and dynamic accuracy can be read off.
-                    *counts.entry("hit M".to_owned()).or_default() += 1;
+                    let key = match states.get(&(idx as u32)) {
+                        Some(s) if persist => format!(
+                            "hit M | {:?} m{} v{:.0}",
+                            s.state,
+                            s.measurements.min(9),
+                            s.speed_mps
+                        ),
+                        None if persist => "hit M | -".to_owned(),
+                        _ => "hit M".to_owned(),
+                    };
+                    *counts.entry(key).or_default() += 1;
                 }
                 if !false_moving && !missed {
                     continue;
@@ -218,6 +243,35 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             (true, Some(k)) => format!(" | S {} frames back", k + 1),
                         }
                     )
+                };
+                if persist
+                    && false_moving
+                    && std::env::var_os("DIAGNOSE_LIST").is_some()
+                    && let Some(s) = states.get(&(idx as u32))
+                {
+                    eprintln!(
+                        "LIST frame {} cluster {} {:?} n{} f{} m{} v{:.1} s{:.1} age{:.1} truth {:?}",
+                        f.frame,
+                        s.cluster,
+                        s.state,
+                        s.cluster_cells,
+                        s.frames,
+                        s.measurements,
+                        s.speed_mps,
+                        s.sigma_mps,
+                        s.track_age_s,
+                        truth
+                    );
+                }
+                let key = if persist && false_moving {
+                    let back = match last_evidence.get(&(idx as u32)) {
+                        None => "Mev never".to_owned(),
+                        Some(&k) if k == f.frame => "Mev now".to_owned(),
+                        Some(&k) => format!("Mev {} back", bucket((f.frame - k) as u32)),
+                    };
+                    format!("{key} | {back}")
+                } else {
+                    key
                 };
                 let key = if geometry {
                     let centre = [

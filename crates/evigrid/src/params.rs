@@ -1015,6 +1015,12 @@ pub struct MotionParams {
     /// extent seen, not anchored on a face the sensor sees, and a silhouette's ends), metres,
     /// a cell centre still counts as inside: the largest extent seen is a lower bound.
     pub object_far_margin_m: f64,
+    /// A track judged moving whose cells that moved (those its registration explains) span
+    /// more than this, metres (the diagonal of their box along east and north), gives no
+    /// moving evidence: no road user is that large, and a façade or a row of parked cars that
+    /// a scan's pose error shifted is (`docs/motion.md`, "Static things under pose error: too
+    /// large to move, a pose not yet known"). 0: off.
+    pub moving_max_extent_m: f64,
 }
 
 impl Default for MotionParams {
@@ -1063,6 +1069,7 @@ impl Default for MotionParams {
             object_small_depth_m: 0.6,
             object_fit_unsure_heading: true,
             object_far_margin_m: 0.15,
+            moving_max_extent_m: 0.0,
         }
     }
 }
@@ -1144,6 +1151,7 @@ impl MotionParams {
             positive("motion.pose_gate_sigmas", self.pose_gate_sigmas)?;
         }
         non_negative("motion.displaced_pose_sigmas", self.displaced_pose_sigmas)?;
+        non_negative("motion.moving_max_extent_m", self.moving_max_extent_m)?;
         Ok(())
     }
 }

@@ -92,6 +92,10 @@ pub enum CellMotion {
     /// A cell of a moving track whose centre lies outside the track's rectangle
     /// (`object_layer`): `object_outside_static` on Ω∖{M}, or no evidence.
     OutsideObject,
+    /// Judged moving, but the cells that moved span more than a road user
+    /// (`motion.moving_max_extent_m`): a static thing that the pose's error shifted,
+    /// m(Ω∖{M}) as a static track's cells.
+    TooLarge,
 }
 
 /// One cluster cell of the last frame, for diagnosis.
@@ -467,6 +471,16 @@ impl MotionStage {
                     state = CellMotion::EnteredSeenFree;
                 }
             }
+            // Cells that moved spanning more than a road user: a static thing the pose's
+            // error shifted (`moving_max_extent_m`), "not moving" as a static track's.
+            if let MotionMass::Moving(_) = mass
+                && self.params.moving_max_extent_m > 0.0
+                && moved_extent_m(cells, moved, &labels, cell_size_m)
+                    > self.params.moving_max_extent_m
+            {
+                mass = MotionMass::Static(self.params.mu_static as f32);
+                state = CellMotion::TooLarge;
+            }
             let mass = evidence::off_buildings(
                 mass,
                 cells
@@ -530,7 +544,10 @@ impl MotionStage {
                         (MotionMass::Vacuous, CellMotion::StaticPart)
                     }
                     (MotionMass::Static(_) | MotionMass::Stopped(_), _)
-                        if static_part_entered && registers(c) && entered_cell(c) =>
+                        if static_part_entered
+                            && state != CellMotion::TooLarge
+                            && registers(c)
+                            && entered_cell(c) =>
                     {
                         (
                             MotionMass::Moving(self.params.mu_moving as f32),
@@ -921,6 +938,27 @@ impl MotionStage {
     }
 }
 
+/// The diagonal, metres, of the box (along east and north) of the cells of a cluster that
+/// moved (`moved`, one flag per cell of `cells`) and take evidence (`labels`); 0 without any.
+fn moved_extent_m(
+    cells: &[clusters::Cell],
+    moved: &[bool],
+    labels: &impl Fn(&clusters::Cell) -> bool,
+    cell_size_m: f64,
+) -> f64 {
+    let mut bounds: Option<[i64; 4]> = None;
+    for (c, _) in cells.iter().zip(moved).filter(|(c, m)| **m && labels(c)) {
+        let (col, row) = (c.col, c.row);
+        bounds = Some(match bounds {
+            None => [col, col, row, row],
+            Some([c0, c1, r0, r1]) => [c0.min(col), c1.max(col), r0.min(row), r1.max(row)],
+        });
+    }
+    bounds.map_or(0.0, |[c0, c1, r0, r1]| {
+        ((c1 - c0 + 1) as f64 * cell_size_m).hypot((r1 - r0 + 1) as f64 * cell_size_m)
+    })
+}
+
 /// Whether a track judged moving is held back from the moving-object list (`docs/motion.md`,
 /// "The moving-object list"): judged moving only because it entered space seen free, never
 /// registered, judged moving in fewer than `report_after_moving_frames` frames, or of an
@@ -1063,6 +1101,79 @@ mod tests {
                 vec![CellMotion::Moving]
             ]
         );
+    }
+
+    #[test]
+    fn a_whole_wall_that_slides_is_too_large_to_move_and_a_car_is_not() {
+        // An object of `len` cells along a row (columns 4 on) moves one row north a frame
+        // (0.5 m in 0.1 s: 5 m/s) from row 18, rows 16-24 seen free around it from column 2
+        // to 38: what a façade does when a scan's pose is off, or a car driving side-on.
+        // Exact poses (σ 0, refinement off).
+        // The cells that moved span len × 0.5 m along east and 0.5 m along north: a 30-cell
+        // wall √(15² + 0.5²) = 15.008 m, an 8-cell car √(4² + 0.5²) = 4.031 m.
+        let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
+        let (w, h) = (window.width(), window.height());
+        let at = |col: i64, row: i64| window.storage_index(col, row).unwrap_or(0);
+        let last_states = |len: i64, max_extent_m: f64| {
+            let mut params = crate::Params::default();
+            params.motion.moving_max_extent_m = max_extent_m;
+            let mut stage = MotionStage::new(&params, w, h);
+            let mut perception = PerceptionGrid::new(w, h);
+            let mut decisions = vec![Label::Unknown; w * h];
+            for t in 0..4 {
+                let mut grid = SensorGrid::new(w, h);
+                for row in 16..=24 {
+                    for col in 2..39 {
+                        if row == 18 + t && (4..4 + len).contains(&col) {
+                            grid.set_occupied(at(col, row), 0.8);
+                        } else {
+                            grid.set_free(at(col, row), 0.7);
+                        }
+                    }
+                }
+                if t == 3 {
+                    // What the SPEC §5 step would have made of the cells the object entered
+                    // (free before, occupied now): m({M}) = 0.5, m(Ω) = 0.5.
+                    let mut m = [0.0; N_SETS];
+                    (m[crate::grids::class::M], m[crate::grids::OMEGA]) = (0.5, 0.5);
+                    for col in 4..4 + len {
+                        write_cell(&mut perception, at(col, 21), &m);
+                    }
+                }
+                stage.update(
+                    &window,
+                    &grid,
+                    0.1 * t as f64,
+                    0.1,
+                    &mut perception,
+                    &mut decisions,
+                );
+            }
+            let mut states: Vec<CellMotion> =
+                stage.cell_states().iter().map(|r| r.state).collect();
+            states.dedup();
+            // The object's cells in the last frame (row 21): the least and the largest m({M}).
+            let m_moving: Vec<f32> = (4..4 + len)
+                .map(|col| perception.cell_masses(at(col, 21))[crate::grids::class::M])
+                .collect();
+            let lo = m_moving.iter().copied().fold(1.0, f32::min);
+            let hi = m_moving.iter().copied().fold(0.0, f32::max);
+            (states, lo, hi)
+        };
+        // Off: both move, m({M}) raised above 0.5 on every cell. At 13 m the wall (15.008 m)
+        // takes "not moving", m(Ω∖{M}) = 0.9: m({M}) = 0.5 · (1 − 0.9) = 0.05 on every cell;
+        // the car (4.031 m) moves. At 4 m the car is too large too.
+        let moves = |(states, lo, _): (Vec<CellMotion>, f32, f32)| {
+            states == vec![CellMotion::Moving] && lo > 0.5
+        };
+        let too_large = |(states, lo, hi): (Vec<CellMotion>, f32, f32)| {
+            states == vec![CellMotion::TooLarge] && (lo - 0.05).abs() < 1e-6 && (hi - 0.05).abs() < 1e-6
+        };
+        assert!(moves(last_states(30, 0.0)));
+        assert!(moves(last_states(8, 0.0)));
+        assert!(too_large(last_states(30, 13.0)));
+        assert!(moves(last_states(8, 13.0)));
+        assert!(too_large(last_states(8, 4.0)));
     }
 
     #[test]
