@@ -1149,8 +1149,7 @@ mod tests {
                     &mut decisions,
                 );
             }
-            let mut states: Vec<CellMotion> =
-                stage.cell_states().iter().map(|r| r.state).collect();
+            let mut states: Vec<CellMotion> = stage.cell_states().iter().map(|r| r.state).collect();
             states.dedup();
             // The object's cells in the last frame (row 21): the least and the largest m({M}).
             let m_moving: Vec<f32> = (4..4 + len)
@@ -1167,7 +1166,9 @@ mod tests {
             states == vec![CellMotion::Moving] && lo > 0.5
         };
         let too_large = |(states, lo, hi): (Vec<CellMotion>, f32, f32)| {
-            states == vec![CellMotion::TooLarge] && (lo - 0.05).abs() < 1e-6 && (hi - 0.05).abs() < 1e-6
+            states == vec![CellMotion::TooLarge]
+                && (lo - 0.05).abs() < 1e-6
+                && (hi - 0.05).abs() < 1e-6
         };
         assert!(moves(last_states(30, 0.0)));
         assert!(moves(last_states(8, 0.0)));
