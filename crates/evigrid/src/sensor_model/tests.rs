@@ -792,14 +792,15 @@ fn a_centre_just_in_front_of_the_surface_is_occupied_within_the_pose_error() {
 }
 
 #[test]
-fn the_default_pose_tolerance_is_three_32nds_of_the_pose_error() {
-    // As above, σ = 0.2 m: the default 0.09375 σ is 0.01875 m. A wall x = 5.55 leaves cell
-    // (5, 0)'s centre 0.05 m in front of it: free now (0.375 σ = 0.075 m, the default before,
-    // took it in); a wall x = 5.51, 0.01 m in front: occupied.
+fn the_default_pose_tolerance_is_three_16ths_of_the_pose_error() {
+    // As above, σ = 0.2 m: the default 0.1875 σ is 0.0375 m (re-chosen on the new scenes,
+    // issue 30). A wall x = 5.55 leaves cell (5, 0)'s centre 0.05 m in front of it: free
+    // (0.375 σ = 0.075 m, an earlier default, took it in); a wall x = 5.52, 0.02 m in front:
+    // occupied now, free with 0.09375 σ (0.01875 m), the default before.
     let window = small_window();
     let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
     let sigmas = crate::MotionParams::default().surface_pose_sigmas;
-    assert_eq!(sigmas, 0.09375);
+    assert_eq!(sigmas, 0.1875);
     let occupied = |sigmas: f64, wall_x: f64| {
         let points: Vec<[f32; 3]> = (-10..=20)
             .map(|k| {
@@ -820,7 +821,39 @@ fn the_default_pose_tolerance_is_three_32nds_of_the_pose_error() {
     };
     assert!(!occupied(sigmas, 5.55));
     assert!(occupied(0.375, 5.55));
-    assert!(occupied(sigmas, 5.51));
+    assert!(occupied(sigmas, 5.52));
+    assert!(!occupied(0.09375, 5.52));
+}
+
+#[test]
+fn the_default_surface_depth_is_five_cells() {
+    // A wall x = 5.6 (world) from y = −1 to 2, a return every 0.1 m; the sensor at (0.5, 0.5),
+    // 1 m cells, no pose tolerance, the default depth of 5 cells (re-chosen on the new scenes,
+    // issue 30): 5 m here. The centres due east behind the wall lie 0.9, 1.9, 2.9, 3.9 and
+    // 4.9 m behind it: all occupied; with 4 cells (4 m) the last is not, with 3 (the default
+    // before) the last two are not.
+    let window = small_window();
+    let points: Vec<[f32; 3]> = (-10..=20)
+        .map(|k| [5.1, (f64::from(k) * 0.1 - 0.5) as f32, 0.0])
+        .collect();
+    let pose = IsometryMatrix3::from_xyz_rpy(0.5, 0.5, 0.0, 0.0, 0.0, 0.0);
+    let cells = crate::MotionParams::default().surface_depth_cells;
+    assert_eq!(cells, 5.0);
+    let occupied = |depth_cells: f64, x: f64| {
+        let mut model = SensorModel::new(planar_params());
+        model.set_return_depth_m(0.5);
+        model.set_placed_by_surface(true, depth_cells * 1.0, 0.0, false, false);
+        let (mut spec, mut placed) = (SensorGrid::new(21, 21), SensorGrid::new(21, 21));
+        model.build(&points, &pose, &window, &mut spec);
+        model.build_placed(&window, (0.0, 0.0), &mut placed);
+        at(&window, placed.m_occupied(), x, 0.5) > 0.0
+    };
+    let behind = [6.5, 7.5, 8.5, 9.5, 10.5];
+    let reached = |depth_cells: f64| behind.map(|x| occupied(depth_cells, x));
+    assert_eq!(reached(cells), [true; 5]);
+    assert_eq!(reached(4.0), [true, true, true, true, false]);
+    assert_eq!(reached(3.0), [true, true, true, false, false]);
+    assert!(!occupied(cells, 5.5));
 }
 
 #[test]
