@@ -336,12 +336,12 @@ mod tests {
     fn moving_means_faster_than_the_threshold() {
         let params = MotionParams::default();
         // 1.3 m/s east, σ 0.4 along it: z = (1.3 − 0.5)/0.4 = 2, erf(2/√2) = 0.9545,
-        // m({M}) = 0.8 · 0.9545.
+        // m({M}) = mu_moving · 0.9545 = 0.9545 (mu_moving 1 by default).
         let walker = moving_mass(track_mass(&track([1.3, 0.0], 0.16, 3), &params));
-        assert!((walker - 0.8 * 0.954_50).abs() < 1e-4, "{walker}");
+        assert!((walker - 0.954_50).abs() < 1e-4, "{walker}");
         // 0.6 ± 0.4 m/s, a car crawling into a stop: z = 0.25, erf(0.177) = 0.197.
         let crawl = moving_mass(track_mass(&track([0.6, 0.0], 0.16, 3), &params));
-        assert!((crawl - 0.8 * 0.197_4).abs() < 1e-3, "{crawl}");
+        assert!((crawl - 0.197_4).abs() < 1e-3, "{crawl}");
         // Below the threshold it is not moving at all.
         assert!(!matches!(
             track_mass(&track([0.4, 0.0], 0.16, 3), &params),
@@ -384,9 +384,10 @@ mod tests {
     #[test]
     fn a_track_gives_moving_static_or_no_evidence() {
         let p = MotionParams::default();
-        // 3 m/s east with σ = 1 m/s per axis: z = (3 − 0.5)/1, c = erf(2.5/√2) = 0.98758.
+        // 3 m/s east with σ = 1 m/s per axis: z = (3 − 0.5)/1, c = erf(2.5/√2) = 0.98758,
+        // m({M}) = mu_moving (1) · c.
         let moving = moving_mass(track_mass(&track([3.0, 0.0], 1.0, 2), &p));
-        assert!((moving - 0.8 * 0.987_581).abs() < 1e-5, "{moving}");
+        assert!((moving - 0.987_581).abs() < 1e-5, "{moving}");
         // Slow and well known (σ = 0.14 m/s): static, m(Ω∖{M}) = mu_static = 0.9.
         assert_eq!(
             track_mass(&track([0.1, 0.0], 0.01, 1), &p),
@@ -443,13 +444,14 @@ mod tests {
     fn a_silent_track_that_entered_cells_seen_free_is_moving() {
         let params = MotionParams::default();
         // Registered once, no shift, σ² = 0.8 (m/s)² per axis: √1.6 ≥ static_sigma_mps = 1,
-        // too uncertain to be static; three of its four cells seen free: m({M}) = 0.8 · 0.75.
+        // too uncertain to be static; three of its four cells seen free: m({M}) = mu_moving
+        // (1) · 0.75.
         let slow = track([0.0, 0.0], 0.8, 1);
         let mass = track_mass(&slow, &params);
         assert_eq!(mass, MotionMass::Vacuous);
         assert_eq!(
             entered_seen_free(mass, 0.75, &params),
-            MotionMass::Moving(0.6)
+            MotionMass::Moving(0.75)
         );
         // One cell of four: below match_fraction, nothing.
         assert_eq!(entered_seen_free(mass, 0.25, &params), MotionMass::Vacuous);

@@ -1073,9 +1073,9 @@ mod tests {
         let mut decisions = vec![Label::Unknown; w * h];
         let mut states = Vec::new();
         for t in 0..3 {
-            // 0.2 m of pose error per axis, heading exact: a static object's apparent
-            // displacement has σ = 0.2 · √2 = 0.28284 m, 2 σ (the default) 0.56569 m.
-            stage.set_pose(0.0, 0.0, 0.2, 0.0);
+            // 0.3 m of pose error per axis, heading exact: a static object's apparent
+            // displacement has σ = 0.3 · √2 = 0.42426 m, 1.5 σ (the default) 0.63640 m.
+            stage.set_pose(0.0, 0.0, 0.3, 0.0);
             let (returns, placed) = driving_away(t, &window);
             stage.update_registering(
                 &window,
@@ -1091,7 +1091,7 @@ mod tests {
             states.push(now);
         }
         // Frame 0: nothing to register against. Frame 1: one cell east in 0.1 s, 5 m/s over a
-        // span of 0.1 s: 0.5 m registered, within 0.566 m: held, no evidence. Frame 2: one
+        // span of 0.1 s: 0.5 m registered, within 0.636 m: held, no evidence. Frame 2: one
         // more cell, 5 m/s × 0.1 s more: 1.0 m, beyond it: moving.
         assert_eq!(
             states,

@@ -702,31 +702,6 @@ mod tests {
     }
 
     #[test]
-    fn by_default_a_cluster_beyond_one_and_a_half_metres_starts_a_track_of_its_own() {
-        // The default gate, 1.5 m (re-chosen on the new scenes, issue 30; 2 m before). A
-        // static object at x = 0 (seen, then registered at 0 m/s); the next frame a cluster at
-        // rest 1.7 m east of the prediction (x = 0): beyond 1.5 m, so a second track; with the
-        // gate at 2 m it joins the first. 1.4 m away joins either way.
-        let params = MotionParams::default();
-        assert_eq!(params.gate_m, 1.5);
-        let wide = MotionParams {
-            gate_m: 2.0,
-            ..MotionParams::default()
-        };
-        let ids_after = |params: &MotionParams, x: f64| {
-            let mut tracks = Tracks::default();
-            let pose = PoseError::default();
-            tracks.update(&[seen(0.0, None)], 0.0, 0.0, pose, params);
-            tracks.update(&[seen(0.0, Some(0.0))], 0.1, 0.1, pose, params);
-            tracks.update(&[seen(x, Some(0.0))], 0.2, 0.1, pose, params);
-            (tracks.of_observation(0).map(|t| t.id), tracks.len())
-        };
-        assert_eq!(ids_after(&params, 1.7), (Some(2), 2));
-        assert_eq!(ids_after(&wide, 1.7), (Some(1), 1));
-        assert_eq!(ids_after(&params, 1.4), (Some(1), 1));
-    }
-
-    #[test]
     fn by_default_a_track_is_displaced_beyond_one_and_a_half_sigma_of_the_pose() {
         // The default `displaced_pose_sigmas`, 1.5 (re-chosen on the new scenes, issue 30; 2
         // before), under a pose error of 0.2 m per axis (heading exact): the apparent
