@@ -263,6 +263,13 @@ fn a_car_crossing_open_space_is_seen_to_leave_its_cells() {
                     object_far_margin_m: f64| {
         let mut params = Params::default();
         params.motion.placed_by_surface = placed_by_surface;
+        if !placed_by_surface {
+            // The push along the ray as it was chosen for that placement (0.6 of a cell);
+            // the default 0.5 was re-chosen with the surface placement, where it moves only
+            // the returns behind their sector's nearest surface (docs/motion.md, "Parameters
+            // re-chosen on the new scenes"): with 0.5 along the ray this car is never M.
+            params.motion.return_depth_cells = 0.6;
+        }
         params.motion.shift_margin_fraction = shift_margin_fraction;
         params.motion.object_layer = object_layer;
         params.motion.object_far_margin_m = object_far_margin_m;
