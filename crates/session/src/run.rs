@@ -250,12 +250,15 @@ fn run_frames(
     progress: &mut dyn Progress,
 ) -> Option<SessionError> {
     loop {
+        let t0 = Instant::now();
+        // The next frame is asked for before the stop flag, so that a flag raised while the
+        // last frame was processed leaves a complete drive, not an interrupted one.
+        let next = frames.next()?;
         if stop.load(Ordering::Relaxed) {
             session.stop(SessionError::Interrupted.to_string());
             return Some(SessionError::Interrupted);
         }
-        let t0 = Instant::now();
-        let frame = match frames.next()? {
+        let frame = match next {
             Ok(frame) => frame,
             // A scan that cannot be read is the input's fault: skipped, or with `strict` the
             // end of the session.

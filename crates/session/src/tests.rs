@@ -143,6 +143,58 @@ fn a_raised_stop_flag_ends_the_session_before_the_next_frame() {
     assert_eq!(sink.finished, vec![(0, 0.0)]);
 }
 
+/// A sink that raises the stop flag as it receives frame `at`.
+struct StopAt<'a> {
+    at: usize,
+    stop: &'a AtomicBool,
+    seen: usize,
+}
+
+impl FrameSink for StopAt<'_> {
+    fn on_frame(&mut self, frame: &FrameView<'_>) -> Result<(), OutputError> {
+        self.seen += 1;
+        if frame.index == self.at {
+            self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, _last: &FinalView<'_>) -> Result<(), OutputError> {
+        Ok(())
+    }
+}
+
+#[test]
+fn a_stop_flag_raised_during_the_last_frame_leaves_a_complete_drive() {
+    let frames = bag().times().unwrap().len();
+    let stop = AtomicBool::new(false);
+    let mut sink = StopAt {
+        at: frames - 1,
+        stop: &stop,
+        seen: 0,
+    };
+    let summary = run_drive(bag(), SessionConfig::default(), &mut [&mut sink], &stop)
+        .expect("every frame was done before the flag was looked at");
+    assert!(summary.complete);
+    assert_eq!(summary.frames, frames);
+    assert_eq!(sink.seen, frames);
+}
+
+#[test]
+fn a_stop_flag_raised_during_an_earlier_frame_interrupts_before_the_next() {
+    let frames = bag().times().unwrap().len();
+    assert!(frames >= 2, "the test drive has {frames} frames");
+    let stop = AtomicBool::new(false);
+    let mut sink = StopAt {
+        at: frames - 2,
+        stop: &stop,
+        seen: 0,
+    };
+    let error = run_drive(bag(), SessionConfig::default(), &mut [&mut sink], &stop).unwrap_err();
+    assert!(error.is_interrupted());
+    assert_eq!(sink.seen, frames - 1);
+}
+
 #[test]
 fn stepping_frame_by_frame_gives_the_whole_drive_s_figures() {
     let config = SessionConfig::default;
