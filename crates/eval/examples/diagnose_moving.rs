@@ -27,6 +27,8 @@
 //! moving evidence from the stage (`Moving` or `EnteredSeenFree`), "Mev now" this frame, or
 //! "Mev never" within the seed: M kept by the fusion after the evidence went, or made by the
 //! fusion step's own free→occupied conflict.
+//! With `DIAGNOSE_HITS` set, the hits are also counted by what the stage made of each
+//! cell ("hit M by state").
 
 mod common;
 
@@ -56,6 +58,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut outside_before: std::collections::VecDeque<std::collections::HashSet<u32>> =
         std::collections::VecDeque::new();
     let started = std::env::var_os("DIAGNOSE_STARTED").is_some();
+    let hits_by_state = std::env::var_os("DIAGNOSE_HITS").is_some();
     // The truth of the last `STARTED_FRAMES` frames of the seed, newest last
     // (`DIAGNOSE_STARTED`).
     let mut truths: std::collections::VecDeque<Vec<Label>> = std::collections::VecDeque::new();
@@ -161,6 +164,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         _ => "hit M".to_owned(),
                     };
                     *counts.entry(key).or_default() += 1;
+                    if hits_by_state {
+                        let state = states
+                            .get(&(idx as u32))
+                            .map_or("-".to_owned(), |s| format!("{:?}", s.state));
+                        *counts.entry(format!("hit M by state {state}")).or_default() += 1;
+                    }
                 }
                 if !false_moving && !missed {
                     continue;

@@ -1034,6 +1034,14 @@ pub struct MotionParams {
     /// adopted on the validation drives (moving IoU 0.5725 → 0.6015, dynamic accuracy 0.7442
     /// → 0.7406); 0: off.
     pub moving_max_extent_m: f64,
+    /// A cluster read at zero against every past frame in its fit moves after all when at
+    /// least this many of them lean: a non-zero shift explained more of it than zero (not
+    /// clearly more) and its move is seen on the margin's cells; every frame must lie within
+    /// a cell of the line through the frames' readings, which must reach a whole cell and
+    /// `displaced_pose_sigmas` σ of the pose's apparent shift (`docs/motion.md`, "Leaning
+    /// frames: a slow slide"); 0: off. At most 8 (more than `history_frames` never moves
+    /// one). By default 2.
+    pub weak_shift_frames: usize,
 }
 
 impl Default for MotionParams {
@@ -1083,6 +1091,7 @@ impl Default for MotionParams {
             object_fit_unsure_heading: true,
             object_far_margin_m: 0.15,
             moving_max_extent_m: 8.0,
+            weak_shift_frames: 2,
         }
     }
 }
@@ -1107,6 +1116,7 @@ impl MotionParams {
         }
         at_most("motion.history_frames", self.history_frames, 8)?;
         at_most("motion.search_radius_cells", self.search_radius_cells, 16)?;
+        at_most("motion.weak_shift_frames", self.weak_shift_frames, 8)?;
         at_most(
             "motion.building_margin_cells",
             self.building_margin_cells,
@@ -1216,6 +1226,10 @@ mod tests {
         p.validate().unwrap_or_else(|e| panic!("{e}"));
         for (text, name) in [
             ("[motion]\nhistory_frames = 9\n", "motion.history_frames"),
+            (
+                "[motion]\nweak_shift_frames = 9\n",
+                "motion.weak_shift_frames",
+            ),
             (
                 "[motion]\nsurface_depth_cells = 8.5\n",
                 "motion.surface_depth_cells",

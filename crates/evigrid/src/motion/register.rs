@@ -171,6 +171,10 @@ impl Registrar {
         let mut refuted = false;
         // The slot and time span of each frame in the fit, newest first.
         let mut fitted = [(0usize, 0.0f64); SLOTS];
+        // Per frame in the fit read at zero, the non-zero shift that explained more of the
+        // cluster, if any ((0, 0) where none did), and whether its move was seen on the
+        // margin's cells (a lean; see `weak_line`).
+        let mut leaned = [((0i64, 0i64), false); SLOTS];
         for frames_back in 1..=params.history_frames {
             let Some((bit, then_s)) = history.frame_back(frames_back) else {
                 break;
@@ -271,6 +275,19 @@ impl Registrar {
                 }
             }
             unresolved &= !clear && !predicted && best.0 > n_zero;
+            // Read at zero, though a non-zero shift explains more of the cluster (not by the
+            // margin) and is longer than the pose's error explains; a lean if its move is seen
+            // on the margin's cells, as a clear shift's must be.
+            let reading = !clear
+                && !predicted
+                && (best.1, best.2) != (0, 0)
+                && best.0 > n_zero
+                && !explained_by_pose;
+            leaned[frames] = if reading {
+                ((best.1, best.2), seen >= margin)
+            } else {
+                ((0, 0), false)
+            };
             fitted[frames] = (slot, span_s);
             sum_dt_x += dx as f64 * span_s;
             sum_dt_y += dy as f64 * span_s;
@@ -284,8 +301,20 @@ impl Registrar {
                 break;
             }
         }
-        (frames > 0).then(|| Registration {
-            velocity_cells_per_s: (sum_dt_x / sum_tt, sum_dt_y / sum_tt),
+        let mut velocity_cells_per_s = (sum_dt_x / sum_tt, sum_dt_y / sum_tt);
+        if params.weak_shift_frames > 0 && frames > 0 && velocity_cells_per_s == (0.0, 0.0) {
+            let spans = fitted[..frames].iter().map(|&(_, span_s)| span_s);
+            // The line must reach further than the pose's error moves a static cluster
+            // (`displaced_pose_sigmas` of its apparent shift, as for a track's displacement):
+            // a pose off the same way for a while makes a static object lean on a line too.
+            let reach_cells = (params.displaced_pose_sigmas * pose_shift_sigma).max(1.0);
+            let leans = &leaned[..frames];
+            if let Some(line) = weak_line(leans, spans, params.weak_shift_frames, reach_cells) {
+                velocity_cells_per_s = line;
+            }
+        }
+        (frames > 0).then_some(Registration {
+            velocity_cells_per_s,
             sum_span_sq: sum_tt,
             sum_span: sum_t,
             frames,
@@ -520,6 +549,47 @@ impl Registrar {
         };
         at(cell.col - dx, cell.row - dy) || !at(cell.col, cell.row)
     }
+}
+
+/// The velocity, cells/s, of a slow object read at zero against every frame in its fit
+/// (`motion.weak_shift_frames`), or `None`. `leaned` holds, per frame of the fit, its reading:
+/// the non-zero shift d_k that explained more of the cluster than zero, not clearly more
+/// ((0, 0) where none did), and whether that shift's move was seen on the margin's cells (a
+/// lean); `spans_s` their time spans τ_k, seconds.
+///
+/// A side sliding along its own length beats zero only by the cells at its ends, under the
+/// margin, however often it is measured; a static object's shifts that beat zero (a cell of
+/// pose error, a face sliding into view) come and go from frame to frame, or are not seen.
+/// So: at least `min_frames` frames lean, and every frame of the fit lies within a cell, per
+/// axis, of the least-squares line through the origin of the readings against the spans
+/// (v = Σ d_k·τ_k / Σ τ_k²), which reaches at least `reach_cells` (one cell, or more under
+/// pose error) over the longest span: the line is the velocity.
+fn weak_line(
+    leaned: &[((i64, i64), bool)],
+    spans_s: impl Iterator<Item = f64> + Clone,
+    min_frames: usize,
+    reach_cells: f64,
+) -> Option<(f64, f64)> {
+    let leaning = leaned.iter().filter(|&&(_, lean)| lean).count();
+    if leaning < min_frames {
+        return None;
+    }
+    let (mut sx, mut sy, mut stt, mut longest) = (0.0, 0.0, 0.0, 0.0f64);
+    for (&((dx, dy), _), span_s) in leaned.iter().zip(spans_s.clone()) {
+        sx += dx as f64 * span_s;
+        sy += dy as f64 * span_s;
+        stt += span_s * span_s;
+        longest = longest.max(span_s);
+    }
+    if stt <= 0.0 {
+        return None;
+    }
+    let (vx, vy) = (sx / stt, sy / stt);
+    let reaches = (vx * longest).hypot(vy * longest) >= reach_cells;
+    let on_line = leaned.iter().zip(spans_s).all(|(&((dx, dy), _), span_s)| {
+        (dx as f64 - vx * span_s).abs() <= 1.0 && (dy as f64 - vy * span_s).abs() <= 1.0
+    });
+    (reaches && on_line).then_some((vx, vy))
 }
 
 /// Adds the eight byte lanes of `lanes` to `count` and clears them.
@@ -974,11 +1044,28 @@ mod tests {
     /// A side of `len` cells on row 10 whose first column in eight frames 0.1 s apart is
     /// `firsts` (the road ahead of it seen free), registered 0.8 s after the first frame at
     /// the last first column, as the one cluster of its frame (the cells behind it seen
-    /// empty now), with the velocity a track predicts for it.
+    /// empty now), with the velocity a track predicts for it; the default parameters but
+    /// `weak_shift_frames` off (the rules before "Leaning frames: a slow slide").
     fn register_crawl(
         firsts: [i64; 8],
         len: i64,
         predicted_cells_per_s: Option<(f64, f64)>,
+    ) -> Option<Registration> {
+        let without_leans = MotionParams {
+            weak_shift_frames: 0,
+            ..MotionParams::default()
+        };
+        register_crawl_with(firsts, len, predicted_cells_per_s, 0.0, &without_leans)
+    }
+
+    /// As `register_crawl`, with `params` and the pose's error per axis, cells (the sensor at
+    /// the window's corner).
+    fn register_crawl_with(
+        firsts: [i64; 8],
+        len: i64,
+        predicted_cells_per_s: Option<(f64, f64)>,
+        pose_sigma_cells: f64,
+        params: &MotionParams,
     ) -> Option<Registration> {
         let window = window();
         let sides: Vec<_> = firsts.iter().map(|&f| f..f + len).collect();
@@ -994,17 +1081,83 @@ mod tests {
             m_free: &ALL_FREE,
             clear_now: &[],
             sensor_cell: (0.0, 0.0),
-            pose_sigma_cells: 0.0,
+            pose_sigma_cells,
             pose_sigma_rad: 0.0,
             predicted_cells_per_s,
         };
-        Registrar::default().register(
-            &cells(&window, &list),
-            &window,
-            &history,
-            now,
-            &MotionParams::default(),
-        )
+        Registrar::default().register(&cells(&window, &list), &window, &history, now, params)
+    }
+
+    #[test]
+    fn a_slide_leaning_on_a_line_moves_and_one_that_stopped_does_not() {
+        let params = MotionParams::default();
+        // The 20-cell side of `a_tracks_prediction_keeps_a_crawling_side_moving_until_zero_
+        // refutes_it`, alone: read at zero against all eight frames (one cell explains 20
+        // against 19 at 0.3-0.5 s, two cells 20 against 18 at 0.6-0.8 s; the margin is 3).
+        // Six frames read a shift; the three two-cell ones lean (their move seen on four
+        // cells, the margin's 3; the one-cell shifts are seen on two): the default's two at
+        // least. The line through the
+        // readings: Σ d·τ = 1·(0.3 + 0.4 + 0.5) + 2·(0.6 + 0.7 + 0.8) = 5.4 cell·s, Σ τ² =
+        // 2.04 s², v = 45/17 = 2.6471 cells/s; every frame within a cell of it (0.26 at 0.1 s
+        // read 0, 1.32 at 0.5 s read 1, 2.12 at 0.8 s read 2), and it reaches 2.12 cells: the
+        // velocity, over the same eight frames.
+        let crawl = [10, 10, 10, 11, 11, 11, 12, 12];
+        let leaning = register_crawl_with(crawl, 20, None, 0.0, &params);
+        assert!(
+            leaning.is_some_and(|r| r.frames == 8
+                && (r.velocity_cells_per_s.0 - 45.0 / 17.0).abs() < 1e-9
+                && r.velocity_cells_per_s.1 == 0.0
+                && (r.sum_span_sq - 2.04).abs() < 1e-9),
+            "{leaning:?}"
+        );
+        // Off: static.
+        let off = register_crawl(crawl, 20, None);
+        assert!(off.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));
+        // Three leaning frames are not four.
+        let four = MotionParams {
+            weak_shift_frames: 4,
+            ..MotionParams::default()
+        };
+        let too_few = register_crawl_with(crawl, 20, None, 0.0, &four);
+        assert!(too_few.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));
+        // Under a pose error of 0.8 cell per axis a static cluster's apparent shift has
+        // σ = √2 · 0.8 = 1.131 cells, and the line must reach 2σ = 2.263 cells
+        // (`displaced_pose_sigmas`), not the 2.12 it does: static.
+        let posed = register_crawl_with(crawl, 20, None, 0.8, &params);
+        assert!(posed.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));
+        // At 0.7 cell, 2σ = 1.980 cells: it moves.
+        let posed = register_crawl_with(crawl, 20, None, 0.7, &params);
+        assert!(posed.is_some_and(|r| (r.velocity_cells_per_s.0 - 45.0 / 17.0).abs() < 1e-9));
+        // The side that stopped 0.5 s ago (10, 10, 10, then 12 from 0.5 s back): three frames
+        // lean two cells (0.6-0.8 s), v = 2·2.1 / 2.04 = 2.0588 cells/s, but 0.5 s back it
+        // reads zero (it matches itself there) where the line says 1.03 cells: off the line,
+        // static.
+        let stopped = register_crawl_with([10, 10, 10, 12, 12, 12, 12, 12], 20, None, 0.0, &params);
+        assert!(stopped.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 8));
+    }
+
+    #[test]
+    fn leans_that_come_and_go_or_reach_no_cell_are_no_line() {
+        let spans = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8];
+        // Every non-zero reading seen on the margin's cells (a lean).
+        let leans = |d: [(i64, i64); 8]| d.map(|d| (d, d != (0, 0)));
+        let z = (0, 0);
+        // Five older frames one cell east: Σ d·τ = 3.0, v = 3 / 2.04 = 1.4706 cells/s,
+        // 1.18 cells at 0.8 s: a line.
+        let crawl = leans([z, z, z, (1, 0), (1, 0), (1, 0), (1, 0), (1, 0)]);
+        let line = weak_line(&crawl, spans.iter().copied(), 3, 1.0);
+        assert!(line.is_some_and(|(vx, vy)| (vx - 3.0 / 2.04).abs() < 1e-12 && vy == 0.0));
+        assert_eq!(weak_line(&crawl, spans.iter().copied(), 6, 1.0), None);
+        // Nor when the pose's error moves a static cluster 1.2 cells.
+        assert_eq!(weak_line(&crawl, spans.iter().copied(), 3, 1.2), None);
+        // A cell of jitter this way and that (four leans): v = (0.6, 0.6) / 2.04 = 0.29 cells/s
+        // per axis, 0.24 cell at 0.8 s: no whole cell.
+        let jitter = leans([z, (1, 0), z, (-1, 0), z, (0, 1), z, (1, 0)]);
+        assert_eq!(weak_line(&jitter, spans.iter().copied(), 3, 1.0), None);
+        // Three cells 0.8 s back beside one cell 0.4-0.7 s back: v = 4.6 / 2.04 = 2.25
+        // cells/s, 1.80 at 0.8 s, 1.20 cells from the three read there: off the line.
+        let jump = leans([z, z, z, (1, 0), (1, 0), (1, 0), (1, 0), (3, 0)]);
+        assert_eq!(weak_line(&jump, spans.iter().copied(), 3, 1.0), None);
     }
 
     #[test]
@@ -1027,7 +1180,9 @@ mod tests {
         // A 20-cell side (a long vehicle, or two joined) crawling east at about 3 cells/s
         // (1.5 m/s): first column 10, 10, 10, 11, 11, 11, 12, 12, and 12 now. A shift of one
         // cell explains 20 against zero's 19 (0.3-0.5 s back), two cells 20 against 18
-        // (0.6-0.8 s back): never the margin ⌈0.15 · 20⌉ = 3 more. Alone it reads static.
+        // (0.6-0.8 s back): never the margin ⌈0.15 · 20⌉ = 3 more. Alone, and without
+        // leaning frames (`register_crawl`; with them it moves, `a_slide_leaning_on_a_line_
+        // moves_and_one_that_stopped_does_not`), it reads static.
         let crawl = [10, 10, 10, 11, 11, 11, 12, 12];
         let alone_found = register_crawl(crawl, 20, None);
         assert!(alone_found.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 8));
@@ -1080,7 +1235,7 @@ mod tests {
         // Registered at frame 20 (2.0 s, columns 12-21).
         let window = window();
         let row = |first: i64| (first..first + 10).map(|c| (c, 10)).collect::<Vec<_>>();
-        let register = |thinned: bool| {
+        let register_with = |thinned: bool, params: &MotionParams| {
             let mut history = OccupancyHistory::new(window.len()).with_thinning(thinned);
             for k in 0..20 {
                 let first = 10 + k / 10;
@@ -1097,15 +1252,33 @@ mod tests {
                 &window,
                 &history,
                 alone(2.0, &none),
-                &MotionParams::default(),
+                params,
             )
         };
+        // Without leaning frames (the rules before "Leaning frames: a slow slide").
+        let without_leans = MotionParams {
+            weak_shift_frames: 0,
+            ..MotionParams::default()
+        };
+        let register = |thinned: bool| register_with(thinned, &without_leans);
         // The last eight frames (1.2-1.9 s) all hold columns 11-20: one cell explains 10 cells
         // against zero's 9, not the margin of ⌈0.15 · 10⌉ = 2 more: static, on all eight.
         let eight = register(false);
         assert!(
             eight.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 8),
             "{eight:?}"
+        );
+        // With them (the default): every one of the eight leans one cell, its move seen on the
+        // margin's two cells (column 11, left and seen empty now; column 21, seen free then),
+        // and lies within a cell of the line Σ τ / Σ τ² = 3.6 / 2.04 = 30/17 cells/s (0.18
+        // cell at 0.1 s, 1.41 at 0.8 s, which reaches a cell): 30/17 cells/s, the average
+        // creep of one cell a second over-read by the newest frames' whole cell.
+        let leaning = register_with(false, &MotionParams::default());
+        assert!(
+            leaning.is_some_and(|r| r.frames == 8
+                && (r.velocity_cells_per_s.0 - 30.0 / 17.0).abs() < 1e-9
+                && r.velocity_cells_per_s.1 == 0.0),
+            "{leaning:?}"
         );
         // Thinned, the frames kept are 1.9, 1.8, 1.7, 1.6, 1.4, 1.2, 0.8 and 0.4 s. The six
         // newest read zero the same way (one cell more than zero each time: they could not
