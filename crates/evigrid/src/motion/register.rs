@@ -1122,11 +1122,15 @@ mod tests {
         assert!(too_few.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));
         // Under a pose error of 0.8 cell per axis a static cluster's apparent shift has
         // σ = √2 · 0.8 = 1.131 cells, and the line must reach 2σ = 2.263 cells
-        // (`displaced_pose_sigmas`), not the 2.12 it does: static.
-        let posed = register_crawl_with(crawl, 20, None, 0.8, &params);
+        // (`displaced_pose_sigmas` = 2), not the 2.12 it does: static.
+        let two_sigmas = MotionParams {
+            displaced_pose_sigmas: 2.0,
+            ..params.clone()
+        };
+        let posed = register_crawl_with(crawl, 20, None, 0.8, &two_sigmas);
         assert!(posed.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));
         // At 0.7 cell, 2σ = 1.980 cells: it moves.
-        let posed = register_crawl_with(crawl, 20, None, 0.7, &params);
+        let posed = register_crawl_with(crawl, 20, None, 0.7, &two_sigmas);
         assert!(posed.is_some_and(|r| (r.velocity_cells_per_s.0 - 45.0 / 17.0).abs() < 1e-9));
         // The side that stopped 0.5 s ago (10, 10, 10, then 12 from 0.5 s back): three frames
         // lean two cells (0.6-0.8 s), v = 2·2.1 / 2.04 = 2.0588 cells/s, but 0.5 s back it
