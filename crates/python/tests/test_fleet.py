@@ -402,7 +402,12 @@ def test_ctrl_c_stops_every_drive_by_itself_and_writes_the_table(
     statuses = [row["status"] for row in rows]
     # Shown with the test's output when it fails (and with -rP): what each drive came to.
     print(moment, [(row["name"], row["status"], row["error"]) for row in rows])
-    assert "interrupted" in statuses, statuses
+    # Only in the middle of a drive is some drive sure to be stopped: two drives are still queued
+    # and a drive lasts longer than the stop takes to reach them. From its last frame on, on an idle
+    # machine every drive of 10 frames may finish before the stop file is written, and all `ok` is
+    # then right (this assertion failed a CI run on an idle machine at ("folder", 0.3)).
+    if moment == ("frames", 5):
+        assert "interrupted" in statuses, statuses
     if moment[0] == "folder":
         assert next(row for row in rows if row["name"] == name)["status"] == "ok", rows
     assert "evigrid fleet: interrupted; stopping" in err, err
