@@ -1042,6 +1042,12 @@ pub struct MotionParams {
     /// frames: a slow slide"); 0: off. At most 8 (more than `history_frames` never moves
     /// one). By default 2.
     pub weak_shift_frames: usize,
+    /// With `moving_max_extent_m`: a track whose cells that moved span more than that keeps
+    /// its moving evidence when they span at most this many metres across its velocity (a
+    /// bus or a truck driving along its length is at most about 3 m wide; a façade that a
+    /// scan's pose error shifts moves across its own length, `docs/motion.md`, "Buses and
+    /// trucks: the extent across the motion"). 0: off (every such track is too large).
+    pub moving_max_across_m: f64,
 }
 
 impl Default for MotionParams {
@@ -1092,6 +1098,7 @@ impl Default for MotionParams {
             object_far_margin_m: 0.15,
             moving_max_extent_m: 8.0,
             weak_shift_frames: 2,
+            moving_max_across_m: 0.0,
         }
     }
 }
@@ -1175,6 +1182,7 @@ impl MotionParams {
         }
         non_negative("motion.displaced_pose_sigmas", self.displaced_pose_sigmas)?;
         non_negative("motion.moving_max_extent_m", self.moving_max_extent_m)?;
+        non_negative("motion.moving_max_across_m", self.moving_max_across_m)?;
         Ok(())
     }
 }

@@ -43,10 +43,7 @@ impl ActorKind {
     /// Footprint of this kind.
     pub fn footprint(self) -> Footprint {
         match self {
-            ActorKind::Car => Footprint::Rect {
-                half_length_m: CAR_HALF_LENGTH_M,
-                half_width_m: 0.9,
-            },
+            ActorKind::Car => Body::CAR.footprint(),
             ActorKind::Pedestrian => Footprint::Circle { radius_m: 0.3 },
             ActorKind::Pole => Footprint::Circle { radius_m: 0.12 },
             ActorKind::Tree => Footprint::Circle { radius_m: 0.35 },
@@ -61,6 +58,72 @@ impl ActorKind {
 
 /// Half of a car's length, metres (a 4.5 m compact car).
 pub const CAR_HALF_LENGTH_M: f64 = 2.25;
+/// Half of a car's width, metres (1.8 m).
+pub const CAR_HALF_WIDTH_M: f64 = 0.9;
+/// Tightest turn a bus drives, metres: the radius of the arc its centre follows (a 12 m city
+/// bus sweeps a kerb-to-kerb circle of about 24 m across; its centre turns on about 9 m).
+pub const BUS_MIN_TURN_RADIUS_M: f64 = 9.0;
+/// Tightest turn a truck drives, metres (a 8–10 m rigid truck, about 20 m kerb to kerb).
+pub const TRUCK_MIN_TURN_RADIUS_M: f64 = 8.0;
+/// A truck's length, metres: drawn uniformly per truck.
+pub const TRUCK_LENGTH_M: [f64; 2] = [8.0, 10.0];
+
+/// A driving vehicle's body: its size and its tightest turn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Body {
+    /// Half its length, metres.
+    pub half_length_m: f64,
+    /// Half its width, metres.
+    pub half_width_m: f64,
+    /// The tightest arc its lane's corners are rounded by, metres.
+    pub min_turn_radius_m: f64,
+}
+
+impl Body {
+    /// A 4.5 × 1.8 m compact car turning on [`MIN_TURN_RADIUS_M`].
+    pub const CAR: Body = Body {
+        half_length_m: CAR_HALF_LENGTH_M,
+        half_width_m: CAR_HALF_WIDTH_M,
+        min_turn_radius_m: MIN_TURN_RADIUS_M,
+    };
+    /// A 12 × 2.55 m city bus turning on [`BUS_MIN_TURN_RADIUS_M`].
+    pub const BUS: Body = Body {
+        half_length_m: 6.0,
+        half_width_m: 1.275,
+        min_turn_radius_m: BUS_MIN_TURN_RADIUS_M,
+    };
+
+    /// A rigid truck `length_m` long and 2.5 m wide turning on [`TRUCK_MIN_TURN_RADIUS_M`].
+    pub fn truck(length_m: f64) -> Body {
+        Body {
+            half_length_m: length_m / 2.0,
+            half_width_m: 1.25,
+            min_turn_radius_m: TRUCK_MIN_TURN_RADIUS_M,
+        }
+    }
+
+    /// Its rectangle, centred on the vehicle's pose.
+    pub fn footprint(&self) -> Footprint {
+        Footprint::Rect {
+            half_length_m: self.half_length_m,
+            half_width_m: self.half_width_m,
+        }
+    }
+}
+
+/// Half the length of a road user's body along its heading, metres: a rectangle's half length,
+/// a circle's radius.
+pub fn half_length_m(footprint: &Footprint) -> f64 {
+    match *footprint {
+        Footprint::Rect { half_length_m, .. } => half_length_m,
+        Footprint::Circle { radius_m } => radius_m,
+    }
+}
+
+/// Whether an actor is a large vehicle (a bus or a truck): a car whose body is longer than 6 m.
+pub fn is_large_vehicle(actor: &Actor) -> bool {
+    actor.kind == ActorKind::Car && half_length_m(&actor.footprint) > 3.0
+}
 /// Comfortable deceleration for planned stops, m/s².
 const BRAKE_MPS2: f64 = 3.0;
 /// Acceleration, m/s².
@@ -108,6 +171,8 @@ pub struct Driving {
     /// How far ahead of its centre the car reaches, metres: half its length, or for the ego
     /// the sensor on its front when that sits further out. Gaps ahead are kept from there.
     front_m: f64,
+    /// The tightest arc of its lane's corners, metres (its body's turning).
+    min_turn_radius_m: f64,
     /// Whether the car has drawn its next route (once, [`ROUTE_JOIN_M`] before its lane's end).
     next_route_drawn: bool,
 }
@@ -181,16 +246,34 @@ impl Actor {
 
     /// A car on `route`, driving on the right, starting `start_m` along it.
     pub fn driving_car(id: u32, route: &Route, start_m: f64, cruise_mps: f64, stops: bool) -> Self {
-        let driving = Driving::on_route(route, &[], cruise_mps, stops);
+        Self::driving_vehicle(id, route, start_m, cruise_mps, stops, Body::CAR)
+    }
+
+    /// A vehicle of `body` on `route`, driving on the right, starting `start_m` along it: a
+    /// car ([`ActorKind::Car`], truth as a car's) of that size, its lane's corners rounded by
+    /// arcs of at least its turning radius, keeping its gaps from its front bumper.
+    pub fn driving_vehicle(
+        id: u32,
+        route: &Route,
+        start_m: f64,
+        cruise_mps: f64,
+        stops: bool,
+        body: Body,
+    ) -> Self {
+        let driving = Driving::on_route(route, &[], cruise_mps, stops, body.min_turn_radius_m);
         let s_m = start_m.clamp(0.0, driving.lane.length_m());
         let (p, t) = driving.lane.at(s_m);
         Self {
             id,
             kind: ActorKind::Car,
-            footprint: ActorKind::Car.footprint(),
+            footprint: body.footprint(),
             pose: Pose2::new(p, t.y.atan2(t.x)),
             speed_mps: cruise_mps,
-            motion: Motion::Driving(Box::new(Driving { s_m, ..driving })),
+            motion: Motion::Driving(Box::new(Driving {
+                s_m,
+                front_m: body.half_length_m,
+                ..driving
+            })),
         }
     }
 
@@ -199,7 +282,7 @@ impl Actor {
     /// the car ahead. A reach shorter than the car changes nothing.
     pub fn with_front_reach(mut self, front_m: f64) -> Self {
         if let Motion::Driving(d) = &mut self.motion {
-            d.front_m = front_m.max(CAR_HALF_LENGTH_M);
+            d.front_m = front_m.max(d.front_m);
         }
         self
     }
@@ -346,7 +429,7 @@ pub fn obstacles(actors: &[Actor], extra: &[Obstacle]) -> Vec<Obstacle> {
         .map(|a| Obstacle {
             id: a.id,
             position: a.pose.position_m,
-            half_length_m: CAR_HALF_LENGTH_M,
+            half_length_m: half_length_m(&a.footprint),
             heading_rad: a.pose.heading_rad,
         })
         .chain(extra.iter().copied())
@@ -475,7 +558,13 @@ impl Driving {
 
     /// A car at the start of its lane: `route` offset to the right, after the points `lead_in`
     /// (where it is and where its last lane ended), its corners rounded.
-    fn on_route(route: &Route, lead_in: &[Vec2], cruise_mps: f64, stops: bool) -> Self {
+    fn on_route(
+        route: &Route,
+        lead_in: &[Vec2],
+        cruise_mps: f64,
+        stops: bool,
+        min_turn_radius_m: f64,
+    ) -> Self {
         let offset = route.path.offset(-lane_offset_m(route.half_width_m));
         let mut points = lead_in.to_vec();
         // The new lane from its first point ahead of where the last one ended.
@@ -492,8 +581,8 @@ impl Driving {
         );
         let lead_in_m: f64 = lead_in.windows(2).map(|w| w[1].minus(w[0]).norm()).sum();
         let lane = match Polyline::new(points) {
-            Some(line) => RoundedPath::new(&line, MIN_TURN_RADIUS_M, CORNER_APEX_M),
-            None => RoundedPath::new(&offset, MIN_TURN_RADIUS_M, CORNER_APEX_M),
+            Some(line) => RoundedPath::new(&line, min_turn_radius_m, CORNER_APEX_M),
+            None => RoundedPath::new(&offset, min_turn_radius_m, CORNER_APEX_M),
         };
         let ratio = if route.path.length_m() > 0.0 {
             ((lane.length_m() - lead_in_m) / route.path.length_m()).max(0.0)
@@ -515,6 +604,7 @@ impl Driving {
             wait_left_s: 0.0,
             stops,
             front_m: CAR_HALF_LENGTH_M,
+            min_turn_radius_m,
             next_route_drawn: false,
         }
     }
@@ -535,7 +625,13 @@ impl Driving {
             let Some(route) = net.random_route_from(end, 150.0, 600.0, rng) else {
                 return;
             };
-            let next = Self::on_route(&route, &[here, end], self.cruise_mps, self.stops);
+            let next = Self::on_route(
+                &route,
+                &[here, end],
+                self.cruise_mps,
+                self.stops,
+                self.min_turn_radius_m,
+            );
             // Ahead: the new lane 20 m on lies in front of the old lane's end.
             if next.lane.at(20.0).0.minus(end).dot(along) > 0.0 {
                 *self = Self {
@@ -648,12 +744,31 @@ struct Placement<'a> {
 }
 
 impl Placement<'_> {
-    /// Whether no car of `actors` stands within `min_m` of `p`.
+    /// Whether no car of `actors` stands within `min_m` of `p`, that distance grown by how
+    /// much longer than a compact car each of them is (a bus or a truck).
     fn far_from_cars(actors: &[Actor], p: Vec2, min_m: f64) -> bool {
-        actors
-            .iter()
-            .filter(|a| a.kind == ActorKind::Car)
-            .all(|a| a.pose.position_m.minus(p).norm() >= min_m)
+        actors.iter().filter(|a| a.kind == ActorKind::Car).all(|a| {
+            let longer_m = (half_length_m(&a.footprint) - CAR_HALF_LENGTH_M).max(0.0);
+            a.pose.position_m.minus(p).norm() >= min_m + longer_m
+        })
+    }
+
+    /// The body of the next moving car: a bus with probability `bus_share`, a truck
+    /// ([`TRUCK_LENGTH_M`]) with `truck_share`, a car otherwise. With both shares 0 nothing is
+    /// drawn, so a scene without large vehicles draws what it drew before they existed.
+    fn body<R: Rng>(&self, rng: &mut R) -> Body {
+        let (bus, truck) = (self.cfg.bus_share, self.cfg.truck_share);
+        if bus + truck <= 0.0 {
+            return Body::CAR;
+        }
+        let u: f64 = rng.random();
+        if u < bus {
+            Body::BUS
+        } else if u < bus + truck {
+            Body::truck(uniform(rng, TRUCK_LENGTH_M))
+        } else {
+            Body::CAR
+        }
     }
 
     /// Whether `car` is clear of the places to keep clear. A car placed on the ego (or over its
@@ -676,14 +791,19 @@ impl Placement<'_> {
             .all(|&q| distance_to_segment(q, back, front) >= LANE_CLEARANCE_M)
     }
 
-    /// A moving car on a random route, 10 m from every car (20 attempts).
+    /// A moving car (or bus or truck, [`Placement::body`]) on a random route, 10 m from every
+    /// car, more by how much longer than a car either is (20 attempts).
     fn moving_car<R: Rng>(&self, actors: &[Actor], rng: &mut R) -> Option<Actor> {
         for _attempt in 0..20 {
             let route = self.net.random_route(150.0, 600.0, rng)?;
             let start = rng.random_range(0.0..=route.path.length_m() * 0.5);
             let cruise = uniform(rng, self.cfg.car_speed_mps);
-            let car = Actor::driving_car(actors.len() as u32, &route, start, cruise, true);
-            if Self::far_from_cars(actors, car.pose.position_m, 10.0) && self.clear(&car) {
+            let body = self.body(rng);
+            let car =
+                Actor::driving_vehicle(actors.len() as u32, &route, start, cruise, true, body);
+            let longer_m = body.half_length_m - CAR_HALF_LENGTH_M;
+            if Self::far_from_cars(actors, car.pose.position_m, 10.0 + longer_m) && self.clear(&car)
+            {
                 return Some(car);
             }
         }
@@ -1029,6 +1149,189 @@ mod tests {
             car.pose
         );
         assert!((0.5..=STANDSTILL_GAP_M + 0.5).contains(&gap), "gap {gap}");
+    }
+
+    #[test]
+    fn a_moving_bus_covers_the_cells_whose_centres_it_holds() {
+        use crate::label::Label;
+        use crate::truth::{ActorRoles, CentreTruth, label_window_centre};
+        use crate::world::World;
+        use geodata::CellWindow;
+        // A bus (12 × 2.55 m) at (10, 5) heading east at 8 m/s: x ∈ [4, 16], y ∈ [3.725, 6.275].
+        // On 1 m cells from (0, 0) the centres c + 0.5 inside are columns 4–15 (12) and rows 4–5
+        // (4.5, 5.5; 3.5 and 6.5 fall outside): 24 cells of truth M. Rows 3 and 6 are covered
+        // in part (the band), from column 4 to 15: 24 band cells.
+        let route = straight_route(100.0, None);
+        let mut bus = Actor::driving_vehicle(0, &route, 0.0, 8.0, true, Body::BUS);
+        bus.pose = Pose2::new(Vec2::new(10.0, 5.0), 0.0);
+        assert_eq!(
+            bus.footprint,
+            Footprint::Rect {
+                half_length_m: 6.0,
+                half_width_m: 1.275
+            }
+        );
+        assert!(is_large_vehicle(&bus));
+        assert!(!is_large_vehicle(&Actor::driving_car(
+            1, &route, 0.0, 8.0, true
+        )));
+        let world = World::new(vec![], vec![], (Vec2::new(0.0, 0.0), Vec2::new(24.0, 10.0)));
+        let window = CellWindow {
+            first_col: 0,
+            first_row: 0,
+            width: 24,
+            height: 10,
+            cell_size_m: 1.0,
+        };
+        let mut truth = CentreTruth::default();
+        label_window_centre(&world, &[bus], ActorRoles::default(), &window, &mut truth);
+        let moving: Vec<(usize, usize)> = (0..10)
+            .flat_map(|r| (0..24).map(move |c| (c, r)))
+            .filter(|&(c, r)| truth.labels[r * 24 + c] == Label::M)
+            .collect();
+        assert_eq!(moving.len(), 24);
+        assert!(
+            moving
+                .iter()
+                .all(|&(c, r)| (4..=15).contains(&c) && (4..=5).contains(&r))
+        );
+        let band = truth.band.iter().filter(|&&b| b).count();
+        assert_eq!(band, 24);
+    }
+
+    #[test]
+    fn a_bus_turns_on_its_own_wider_arc_and_slower() {
+        use rand::SeedableRng;
+        // East 100 m, then north: the corner is rounded by the bus's tightest arc, R = 9 m,
+        // where it accepts 3 m/s² sideways: √(3 · 9) = 5.196 m/s (a car: 3.873 m/s on 5 m).
+        let route = Route {
+            path: Polyline::new(vec![
+                Vec2::new(0.0, 0.0),
+                Vec2::new(100.0, 0.0),
+                Vec2::new(100.0, 100.0),
+            ])
+            .unwrap(),
+            junctions_m: vec![],
+            half_width_m: 4.0,
+        };
+        let (cfg, net) = (TrafficConfig::default(), net());
+        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let mut bus = Actor::driving_vehicle(0, &route, 0.0, 10.0, true, Body::BUS);
+        let corner_mps = (CORNER_LATERAL_MPS2 * BUS_MIN_TURN_RADIUS_M).sqrt();
+        assert!((corner_mps - 5.196).abs() < 1e-3);
+        let (mut max_turn_per_m, mut slowest): (f64, f64) = (0.0, f64::INFINITY);
+        for _ in 0..250 {
+            let before = bus.pose;
+            advance(&mut bus, &[], 0.1, &cfg, &net, &mut rng);
+            let turn = wrap_angle(bus.pose.heading_rad - before.heading_rad).abs();
+            let moved = bus.pose.position_m.minus(before.position_m).norm();
+            if moved > 0.05 {
+                max_turn_per_m = max_turn_per_m.max(turn / moved);
+            }
+            let heading = bus.pose.heading_rad.to_degrees();
+            if (20.0..=70.0).contains(&heading) {
+                assert!(bus.speed_mps <= corner_mps + 1e-9, "{}", bus.speed_mps);
+                slowest = slowest.min(bus.speed_mps);
+            }
+        }
+        // At most 1 / 9 rad a metre (a chord's heading change over its length is within a
+        // hair of the arc's), and it turned the whole corner at the arc's speed, not slower.
+        assert!(
+            max_turn_per_m <= 1.0 / BUS_MIN_TURN_RADIUS_M + 1e-3,
+            "{max_turn_per_m}"
+        );
+        assert!(
+            max_turn_per_m > 1.0 / BUS_MIN_TURN_RADIUS_M - 0.01,
+            "{max_turn_per_m}"
+        );
+        assert!(
+            (corner_mps - 0.5..=corner_mps + 1e-9).contains(&slowest),
+            "{slowest}"
+        );
+        assert!(bus.pose.position_m.y > 50.0, "{:?}", bus.pose);
+    }
+
+    #[test]
+    fn a_car_queues_behind_a_stopped_bus_from_the_bus_rear() {
+        // The bus's centre at x = 60: its rear at 54, so the car stops with its front bumper
+        // 0.5–3 m before 54 (a car leader's rear would be at 57.75).
+        use rand::SeedableRng;
+        let route = straight_route(500.0, None);
+        let bus = Actor::driving_vehicle(9, &route, 0.0, 0.0, true, Body::BUS);
+        let mut bus_now = bus.clone();
+        bus_now.pose = Pose2::new(Vec2::new(60.0, -1.75), 0.0);
+        let leaders = obstacles(&[bus_now], &[]);
+        assert_eq!(leaders[0].half_length_m, 6.0);
+        let (cfg, net) = (TrafficConfig::default(), net());
+        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let mut car = Actor::driving_car(0, &route, 0.0, 10.0, true);
+        for _ in 0..200 {
+            advance(&mut car, &leaders, 0.1, &cfg, &net, &mut rng);
+        }
+        let gap = 54.0 - (car.pose.position_m.x + CAR_HALF_LENGTH_M);
+        assert!(car.speed_mps < 0.01);
+        assert!((0.5..=STANDSTILL_GAP_M + 0.5).contains(&gap), "gap {gap}");
+    }
+
+    #[test]
+    fn shares_give_buses_and_trucks_and_zero_shares_draw_nothing_more() {
+        use rand::SeedableRng;
+        let town = crate::testing::town();
+        let world = crate::world::World::from_polygons(&town.buildings, &town.roads, &town.extent);
+        let net = RoadNetwork::new(&world);
+        let only = |bus_share: f64, truck_share: f64| TrafficConfig {
+            moving_cars: 6,
+            parked_cars: 0,
+            pedestrians: 0,
+            infrastructure: 0,
+            bus_share,
+            truck_share,
+            ..TrafficConfig::default()
+        };
+        let draw = |cfg: &TrafficConfig| {
+            let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+            let actors = populate(&net, cfg, &[], &[], &mut rng);
+            (actors, rng.random::<u64>())
+        };
+        // Every moving car a bus: 12 m long, and centres 10 + 3.75 + 3.75 = 17.5 m apart at
+        // least (10 m between two cars' centres, grown by each bus's extra half length).
+        let (buses, _) = draw(&only(1.0, 0.0));
+        assert!(buses.len() >= 2, "{}", buses.len());
+        for (i, a) in buses.iter().enumerate() {
+            assert_eq!(a.footprint, Body::BUS.footprint());
+            for b in &buses[i + 1..] {
+                let d = a.pose.position_m.minus(b.pose.position_m).norm();
+                assert!(d >= 17.5, "{d}");
+            }
+        }
+        // Every one a truck, 8–10 m long and 2.5 m wide.
+        let (trucks, _) = draw(&only(0.0, 1.0));
+        assert!(!trucks.is_empty());
+        for t in &trucks {
+            let Footprint::Rect {
+                half_length_m,
+                half_width_m,
+            } = t.footprint
+            else {
+                panic!("{:?}", t.footprint)
+            };
+            assert!((4.0..=5.0).contains(&half_length_m), "{half_length_m}");
+            assert_eq!(half_width_m, 1.25);
+        }
+        // Shares 0: a compact car, and no draw for its body. One moving car on an empty
+        // scene is placed at its first attempt: the route, its start and its cruise speed are
+        // the only draws, so the stream after `populate` is the one after those three.
+        let (cars, after) = draw(&TrafficConfig {
+            moving_cars: 1,
+            ..only(0.0, 0.0)
+        });
+        assert_eq!(cars.len(), 1);
+        assert_eq!(cars[0].footprint, Body::CAR.footprint());
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let route = net.random_route(150.0, 600.0, &mut rng).unwrap();
+        let _start = rng.random_range(0.0..=route.path.length_m() * 0.5);
+        let _cruise = uniform(&mut rng, TrafficConfig::default().car_speed_mps);
+        assert_eq!(after, rng.random::<u64>());
     }
 
     #[test]

@@ -80,6 +80,13 @@ pub struct TrafficConfig {
     /// the map). By default 150 m, about twice the scanner's range: on a town-sized map the
     /// actors would otherwise mostly be out of sight.
     pub spawn_within_m: f64,
+    /// Share of the moving cars that are 12 × 2.55 m city buses, turning on arcs of at least
+    /// 9 m (`sim::actors::Body::BUS`); truth as a car's. By default 0.
+    pub bus_share: f64,
+    /// Share of the moving cars that are rigid trucks, 8–10 m (drawn per truck) × 2.5 m,
+    /// turning on arcs of at least 8 m; truth as a car's. By default 0. `bus_share +
+    /// truck_share` is at most 1; with both 0 the scene is drawn exactly as before they existed.
+    pub truck_share: f64,
 }
 
 impl Default for TrafficConfig {
@@ -96,6 +103,8 @@ impl Default for TrafficConfig {
             stand_duration_s: [2.0, 10.0],
             infrastructure: 30,
             spawn_within_m: 150.0,
+            bus_share: 0.0,
+            truck_share: 0.0,
         }
     }
 }
@@ -299,6 +308,12 @@ impl Scenario {
         }
         for (field, v) in [
             ("traffic.stop_probability", t.stop_probability),
+            ("traffic.bus_share", t.bus_share),
+            ("traffic.truck_share", t.truck_share),
+            (
+                "traffic.bus_share + traffic.truck_share",
+                t.bus_share + t.truck_share,
+            ),
             ("sensor.dropout_probability", s.dropout_probability),
         ] {
             if !(0.0..=1.0).contains(&v) {

@@ -68,8 +68,9 @@ fn error_scenarios_differ_from_their_base_only_by_their_error() {
 #[test]
 fn every_family_scenario_is_valid_draws_its_route_and_carries_its_family() {
     let names = toml_names("families");
-    // Six families, one drive per set, and six more tuning drives of `pose-offset`.
-    assert_eq!(names.len(), 24, "{names:?}");
+    // Seven families, one drive per set, six more tuning drives of `pose-offset`, and six
+    // tuning drives of `random` and `crawl`.
+    assert_eq!(names.len(), 33, "{names:?}");
     let mut seeds = std::collections::BTreeMap::new();
     for name in &names {
         let s = read(name);
@@ -116,6 +117,11 @@ fn every_family_scenario_is_valid_draws_its_route_and_carries_its_family() {
                 "{name}"
             );
             assert!((offset - 0.85).abs() < 0.01, "{name}: {offset}");
+        } else if file.starts_with("large-") {
+            assert_eq!((t.bus_share, t.truck_share), (0.1, 0.1), "{name}");
+            assert_eq!(t.moving_cars, 25, "{name}");
+        } else if file.starts_with("random-") {
+            assert_eq!(t.car_speed_mps, [7.0, 13.0], "{name}");
         } else {
             panic!("{name}: no family");
         }

@@ -472,11 +472,21 @@ impl MotionStage {
                 }
             }
             // Cells that moved spanning more than a road user: a static thing the pose's
-            // error shifted (`moving_max_extent_m`), "not moving" as a static track's.
+            // error shifted (`moving_max_extent_m`), "not moving" as a static track's, unless
+            // they are narrow across the track's velocity (`moving_max_across_m`): a bus.
             if let MotionMass::Moving(_) = mass
                 && self.params.moving_max_extent_m > 0.0
                 && moved_extent_m(cells, moved, &labels, cell_size_m)
                     > self.params.moving_max_extent_m
+                && !(self.params.moving_max_across_m > 0.0
+                    && moved_across_m(
+                        cells,
+                        moved,
+                        &labels,
+                        cell_size_m,
+                        track.velocity.map(|v| v.mean_mps),
+                    )
+                    .is_some_and(|across| across <= self.params.moving_max_across_m))
             {
                 mass = MotionMass::Static(self.params.mu_static as f32);
                 state = CellMotion::TooLarge;
@@ -959,6 +969,33 @@ fn moved_extent_m(
     })
 }
 
+/// The span, metres, of the cells of a cluster that moved (`moved`) and take evidence
+/// (`labels`) across `velocity_mps` (east, north): the spread of their centres along the
+/// velocity's normal, plus one cell's width seen along it (`cell_size_m · (|n_x| + |n_y|)`).
+/// `None` without such cells or without a direction (speed under 1 mm/s).
+fn moved_across_m(
+    cells: &[clusters::Cell],
+    moved: &[bool],
+    labels: &impl Fn(&clusters::Cell) -> bool,
+    cell_size_m: f64,
+    velocity_mps: [f64; 2],
+) -> Option<f64> {
+    let speed = velocity_mps[0].hypot(velocity_mps[1]);
+    if !(speed > 1e-3) {
+        return None;
+    }
+    let normal = [-velocity_mps[1] / speed, velocity_mps[0] / speed];
+    let mut span: Option<(f64, f64)> = None;
+    for (c, _) in cells.iter().zip(moved).filter(|(c, m)| **m && labels(c)) {
+        let along_normal = (c.col as f64 * normal[0] + c.row as f64 * normal[1]) * cell_size_m;
+        span = Some(match span {
+            None => (along_normal, along_normal),
+            Some((lo, hi)) => (lo.min(along_normal), hi.max(along_normal)),
+        });
+    }
+    span.map(|(lo, hi)| hi - lo + cell_size_m * (normal[0].abs() + normal[1].abs()))
+}
+
 /// Whether a track judged moving is held back from the moving-object list (`docs/motion.md`,
 /// "The moving-object list"): judged moving only because it entered space seen free, never
 /// registered, judged moving in fewer than `report_after_moving_frames` frames, or of an
@@ -1175,6 +1212,88 @@ mod tests {
         assert!(too_large(last_states(30, 13.0)));
         assert!(moves(last_states(8, 13.0)));
         assert!(too_large(last_states(8, 4.0)));
+    }
+
+    #[test]
+    fn the_span_across_the_motion_is_the_spread_along_the_velocity_s_normal_plus_a_cell() {
+        // A bus of 24 × 2 cells of 0.5 m: columns 4-27, rows 20-21.
+        let cells: Vec<clusters::Cell> = (20..=21)
+            .flat_map(|row| (4..=27).map(move |col| clusters::Cell { idx: 0, col, row }))
+            .collect();
+        let all = vec![true; cells.len()];
+        let any = |_: &clusters::Cell| true;
+        let across = |v: [f64; 2]| moved_across_m(&cells, &all, &any, 0.5, v);
+        // Driving east: across is north, rows 20-21: 0.5 + 0.5 = 1 m.
+        assert!((across([5.0, 0.0]).unwrap_or(0.0) - 1.0).abs() < 1e-9);
+        // Sliding north (a façade the pose shifted): columns 4-27, 23 · 0.5 + 0.5 = 12 m.
+        assert!((across([0.0, -2.0]).unwrap_or(0.0) - 12.0).abs() < 1e-9);
+        // North-east: the normal (−1, 1)/√2; row − col spans −7 to 17, 24 · 0.5 / √2 =
+        // 8.485 m, plus 0.5 · (1/√2 + 1/√2) = 0.707 m: 9.192 m.
+        assert!((across([3.0, 3.0]).unwrap_or(0.0) - 9.192).abs() < 1e-3);
+        // No direction, or no cell that moved: nothing to measure.
+        assert_eq!(across([0.0, 0.0]), None);
+        assert_eq!(
+            moved_across_m(&cells, &vec![false; cells.len()], &any, 0.5, [5.0, 0.0]),
+            None
+        );
+    }
+
+    #[test]
+    fn a_bus_driving_along_its_length_keeps_moving_and_a_sliding_wall_does_not() {
+        // Exact poses (σ 0, refinement off), 0.5 m cells, rows 14-26 seen free from column 2
+        // to 38 around the objects. The bus: 20 × 2 cells (10 × 1 m), rows 20-21, columns
+        // 4 + t to 23 + t in frame t, driving east a cell a frame (5 m/s). Its cells span
+        // √(10² + 1²) = 10.05 m on the box's diagonal, more than 8 m, and 1 m across its
+        // velocity. The wall: 30 cells of row 18 + t, columns 4-33, sliding north a row a frame:
+        // √(15² + 0.5²) = 15.008 m, and 15 m across its velocity.
+        let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
+        let (w, h) = (window.width(), window.height());
+        let at = |col: i64, row: i64| window.storage_index(col, row).unwrap_or(0);
+        let last_states = |bus: bool, max_across_m: f64| {
+            let mut params = crate::Params::default();
+            params.motion.moving_max_extent_m = 8.0;
+            params.motion.moving_max_across_m = max_across_m;
+            let mut stage = MotionStage::new(&params, w, h);
+            let mut perception = PerceptionGrid::new(w, h);
+            let mut decisions = vec![Label::Unknown; w * h];
+            let occupied = |t: i64, col: i64, row: i64| {
+                if bus {
+                    (20..=21).contains(&row) && (4 + t..24 + t).contains(&col)
+                } else {
+                    row == 18 + t && (4..34).contains(&col)
+                }
+            };
+            for t in 0..4 {
+                let mut grid = SensorGrid::new(w, h);
+                for row in 14..=26 {
+                    for col in 2..39 {
+                        if occupied(t, col, row) {
+                            grid.set_occupied(at(col, row), 0.8);
+                        } else {
+                            grid.set_free(at(col, row), 0.7);
+                        }
+                    }
+                }
+                stage.update(
+                    &window,
+                    &grid,
+                    0.1 * t as f64,
+                    0.1,
+                    &mut perception,
+                    &mut decisions,
+                );
+            }
+            let mut states: Vec<CellMotion> = stage.cell_states().iter().map(|r| r.state).collect();
+            states.sort();
+            states.dedup();
+            states
+        };
+        // The 8 m rule alone: both too large. Across ≤ 4 m: the bus (1 m) moves, the wall
+        // (15 m) stays too large.
+        assert_eq!(last_states(true, 0.0), vec![CellMotion::TooLarge]);
+        assert_eq!(last_states(false, 0.0), vec![CellMotion::TooLarge]);
+        assert_eq!(last_states(true, 4.0), vec![CellMotion::Moving]);
+        assert_eq!(last_states(false, 4.0), vec![CellMotion::TooLarge]);
     }
 
     #[test]
