@@ -1048,6 +1048,11 @@ pub struct MotionParams {
     /// scan's pose error shifts moves across its own length, `docs/motion.md`, "Buses and
     /// trucks: the extent across the motion"). 0: off (every such track is too large).
     pub moving_max_across_m: f64,
+    /// With `moving_max_across_m`: the most a narrow mover's cells that moved may span (the
+    /// diagonal of their box, as `moving_max_extent_m`), metres: a 12 × 2.55 m bus spans
+    /// about 13 m on 0.5 m cells, a façade sliding along its own length under a scan's pose
+    /// error 15–50 m. 0: no bound.
+    pub moving_max_length_m: f64,
 }
 
 impl Default for MotionParams {
@@ -1099,6 +1104,7 @@ impl Default for MotionParams {
             moving_max_extent_m: 8.0,
             weak_shift_frames: 2,
             moving_max_across_m: 0.0,
+            moving_max_length_m: 0.0,
         }
     }
 }
@@ -1183,6 +1189,7 @@ impl MotionParams {
         non_negative("motion.displaced_pose_sigmas", self.displaced_pose_sigmas)?;
         non_negative("motion.moving_max_extent_m", self.moving_max_extent_m)?;
         non_negative("motion.moving_max_across_m", self.moving_max_across_m)?;
+        non_negative("motion.moving_max_length_m", self.moving_max_length_m)?;
         Ok(())
     }
 }

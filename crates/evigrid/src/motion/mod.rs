@@ -473,12 +473,24 @@ impl MotionStage {
             }
             // Cells that moved spanning more than a road user: a static thing the pose's
             // error shifted (`moving_max_extent_m`), "not moving" as a static track's, unless
-            // they are narrow across the track's velocity (`moving_max_across_m`): a bus.
+            // they are narrow across the track's velocity (`moving_max_across_m`) and no
+            // longer than a bus (`moving_max_length_m`).
+            let extent_m = match mass {
+                MotionMass::Moving(_) if self.params.moving_max_extent_m > 0.0 => {
+                    moved_extent_m(cells, moved, &labels, cell_size_m)
+                }
+                _ => 0.0,
+            };
+            let max_length_m = if self.params.moving_max_length_m > 0.0 {
+                self.params.moving_max_length_m
+            } else {
+                f64::INFINITY
+            };
             if let MotionMass::Moving(_) = mass
                 && self.params.moving_max_extent_m > 0.0
-                && moved_extent_m(cells, moved, &labels, cell_size_m)
-                    > self.params.moving_max_extent_m
+                && extent_m > self.params.moving_max_extent_m
                 && !(self.params.moving_max_across_m > 0.0
+                    && extent_m <= max_length_m
                     && moved_across_m(
                         cells,
                         moved,
@@ -1239,28 +1251,39 @@ mod tests {
     }
 
     #[test]
-    fn a_bus_driving_along_its_length_keeps_moving_and_a_sliding_wall_does_not() {
+    fn a_bus_driving_along_its_length_keeps_moving_and_a_sliding_wall_does_not_when_bounded() {
         // Exact poses (σ 0, refinement off), 0.5 m cells, rows 14-26 seen free from column 2
         // to 38 around the objects. The bus: 20 × 2 cells (10 × 1 m), rows 20-21, columns
         // 4 + t to 23 + t in frame t, driving east a cell a frame (5 m/s). Its cells span
         // √(10² + 1²) = 10.05 m on the box's diagonal, more than 8 m, and 1 m across its
         // velocity. The wall: 30 cells of row 18 + t, columns 4-33, sliding north a row a frame:
-        // √(15² + 0.5²) = 15.008 m, and 15 m across its velocity.
+        // √(15² + 0.5²) = 15.008 m, and 15 m across its velocity. A wall as thick as the bus
+        // sliding east along its own length, two cells a frame (rows 20-21, 28 columns from
+        // 4 + 2t; a scan's pose off along the street): √(14² + 1²) = 14.036 m, and 1 m across
+        // its velocity. (At one cell a frame, all but one of its cells explained at zero, it
+        // stays uncertain.)
+        #[derive(Clone, Copy)]
+        enum Object {
+            Bus,
+            WallAcross,
+            WallAlong,
+        }
         let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
         let (w, h) = (window.width(), window.height());
         let at = |col: i64, row: i64| window.storage_index(col, row).unwrap_or(0);
-        let last_states = |bus: bool, max_across_m: f64| {
+        let last_states = |object: Object, max_across_m: f64, max_length_m: f64| {
             let mut params = crate::Params::default();
             params.motion.moving_max_extent_m = 8.0;
             params.motion.moving_max_across_m = max_across_m;
+            params.motion.moving_max_length_m = max_length_m;
             let mut stage = MotionStage::new(&params, w, h);
             let mut perception = PerceptionGrid::new(w, h);
             let mut decisions = vec![Label::Unknown; w * h];
-            let occupied = |t: i64, col: i64, row: i64| {
-                if bus {
-                    (20..=21).contains(&row) && (4 + t..24 + t).contains(&col)
-                } else {
-                    row == 18 + t && (4..34).contains(&col)
+            let occupied = |t: i64, col: i64, row: i64| match object {
+                Object::Bus => (20..=21).contains(&row) && (4 + t..24 + t).contains(&col),
+                Object::WallAcross => row == 18 + t && (4..34).contains(&col),
+                Object::WallAlong => {
+                    (20..=21).contains(&row) && (4 + 2 * t..32 + 2 * t).contains(&col)
                 }
             };
             for t in 0..4 {
@@ -1288,12 +1311,21 @@ mod tests {
             states.dedup();
             states
         };
-        // The 8 m rule alone: both too large. Across ≤ 4 m: the bus (1 m) moves, the wall
-        // (15 m) stays too large.
-        assert_eq!(last_states(true, 0.0), vec![CellMotion::TooLarge]);
-        assert_eq!(last_states(false, 0.0), vec![CellMotion::TooLarge]);
-        assert_eq!(last_states(true, 4.0), vec![CellMotion::Moving]);
-        assert_eq!(last_states(false, 4.0), vec![CellMotion::TooLarge]);
+        // The 8 m rule alone: all too large. Across ≤ 4 m: the bus (1 m) moves, the wall
+        // sliding across (15 m) stays too large, the wall sliding along (1 m) moves too,
+        // unless no narrow mover may span more than 13 m (it spans 14.036 m; the bus 10.05 m).
+        let too_large = vec![CellMotion::TooLarge];
+        let moving = vec![CellMotion::Moving];
+        for object in [Object::Bus, Object::WallAcross, Object::WallAlong] {
+            assert_eq!(last_states(object, 0.0, 0.0), too_large);
+        }
+        assert_eq!(last_states(Object::Bus, 4.0, 0.0), moving);
+        assert_eq!(last_states(Object::WallAcross, 4.0, 0.0), too_large);
+        assert_eq!(last_states(Object::WallAlong, 4.0, 0.0), moving);
+        assert_eq!(last_states(Object::Bus, 4.0, 13.0), moving);
+        assert_eq!(last_states(Object::WallAcross, 4.0, 13.0), too_large);
+        assert_eq!(last_states(Object::WallAlong, 4.0, 13.0), too_large);
+        assert_eq!(last_states(Object::Bus, 4.0, 10.0), too_large);
     }
 
     #[test]
