@@ -1166,6 +1166,8 @@ mod tests {
         let last_states = |len: i64, max_extent_m: f64| {
             let mut params = crate::Params::default();
             params.motion.moving_max_extent_m = max_extent_m;
+            // The extent alone (the 8-cell car spans 4 m across its velocity).
+            params.motion.moving_max_across_m = 0.0;
             let mut stage = MotionStage::new(&params, w, h);
             let mut perception = PerceptionGrid::new(w, h);
             let mut decisions = vec![Label::Unknown; w * h];
