@@ -993,7 +993,7 @@ fn moved_across_m(
     velocity_mps: [f64; 2],
 ) -> Option<f64> {
     let speed = velocity_mps[0].hypot(velocity_mps[1]);
-    if !(speed > 1e-3) {
+    if speed.is_nan() || speed <= 1e-3 {
         return None;
     }
     let normal = [-velocity_mps[1] / speed, velocity_mps[0] / speed];
