@@ -135,6 +135,26 @@ pub(crate) fn off_buildings(
     }
 }
 
+/// The evidence for a cell of this frame's clusters that takes no moving evidence (its track
+/// gives none, or it holds a return the placed grid does not occupy) and is decided M: that M
+/// is the SPEC §5 step's own free→occupied conflict, which a static surface shifted by the
+/// pose's error makes as well as a mover does. With `unsupported_pose_sigmas` = k > 0, when
+/// k · `displacement_sigma_m` (the σ of the apparent shift of a static object at the cluster's
+/// range between two scans) reaches half a cell, the shift moves a surface into the next cell
+/// and the cell takes m(Ω∖{M}) = `mu_static`; otherwise (and with k = 0) nothing.
+pub(crate) fn unsupported_by_motion(
+    displacement_sigma_m: f64,
+    cell_size_m: f64,
+    params: &MotionParams,
+) -> MotionMass {
+    let k = params.unsupported_pose_sigmas;
+    if k > 0.0 && k * displacement_sigma_m >= 0.5 * cell_size_m {
+        MotionMass::Static(params.mu_static as f32)
+    } else {
+        MotionMass::Vacuous
+    }
+}
+
 /// Combines `m` conjunctively with the motion evidence, the new conflict following `residual`.
 pub fn combine(m: &mut [f32; N_SETS], evidence: MotionMass, residual: ResidualPolicy) {
     let mut out = [0.0f32; N_SETS];
@@ -316,6 +336,53 @@ mod tests {
             MotionMass::Moving(m) => m,
             other => panic!("not moving: {other:?}"),
         }
+    }
+
+    #[test]
+    fn the_steps_own_m_is_not_moving_where_the_pose_error_shifts_a_surface_by_half_a_cell() {
+        // σ = 0.1 m per axis, σ_θ = 0.002 rad at 20 m: the apparent shift of a static object
+        // has σ = √2 · √(0.1² + 0.04²) = √2 · 0.107703 = 0.152315 m.
+        let pose = super::super::tracks::PoseError {
+            sensor_xy_m: [0.0, 0.0],
+            sigma_m: 0.1,
+            sigma_rad: 0.002,
+        };
+        let sigma = pose.displacement_sigma_m([12.0, 16.0]);
+        assert!((sigma - 0.152_315).abs() < 1e-6, "{sigma}");
+        let mut params = MotionParams::default();
+        // 6 σ by default: 0.914 m.
+        assert_eq!(
+            unsupported_by_motion(sigma, 0.5, &params),
+            MotionMass::Static(0.9)
+        );
+        // Off.
+        params.unsupported_pose_sigmas = 0.0;
+        assert_eq!(
+            unsupported_by_motion(sigma, 0.5, &params),
+            MotionMass::Vacuous
+        );
+        // 2 σ = 0.3046 m reaches half a 0.5 m cell: m(Ω∖{M}) = mu_static = 0.9.
+        params.unsupported_pose_sigmas = 2.0;
+        assert_eq!(
+            unsupported_by_motion(sigma, 0.5, &params),
+            MotionMass::Static(0.9)
+        );
+        // Not half a 0.8 m cell (0.4 m); 1 σ = 0.1523 m not half a 0.5 m cell either.
+        assert_eq!(
+            unsupported_by_motion(sigma, 0.8, &params),
+            MotionMass::Vacuous
+        );
+        params.unsupported_pose_sigmas = 1.0;
+        assert_eq!(
+            unsupported_by_motion(sigma, 0.5, &params),
+            MotionMass::Vacuous
+        );
+        // Exact poses (σ 0) never.
+        params.unsupported_pose_sigmas = 100.0;
+        assert_eq!(
+            unsupported_by_motion(0.0, 0.5, &params),
+            MotionMass::Vacuous
+        );
     }
 
     #[test]

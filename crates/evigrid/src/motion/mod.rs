@@ -432,6 +432,7 @@ impl MotionStage {
         if object_layer {
             self.objects.group(&self.clusters);
         }
+        let pose = self.pose_error();
         let mut first = 0;
         for k in 0..self.clusters.len() {
             let cells = self.clusters.cluster(k);
@@ -582,9 +583,35 @@ impl MotionStage {
             };
             let moving_before = moving_cells;
             let labelled_cells = cells.iter().filter(|c| labels(c)).count() as u32;
+            // Where the cluster's cells take no moving evidence, an M decision is the step's
+            // own conflict: "not moving" where the pose's error explains it
+            // (`unsupported_pose_sigmas`).
+            let unsupported = evidence::unsupported_by_motion(
+                pose.displacement_sigma_m(self.observations[k].centroid_m),
+                cell_size_m,
+                &self.params,
+            );
+            let (residual, threshold) = (self.residual, self.unknown_threshold);
+            // The cell's M decision, if any, becomes "not moving", as this frame's decision
+            // only: the grid keeps the step's masses (fused, it was measured no better).
+            let veto = |idx: usize, perception: &PerceptionGrid, decisions: &mut [Label]| {
+                if decisions[idx] != Label::M {
+                    return;
+                }
+                let mut m = perception.cell_masses(idx);
+                combine(&mut m, unsupported, residual);
+                decisions[idx] = decide(&m, perception.seen()[idx] != 0, threshold);
+            };
+            // A track held by the displacement test (`WithinPoseError`) keeps the step's M:
+            // it is as often a mover not yet beyond the pose's error (measured: the veto there
+            // lost validation's moving IoU and dynamic accuracy).
+            let no_support = matches!(state, CellMotion::Unregistered | CellMotion::Uncertain);
             for (c, &moved) in cells.iter().zip(moved) {
                 // A cell only of the grid registered on takes no evidence.
                 let Some((mass, cell_state)) = of_cell(c, moved) else {
+                    if unsupported != MotionMass::Vacuous {
+                        veto(c.idx as usize, perception, decisions);
+                    }
                     continue;
                 };
                 let idx = c.idx as usize;
@@ -600,7 +627,12 @@ impl MotionStage {
                     track_age_s: (time_s - track.first_seen_s) as f32,
                 });
                 match mass {
-                    MotionMass::Vacuous => continue,
+                    MotionMass::Vacuous => {
+                        if no_support && unsupported != MotionMass::Vacuous {
+                            veto(idx, perception, decisions);
+                        }
+                        continue;
+                    }
                     MotionMass::Moving(_) => {
                         moving_cells += 1;
                         self.velocity_east[idx] = vx;
@@ -1149,6 +1181,112 @@ mod tests {
                 vec![CellMotion::WithinPoseError],
                 vec![CellMotion::Moving]
             ]
+        );
+    }
+
+    /// Frames 0 to `last` of [`driving_away`] under 0.3 m of pose error per axis, with
+    /// `unsupported_pose_sigmas` = `k`. Before frame `last`'s update, three cells are given the
+    /// masses the SPEC §5 step leaves after a free→occupied conflict, and decided M as it
+    /// decides them: a cell of the face, (10 + last, 11); the return in front of the face,
+    /// (9 + last, 10), which the placed grid does not occupy; and (30, 30), in no cluster.
+    /// Returns the face's state, and the three cells' masses and decisions after that frame.
+    fn step_conflict_after(k: f64, last: i64) -> (CellMotion, Vec<([f32; N_SETS], Label)>) {
+        use crate::grids::{OMEGA, class};
+        let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
+        let (w, h) = (window.width(), window.height());
+        let mut params = crate::Params::default();
+        params.motion.unsupported_pose_sigmas = k;
+        let mut stage = MotionStage::new(&params, w, h);
+        let mut perception = PerceptionGrid::new(w, h);
+        perception.seen_mut().fill(1);
+        let mut decisions = vec![Label::Unknown; w * h];
+        let at = |col: i64, row: i64| window.storage_index(col, row).unwrap_or(0);
+        let cells = [at(10 + last, 11), at(9 + last, 10), at(30, 30)];
+        for t in 0..=last {
+            stage.set_pose(0.0, 0.0, 0.3, 0.0);
+            if t == last {
+                // m({M}) 0.56, m({I, U, S, M}) 0.24, m(Ω) 0.2: BetP(M) = 0.56 + 0.06 + 0.04.
+                let mut m = [0.0; N_SETS];
+                m[class::M] = 0.56;
+                m[class::I | class::U | class::S | class::M] = 0.24;
+                m[OMEGA] = 0.2;
+                for &idx in &cells {
+                    perception.set_cell_masses(idx, &m);
+                    decisions[idx] = decide(&m, true, params.decision.unknown_threshold);
+                }
+            }
+            let (returns, placed) = driving_away(t, &window);
+            stage.update_registering(
+                &window,
+                &placed,
+                &returns,
+                0.1 * t as f64,
+                0.1,
+                &mut perception,
+                &mut decisions,
+            );
+        }
+        let face = stage
+            .cell_states()
+            .iter()
+            .find(|r| r.idx as usize == cells[0])
+            .map(|r| r.state);
+        let after = cells
+            .iter()
+            .map(|&idx| (perception.cell_masses(idx), decisions[idx]))
+            .collect();
+        (
+            face.unwrap_or_else(|| panic!("the face is a cluster cell")),
+            after,
+        )
+    }
+
+    #[test]
+    fn the_steps_own_m_on_cells_without_moving_evidence_is_not_moving_under_pose_error() {
+        use crate::grids::{OMEGA, class};
+        let mut conflict = [0.0; N_SETS];
+        conflict[class::M] = 0.56;
+        conflict[class::I | class::U | class::S | class::M] = 0.24;
+        conflict[OMEGA] = 0.2;
+        let m_everywhere = vec![(conflict, Label::M); 3];
+        // Off: the step's M stays on all three.
+        assert_eq!(
+            step_conflict_after(0.0, 0),
+            (CellMotion::Unregistered, m_everywhere.clone())
+        );
+        // The apparent shift's σ is 0.3 · √2 = 0.424264 m at any range (heading exact).
+        // k = 0.5: 0.212 m, not half a 0.5 m cell: nothing changes.
+        assert_eq!(
+            step_conflict_after(0.5, 0),
+            (CellMotion::Unregistered, m_everywhere.clone())
+        );
+        // k = 6 (the default): 2.55 m. Frame 0, nothing to register against: the face's cell
+        // and the return's take m(Ω∖{M}) = 0.9 for the decision: {M} keeps 0.056 and gives
+        // 0.504 to Ω (the conflict, `to_omega`), {I, U, S, M} keeps 0.024 and gives 0.216 to
+        // {I, U, S}, Ω keeps 0.02 and gives 0.18 to Ω∖{M}; m(Ω) = 0.524 > 0.5: unknown. The
+        // grid keeps the step's masses. The cell in no cluster keeps its M.
+        assert_eq!(crate::Params::default().motion.unsupported_pose_sigmas, 6.0);
+        let unknown = vec![
+            (conflict, Label::Unknown),
+            (conflict, Label::Unknown),
+            (conflict, Label::M),
+        ];
+        assert_eq!(
+            step_conflict_after(6.0, 0),
+            (CellMotion::Unregistered, unknown)
+        );
+        // Frame 1: the face is held by the displacement test (0.5 m registered within
+        // 1.5 σ = 0.636 m): its M stays; the return in front of it does not.
+        assert_eq!(
+            step_conflict_after(6.0, 1),
+            (
+                CellMotion::WithinPoseError,
+                vec![
+                    (conflict, Label::M),
+                    (conflict, Label::Unknown),
+                    (conflict, Label::M)
+                ]
+            )
         );
     }
 
