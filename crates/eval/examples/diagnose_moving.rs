@@ -23,6 +23,9 @@
 //! that are truth M (`M75%`: 75-99 %). With `DIAGNOSE_STARTED` set, each miss says how many
 //! frames back, within [`STARTED_FRAMES`], its cell was last truth S (a road user that has just
 //! started), or "not S lately".
+//! With `DIAGNOSE_STOPPED` set, each false M says how many frames back, within
+//! [`STARTED_FRAMES`], its cell was last truth M (a road user that has just stopped), or "not M
+//! lately".
 //! With `DIAGNOSE_PERSIST` set, each false M says how many frames back its cell last took
 //! moving evidence from the stage (`Moving` or `EnteredSeenFree`), "Mev now" this frame, or
 //! "Mev never" within the seed: M kept by the fusion after the evidence went, or made by the
@@ -58,6 +61,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut outside_before: std::collections::VecDeque<std::collections::HashSet<u32>> =
         std::collections::VecDeque::new();
     let started = std::env::var_os("DIAGNOSE_STARTED").is_some();
+    let stopped = std::env::var_os("DIAGNOSE_STOPPED").is_some();
     let hits_by_state = std::env::var_os("DIAGNOSE_HITS").is_some();
     // The truth of the last `STARTED_FRAMES` frames of the seed, newest last
     // (`DIAGNOSE_STARTED`).
@@ -259,8 +263,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     && let Some(s) = states.get(&(idx as u32))
                 {
                     eprintln!(
-                        "LIST frame {} cluster {} {:?} n{} f{} m{} v{:.1} s{:.1} age{:.1} truth {:?}",
+                        "LIST frame {} at {:?} cluster {} {:?} n{} f{} m{} v{:.1} s{:.1} age{:.1} truth {:?}",
                         f.frame,
+                        window.cell_centre(cell.col, cell.row),
                         s.cluster,
                         s.state,
                         s.cluster_cells,
@@ -272,6 +277,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         truth
                     );
                 }
+                // Frames back the cell was last truth M, within `STARTED_FRAMES`
+                // (`DIAGNOSE_STOPPED`): a road user that has just stopped.
+                let key = if stopped && false_moving {
+                    match truths
+                        .iter()
+                        .rev()
+                        .position(|t| t.get(idx) == Some(&Label::M))
+                    {
+                        None => format!("{key} | not M lately"),
+                        Some(k) => format!("{key} | M {} frames back", k + 1),
+                    }
+                } else {
+                    key
+                };
                 let key = if persist && false_moving {
                     let back = match last_evidence.get(&(idx as u32)) {
                         None => "Mev never".to_owned(),
@@ -306,7 +325,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 };
                 *counts.entry(key).or_default() += 1;
             }
-            if started {
+            if started || stopped {
                 truths.push_back(f.truth.to_vec());
                 if truths.len() > STARTED_FRAMES {
                     truths.pop_front();

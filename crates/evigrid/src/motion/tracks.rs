@@ -158,10 +158,21 @@ impl Tracks {
         self.tracks
             .retain(|t| now_s - t.last_seen_s <= params.max_coast_s);
         for t in &mut self.tracks {
+            let before = t.velocity.map(|v| v.mean_mps);
             for (p, v) in t.position_m.iter_mut().zip(&mut t.velocity) {
                 *p += v.mean_mps * dt_s;
-                v.predict(dt_s, params.accel_sigma_mps2);
+                v.predict(dt_s, params.accel_sigma_mps2, params.jerk_sigma_mps3);
             }
+            // A braking road user stops; it does not back up: an acceleration that carries
+            // the velocity through zero leaves it at rest.
+            let [x, y] = t.velocity.map(|v| v.mean_mps);
+            if x * before[0] + y * before[1] < 0.0 {
+                for v in &mut t.velocity {
+                    v.mean_mps = 0.0;
+                    v.accel_mps2 = 0.0;
+                }
+            }
+            braking_only(&mut t.velocity);
         }
 
         // Confirmed tracks first (existence probability at least `REPORT_MIN_EXISTENCE`: two
@@ -231,9 +242,12 @@ impl Tracks {
             t.last_seen_s = now_s;
             t.hits = t.hits.saturating_add(1);
             if let Some((v, variance)) = o.velocity {
+                // The registration's velocity is the mean over its frames, half its mean
+                // span back on average (`motion.jerk_sigma_mps3`).
                 for (filter, &z) in t.velocity.iter_mut().zip(&v) {
-                    filter.update(z, variance);
+                    filter.update_lagged(z, variance, o.span_s / 2.0);
                 }
+                braking_only(&mut t.velocity);
                 // The first registration covers its whole span; each later one adds the
                 // frame's interval (its span overlaps the ones before).
                 let span_s = if t.measurements == 0 { o.span_s } else { dt_s };
@@ -317,6 +331,19 @@ impl Tracks {
                 *prediction = Some(track.velocity.map(|v| v.mean_mps));
             }
         }
+    }
+}
+
+/// Keeps only the part of the acceleration that slows the velocity down or turns it: its
+/// component along the velocity is dropped when it speeds the velocity up.
+fn braking_only(velocity: &mut [VelocityFilter; 2]) {
+    let [vx, vy] = velocity.map(|v| v.mean_mps);
+    let [ax, ay] = velocity.map(|v| v.accel_mps2);
+    let speed_sq = vx * vx + vy * vy;
+    let along = ax * vx + ay * vy;
+    if speed_sq > 0.0 && along > 0.0 {
+        velocity[0].accel_mps2 -= along / speed_sq * vx;
+        velocity[1].accel_mps2 -= along / speed_sq * vy;
     }
 }
 
@@ -511,7 +538,13 @@ mod tests {
     }
     #[test]
     fn a_moving_track_predicts_into_the_nearest_cluster_only() {
-        let params = MotionParams::default();
+        // The constant-velocity filter, whose numbers are worked out below (with
+        // `jerk_sigma_mps3` the acceleration's variance after one prediction moves them a
+        // little: the registration is read 0.05 s back).
+        let params = MotionParams {
+            jerk_sigma_mps3: 0.0,
+            ..MotionParams::default()
+        };
         let mut tracks = Tracks::default();
         // At x = 0, then at 1 m measured at 10 m/s (variance 1) from the new track's 0 ± 25
         // m/s (variance 625 + (3 · 0.1)² = 625.09): 10 · 625.09 / 626.09 = 9.98403 m/s.
@@ -733,5 +766,108 @@ mod tests {
         };
         assert_eq!(displaced(&params), Some((true, true)));
         assert_eq!(displaced(&two), Some((true, false)));
+    }
+
+    #[test]
+    fn only_the_braking_part_of_an_acceleration_is_kept() {
+        let filter = |v: f64, a: f64| VelocityFilter {
+            accel_mps2: a,
+            ..VelocityFilter::new(v, 0.1)
+        };
+        // v = (3, 4), a = (3, 0): the part along v, (a·v)/|v|² · v = 9/25 · (3, 4), goes,
+        // leaving (1.92, −1.44), square to v.
+        let mut speeding = [filter(3.0, 3.0), filter(4.0, 0.0)];
+        braking_only(&mut speeding);
+        assert!((speeding[0].accel_mps2 - 1.92).abs() < 1e-12);
+        assert!((speeding[1].accel_mps2 + 1.44).abs() < 1e-12);
+        // Braking, (−3, 0) against (3, 4): kept.
+        let mut braking = [filter(3.0, -3.0), filter(4.0, 0.0)];
+        braking_only(&mut braking);
+        assert_eq!(braking[0].accel_mps2, -3.0);
+        assert_eq!(braking[1].accel_mps2, 0.0);
+    }
+
+    #[test]
+    fn a_braking_track_predicted_through_zero_stands() {
+        let params = MotionParams::default();
+        let mut tracks = Tracks::default();
+        tracks.update(&[seen(0.0, None)], 0.0, 0.1, PoseError::default(), &params);
+        // 0.2 m/s east braking at 3 m/s²: 0.1 s on, 0.2 − 0.3 = −0.1 m/s, backwards.
+        for v in &mut tracks.tracks[0].velocity {
+            v.variance = 0.01;
+        }
+        tracks.tracks[0].velocity[0].mean_mps = 0.2;
+        tracks.tracks[0].velocity[0].accel_mps2 = -3.0;
+        tracks.update(&[], 0.1, 0.1, PoseError::default(), &params);
+        let v = tracks.tracks[0].velocity;
+        assert_eq!(v.map(|v| v.mean_mps), [0.0, 0.0]);
+        assert_eq!(v.map(|v| v.accel_mps2), [0.0, 0.0]);
+    }
+
+    /// Frames, of a car driving east at 6 m/s for 2 s, braking at 3 m/s² to a stop (2 s)
+    /// and standing 2 s, in which its track is judged moving after it stopped, and before:
+    /// each frame registered as its mean velocity over the last `frames` frames (what the
+    /// registration's line through the past frames reads), σ = 0.5 m/s.
+    fn moving_frames_around_a_stop(params: &MotionParams, frames: usize) -> (usize, usize) {
+        let dt = 0.1;
+        let speed = |k: usize| {
+            let t = k as f64 * dt;
+            if t <= 2.0 {
+                6.0
+            } else {
+                (6.0 - 3.0 * (t - 2.0)).max(0.0)
+            }
+        };
+        // The position at frame k: the speed's integral, exactly per frame (trapezoids of a
+        // piecewise-linear speed whose corners fall on frames).
+        let mut x = vec![0.0];
+        for k in 1..60 {
+            x.push(x[k - 1] + (speed(k - 1) + speed(k)) / 2.0 * dt);
+        }
+        let mut tracks = Tracks::default();
+        let (mut after, mut before) = (0, 0);
+        for k in 0..60 {
+            let back = frames.min(k);
+            // Mean velocity over the frames back: Σ d_j·τ_j / Σ τ_j², τ_j = j·dt.
+            let (num, den) = (1..=back).fold((0.0, 0.0), |(n, d), j| {
+                let tau = j as f64 * dt;
+                (n + (x[k] - x[k - j]) * tau, d + tau * tau)
+            });
+            let span_s = (1..=back).map(|j| (j as f64 * dt).powi(2)).sum::<f64>()
+                / (1..=back).map(|j| j as f64 * dt).sum::<f64>().max(dt);
+            let o = Observation {
+                centroid_m: [x[k], 0.0],
+                velocity: (back > 0).then(|| ([num / den, 0.0], 0.25)),
+                span_s,
+            };
+            tracks.update(&[o], k as f64 * dt, dt, PoseError::default(), params);
+            let moving = tracks
+                .of_observation(0)
+                .is_some_and(|t| is_moving(t, params));
+            if speed(k) < params.min_speed_mps {
+                after += usize::from(moving);
+            } else if k > frames {
+                before += usize::from(!moving);
+            }
+        }
+        (after, before)
+    }
+
+    #[test]
+    fn a_braking_car_is_seen_to_stop_sooner_with_its_acceleration() {
+        // The car stops at 4 s (frame 40). Registrations over 6 frames lag its braking by a
+        // quarter of a second and more; the constant-velocity filter lags them in turn.
+        let off = MotionParams {
+            jerk_sigma_mps3: 0.0,
+            ..MotionParams::default()
+        };
+        let on = MotionParams::default();
+        assert_eq!(on.jerk_sigma_mps3, 1.0);
+        let (after_off, before_off) = moving_frames_around_a_stop(&off, 6);
+        let (after_on, before_on) = moving_frames_around_a_stop(&on, 6);
+        // Neither loses the car while it moves at 0.5 m/s or more.
+        assert_eq!((before_off, before_on), (0, 0));
+        assert!(after_off >= 3, "{after_off}");
+        assert!(after_on < after_off, "{after_on} vs {after_off}");
     }
 }
