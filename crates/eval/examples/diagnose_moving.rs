@@ -32,6 +32,9 @@
 //! fusion step's own free→occupied conflict.
 //! With `DIAGNOSE_HITS` set, the hits are also counted by what the stage made of each
 //! cell ("hit M by state").
+//! With `DIAGNOSE_CONTEXT` set, the truth-M cells in view are also counted as hit or missed by
+//! the map context of their cell (`truth M by context`): a road user on a cell the map calls
+//! building meets the prior {I}.
 
 mod common;
 
@@ -63,6 +66,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let started = std::env::var_os("DIAGNOSE_STARTED").is_some();
     let stopped = std::env::var_os("DIAGNOSE_STOPPED").is_some();
     let hits_by_state = std::env::var_os("DIAGNOSE_HITS").is_some();
+    let by_context = std::env::var_os("DIAGNOSE_CONTEXT").is_some();
     // The truth of the last `STARTED_FRAMES` frames of the seed, newest last
     // (`DIAGNOSE_STARTED`).
     let mut truths: std::collections::VecDeque<Vec<Label>> = std::collections::VecDeque::new();
@@ -174,6 +178,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             .map_or("-".to_owned(), |s| format!("{:?}", s.state));
                         *counts.entry(format!("hit M by state {state}")).or_default() += 1;
                     }
+                }
+                if by_context && truth == Label::M {
+                    // Truth M by the map's context of its cell: a road user where the map
+                    // says building (a road under a building) has prior {I} against it.
+                    let outcome = if decided == Label::M { "hit" } else { "missed" };
+                    let context = f.front_end.gis().context.get(idx).map_or("-".to_owned(), |c| format!("{c:?}"));
+                    *counts
+                        .entry(format!("truth M by context {context}: {outcome}"))
+                        .or_default() += 1;
                 }
                 if !false_moving && !missed {
                     continue;

@@ -1076,6 +1076,13 @@ pub struct MotionParams {
     /// validation drives (moving IoU 0.6158 → 0.6163, dynamic accuracy 0.7652 → 0.7594); 0:
     /// off (constant velocity, each registration read as the velocity now).
     pub jerk_sigma_mps3: f64,
+    /// A cluster whose newer past frames all read zero while an older one shows a clear move
+    /// off their line that does not restart the fit (a stop, or a move the newer frames hid)
+    /// is not measured this frame instead of being read static on the newer frames
+    /// (`docs/motion.md`, "Newer frames that read zero against an older move"); only for a
+    /// move longer than `displaced_pose_sigmas` σ of the apparent shift the pose's error
+    /// gives a static cluster at its range. By default true (false: the rule before).
+    pub contradicted_unmeasured: bool,
 }
 
 impl Default for MotionParams {
@@ -1130,6 +1137,7 @@ impl Default for MotionParams {
             moving_max_length_m: 13.0,
             unsupported_pose_sigmas: 6.0,
             jerk_sigma_mps3: 1.0,
+            contradicted_unmeasured: true,
         }
     }
 }

@@ -258,17 +258,26 @@ impl Registrar {
                         unresolved || self.heres.iter().any(|&h| self.free[h] & newer_bits != 0);
                     // A moving track's prediction refuted by a newer frame is the evidence
                     // of a stop too.
-                    let restart = clear
-                        && undecided
-                        && !refuted
-                        && !self.zero_fits_better(
+                    let stop_seen = refuted
+                        || self.zero_fits_better(
                             newer,
                             (dx, dy),
                             span_s,
                             radius,
                             params.stop_evidence_cells,
                         );
+                    let restart = clear && undecided && !stop_seen;
                     if !restart {
+                        // Newer frames that all read zero against an older one that shows a
+                        // clear move: a stop, or a move the newer frames hid (a side sliding
+                        // along itself, its visible part bounded by an occluder). With
+                        // `contradicted_unmeasured` the cluster is not measured this frame
+                        // rather than read static on the newer frames.
+                        let beyond_pose = ((dx * dx + dy * dy) as f64).sqrt()
+                            > params.displaced_pose_sigmas * pose_shift_sigma;
+                        if params.contradicted_unmeasured && newer_zero && beyond_pose {
+                            return None;
+                        }
                         break;
                     }
                     (sum_dt_x, sum_dt_y, sum_tt, sum_t, frames) = (0.0, 0.0, 0.0, 0.0, 0);
@@ -1296,6 +1305,54 @@ mod tests {
                 && (r.velocity_cells_per_s.0 - 2.0 / 1.2).abs() < 1e-9
                 && r.velocity_cells_per_s.1 == 0.0),
             "{thinned:?}"
+        );
+    }
+
+    #[test]
+    fn newer_frames_at_zero_against_an_older_move_leave_the_cluster_unmeasured() {
+        // A 4-cell face (rows 10-13) at column 10 at 0.0 s, at column 13 at 0.1, 0.2 and 0.3 s
+        // and now (0.4 s); nothing seen free in the past frames. Newest first: 0.1, 0.2 and
+        // 0.3 s back zero explains all 4 cells (no shift more); 0.4 s back three cells east
+        // explain all 4 against zero's none, more than the margin ⌈0.15 · 4⌉ = 1, the move
+        // seen on 4 cells (column 10 seen empty now): clear, but 3 cells off the newer frames'
+        // line (0), and they could tell (zero was their best; no cell seen free in them), and
+        // zero explains them better than the move predicts (0.2 s back: 1.5 cells, rounded
+        // two, explains none): a stop. The rule before reads it static on the three newer
+        // frames.
+        let window = window();
+        let face = |col: i64| (10..14).map(|r| (col, r)).collect::<Vec<_>>();
+        let mut history = OccupancyHistory::new(window.len());
+        for (k, col) in [10, 13, 13, 13].into_iter().enumerate() {
+            history.push(&indices(&window, &face(col)), &[], 0.1 * k as f64);
+        }
+        let none = Clusters::new(window.len());
+        let now_cells = cells(&window, &face(13));
+        let register = |params: &MotionParams, pose_sigma_cells: f64| {
+            let now = Now {
+                pose_sigma_cells,
+                ..alone(0.4, &none)
+            };
+            Registrar::default().register(&now_cells, &window, &history, now, params)
+        };
+        let before = MotionParams {
+            contradicted_unmeasured: false,
+            ..MotionParams::default()
+        };
+        let static_read = register(&before, 0.0);
+        assert!(
+            static_read.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 3),
+            "{static_read:?}"
+        );
+        // With `contradicted_unmeasured` (the default; exact pose): not measured this frame.
+        let asked = MotionParams::default();
+        assert_eq!(register(&asked, 0.0), None);
+        // Under a pose error of 2 cells per axis the apparent shift of a static cluster has σ
+        // √2 · 2 = 2.83 cells; the 3-cell move is within `displaced_pose_sigmas` (1.5) of it,
+        // 4.24 cells: read static on the newer frames as before.
+        let within_pose = register(&asked, 2.0);
+        assert!(
+            within_pose.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 3),
+            "{within_pose:?}"
         );
     }
 }
