@@ -183,7 +183,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     // Truth M by the map's context of its cell: a road user where the map
                     // says building (a road under a building) has prior {I} against it.
                     let outcome = if decided == Label::M { "hit" } else { "missed" };
-                    let context = f.front_end.gis().context.get(idx).map_or("-".to_owned(), |c| format!("{c:?}"));
+                    let context = f
+                        .front_end
+                        .gis()
+                        .context
+                        .get(idx)
+                        .map_or("-".to_owned(), |c| format!("{c:?}"));
                     *counts
                         .entry(format!("truth M by context {context}: {outcome}"))
                         .or_default() += 1;

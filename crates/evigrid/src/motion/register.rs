@@ -175,6 +175,9 @@ impl Registrar {
         // cluster, if any ((0, 0) where none did), and whether its move was seen on the
         // margin's cells (a lean; see `weak_line`).
         let mut leaned = [((0i64, 0i64), false); SLOTS];
+        // Per frame in the fit, whether zero shift explained every cell of the cluster (a
+        // stopped object matches itself exactly; a move hidden by what is visible does not).
+        let mut exact = [false; SLOTS];
         for frames_back in 1..=params.history_frames {
             let Some((bit, then_s)) = history.frame_back(frames_back) else {
                 break;
@@ -270,12 +273,15 @@ impl Registrar {
                     if !restart {
                         // Newer frames that all read zero against an older one that shows a
                         // clear move: a stop, or a move the newer frames hid (a side sliding
-                        // along itself, its visible part bounded by an occluder). With
-                        // `contradicted_unmeasured` the cluster is not measured this frame
-                        // rather than read static on the newer frames.
+                        // along itself, its visible part bounded by an occluder). A stopped
+                        // object matches itself exactly at zero; where zero left a cell of
+                        // some newer frame unexplained, `contradicted_unmeasured` leaves the
+                        // cluster unmeasured this frame rather than read static on the newer
+                        // frames, if the move is longer than the pose's error explains.
                         let beyond_pose = ((dx * dx + dy * dy) as f64).sqrt()
                             > params.displaced_pose_sigmas * pose_shift_sigma;
-                        if params.contradicted_unmeasured && newer_zero && beyond_pose {
+                        let rigid = exact[..frames].iter().all(|&e| e);
+                        if params.contradicted_unmeasured && newer_zero && beyond_pose && !rigid {
                             return None;
                         }
                         break;
@@ -298,6 +304,7 @@ impl Registrar {
                 ((0, 0), false)
             };
             fitted[frames] = (slot, span_s);
+            exact[frames] = n_zero >= counted;
             sum_dt_x += dx as f64 * span_s;
             sum_dt_y += dy as f64 * span_s;
             sum_tt += span_s * span_s;
@@ -1026,10 +1033,27 @@ mod tests {
         };
         let before = MotionParams {
             stop_evidence_cells: 0.5,
+            contradicted_unmeasured: false,
             ..MotionParams::default()
         };
         let found = register(&before, alone(0.8, &none));
         assert_eq!(found.velocity_cells_per_s, (0.0, 0.0), "{found:?}");
+        // With `contradicted_unmeasured` too, the newer frames read zero but the one 0.4 s
+        // back (before the stop) matches 9 of 10 cells at zero, not all: the cluster is not
+        // measured this frame (the cost of the rule: a stop 0.3 s old, its last move one
+        // cell).
+        let unmeasured = MotionParams {
+            stop_evidence_cells: 0.5,
+            ..MotionParams::default()
+        };
+        let found = Registrar::default().register(
+            &stopped,
+            &window,
+            &history,
+            alone(0.8, &none),
+            &unmeasured,
+        );
+        assert_eq!(found, None);
         // With the default 1.5, the newer frames' predicted shifts (0.4, 0.8, 1.2 cells) are
         // no evidence, and the one of 1.6 cells 0.4 s back (rounded: two) explains 9 cells,
         // as zero does: the shift of two cells over 0.5 s is taken, 4 cells/s.
@@ -1310,49 +1334,57 @@ mod tests {
 
     #[test]
     fn newer_frames_at_zero_against_an_older_move_leave_the_cluster_unmeasured() {
-        // A 4-cell face (rows 10-13) at column 10 at 0.0 s, at column 13 at 0.1, 0.2 and 0.3 s
-        // and now (0.4 s); nothing seen free in the past frames. Newest first: 0.1, 0.2 and
-        // 0.3 s back zero explains all 4 cells (no shift more); 0.4 s back three cells east
-        // explain all 4 against zero's none, more than the margin ⌈0.15 · 4⌉ = 1, the move
-        // seen on 4 cells (column 10 seen empty now): clear, but 3 cells off the newer frames'
-        // line (0), and they could tell (zero was their best; no cell seen free in them), and
-        // zero explains them better than the move predicts (0.2 s back: 1.5 cells, rounded
-        // two, explains none): a stop. The rule before reads it static on the three newer
-        // frames.
+        // A 4-cell face (rows 10-13) at column 10 at 0.0 s; at column 13 at 0.1, 0.2 and
+        // 0.3 s, where only rows 10-12 were visible (the last hidden); now (0.4 s) rows 10-13
+        // at column 13. Nothing seen free in the past frames. Newest first: 0.1, 0.2 and 0.3 s
+        // back zero explains 3 of the 4 cells (no shift more: one row north ties, 3); 0.4 s
+        // back three cells east explain all 4 against zero's none, more than the margin
+        // ⌈0.15 · 4⌉ = 1, the move seen on 4 cells (column 10 seen empty now): clear, but 3
+        // cells off the newer frames' line (0), and they could tell (zero was their best, no
+        // cell seen free in them). The rule before reads it static on the three newer frames.
         let window = window();
-        let face = |col: i64| (10..14).map(|r| (col, r)).collect::<Vec<_>>();
-        let mut history = OccupancyHistory::new(window.len());
-        for (k, col) in [10, 13, 13, 13].into_iter().enumerate() {
-            history.push(&indices(&window, &face(col)), &[], 0.1 * k as f64);
-        }
-        let none = Clusters::new(window.len());
-        let now_cells = cells(&window, &face(13));
-        let register = |params: &MotionParams, pose_sigma_cells: f64| {
+        let face =
+            |col: i64, rows: std::ops::Range<i64>| rows.map(|r| (col, r)).collect::<Vec<_>>();
+        let register = |newer_rows: std::ops::Range<i64>, params: &MotionParams, pose: f64| {
+            let mut history = OccupancyHistory::new(window.len());
+            history.push(&indices(&window, &face(10, 10..14)), &[], 0.0);
+            for k in 1..4 {
+                let occupied = indices(&window, &face(13, newer_rows.clone()));
+                history.push(&occupied, &[], 0.1 * k as f64);
+            }
+            let none = Clusters::new(window.len());
             let now = Now {
-                pose_sigma_cells,
+                pose_sigma_cells: pose,
                 ..alone(0.4, &none)
             };
-            Registrar::default().register(&now_cells, &window, &history, now, params)
+            Registrar::default().register(
+                &cells(&window, &face(13, 10..14)),
+                &window,
+                &history,
+                now,
+                params,
+            )
+        };
+        let is_static = |r: Option<Registration>| {
+            r.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 3)
         };
         let before = MotionParams {
             contradicted_unmeasured: false,
             ..MotionParams::default()
         };
-        let static_read = register(&before, 0.0);
-        assert!(
-            static_read.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 3),
-            "{static_read:?}"
-        );
+        let found = register(10..13, &before, 0.0);
+        assert!(is_static(found), "{found:?}");
         // With `contradicted_unmeasured` (the default; exact pose): not measured this frame.
-        let asked = MotionParams::default();
-        assert_eq!(register(&asked, 0.0), None);
+        let params = MotionParams::default();
+        assert_eq!(register(10..13, &params, 0.0), None);
         // Under a pose error of 2 cells per axis the apparent shift of a static cluster has σ
         // √2 · 2 = 2.83 cells; the 3-cell move is within `displaced_pose_sigmas` (1.5) of it,
         // 4.24 cells: read static on the newer frames as before.
-        let within_pose = register(&asked, 2.0);
-        assert!(
-            within_pose.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0) && r.frames == 3),
-            "{within_pose:?}"
-        );
+        let found = register(10..13, &params, 2.0);
+        assert!(is_static(found), "{found:?}");
+        // A face that stopped: the newer frames hold all four rows, zero explains each
+        // exactly. The stop is read as before.
+        let found = register(10..14, &params, 0.0);
+        assert!(is_static(found), "{found:?}");
     }
 }
