@@ -1065,13 +1065,23 @@ mod tests {
         );
         // A track that saw the side move at a cell a frame (10 cells/s) predicts two cells
         // 0.2 s back, which explain 9 of 10 (one to three cells: 9, 8, 7) against zero's 10:
-        // refuted, the stop's evidence; the search keeps the newer frames and reads zero.
+        // refuted, the stop's evidence; the search keeps the newer frames and reads zero
+        // (without `contradicted_unmeasured`). With it (the default), the frame 0.4 s back
+        // matches 9 of 10 at zero, not all: the cluster is not measured this frame (keeping
+        // the refuted stop instead was measured worse on the tuning drives, `docs/motion.md`,
+        // "Newer frames that read zero against an older move").
         let tracked = Now {
             predicted_cells_per_s: Some((10.0, 0.0)),
             ..alone(0.8, &none)
         };
-        let found = register(&params, tracked);
+        let rule_before = MotionParams {
+            contradicted_unmeasured: false,
+            ..MotionParams::default()
+        };
+        let found = register(&rule_before, tracked);
         assert_eq!(found.velocity_cells_per_s, (0.0, 0.0), "{found:?}");
+        let found = Registrar::default().register(&stopped, &window, &history, tracked, &params);
+        assert_eq!(found, None);
     }
 
     /// A side of `len` cells on row 10 whose first column in eight frames 0.1 s apart is
