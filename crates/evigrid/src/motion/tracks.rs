@@ -198,9 +198,18 @@ impl Tracks {
                 .get(ti as usize)
                 .is_none_or(|t| (t.existence_probability() as f32) < REPORT_MIN_EXISTENCE)
         };
+        // Within a tier, an observation with a velocity before one without: a piece of a
+        // cluster left unmeasured (`contradicted_unmeasured`) agrees with every track and
+        // must not take a moving track from the piece whose velocity fits it.
+        let unmeasured = |oi: u32| {
+            observations
+                .get(oi as usize)
+                .is_none_or(|o| o.velocity.is_none())
+        };
         self.pairs.sort_unstable_by(|a, b| {
             tentative(a.1)
                 .cmp(&tentative(b.1))
+                .then(unmeasured(a.2).cmp(&unmeasured(b.2)))
                 .then(a.0.total_cmp(&b.0))
         });
         pair_in_order(
