@@ -546,6 +546,35 @@ mod tests {
         assert_eq!(v, 0.0);
     }
     #[test]
+    fn a_piece_with_a_velocity_keeps_the_moving_track_against_a_nearer_unmeasured_one() {
+        let params = MotionParams::default();
+        let mut tracks = Tracks::default();
+        // A track at 10 m/s east, seen at 0, 1, ..., 4 m (predicted at 5 m next).
+        for k in 0..5 {
+            tracks.update(
+                &[seen(k as f64, Some(10.0))],
+                0.1 * k as f64,
+                0.1,
+                PoseError::default(),
+                &params,
+            );
+        }
+        let id = tracks.of_observation(0).map(|t| t.id);
+        // Two pieces of the cluster next frame, both within the 2 m gate of the prediction:
+        // one unmeasured 0.5 m from it, one measured at 10 m/s 1.5 m from it. The measured
+        // piece keeps the track (nearest first, the unmeasured piece would have taken it).
+        tracks.update(
+            &[seen(5.5, None), seen(6.5, Some(10.0))],
+            0.5,
+            0.1,
+            PoseError::default(),
+            &params,
+        );
+        assert_eq!(tracks.of_observation(1).map(|t| t.id), id);
+        assert_ne!(tracks.of_observation(0).map(|t| t.id), id);
+    }
+
+    #[test]
     fn a_moving_track_predicts_into_the_nearest_cluster_only() {
         // The constant-velocity filter, whose numbers are worked out below (with
         // `jerk_sigma_mps3` the acceleration's variance after one prediction moves them a
