@@ -1013,12 +1013,9 @@ mod tests {
         );
     }
 
-    #[test]
-    fn a_car_slows_for_a_corner_and_turns_it_continuously() {
-        use rand::SeedableRng;
-        // East 100 m, then a left turn north: the lane's corner is rounded by the tightest arc,
-        // R = 5 m, where a car accepts 3 m/s² sideways: √(3 · 5) = 3.87 m/s.
-        let route = Route {
+    /// East 100 m, then a left turn north 100 m, on a road 8 m wide.
+    fn east_then_north() -> Route {
+        Route {
             path: Polyline::new(vec![
                 Vec2::new(0.0, 0.0),
                 Vec2::new(100.0, 0.0),
@@ -1027,7 +1024,15 @@ mod tests {
             .unwrap(),
             junctions_m: vec![],
             half_width_m: 4.0,
-        };
+        }
+    }
+
+    #[test]
+    fn a_car_slows_for_a_corner_and_turns_it_continuously() {
+        use rand::SeedableRng;
+        // East 100 m, then a left turn north: the lane's corner is rounded by the tightest arc,
+        // R = 5 m, where a car accepts 3 m/s² sideways: √(3 · 5) = 3.87 m/s.
+        let route = east_then_north();
         let cfg = TrafficConfig::default();
         let net = net();
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
@@ -1204,16 +1209,7 @@ mod tests {
         use rand::SeedableRng;
         // East 100 m, then north: the corner is rounded by the bus's tightest arc, R = 9 m,
         // where it accepts 3 m/s² sideways: √(3 · 9) = 5.196 m/s (a car: 3.873 m/s on 5 m).
-        let route = Route {
-            path: Polyline::new(vec![
-                Vec2::new(0.0, 0.0),
-                Vec2::new(100.0, 0.0),
-                Vec2::new(100.0, 100.0),
-            ])
-            .unwrap(),
-            junctions_m: vec![],
-            half_width_m: 4.0,
-        };
+        let route = east_then_north();
         let (cfg, net) = (TrafficConfig::default(), net());
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
         let mut bus = Actor::driving_vehicle(0, &route, 0.0, 10.0, true, Body::BUS);

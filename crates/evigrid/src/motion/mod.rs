@@ -476,30 +476,15 @@ impl MotionStage {
             // error shifted (`moving_max_extent_m`), "not moving" as a static track's, unless
             // they are narrow across the track's velocity (`moving_max_across_m`) and no
             // longer than a bus (`moving_max_length_m`).
-            let extent_m = match mass {
-                MotionMass::Moving(_) if self.params.moving_max_extent_m > 0.0 => {
-                    moved_extent_m(cells, moved, &labels, cell_size_m)
-                }
-                _ => 0.0,
-            };
-            let max_length_m = if self.params.moving_max_length_m > 0.0 {
-                self.params.moving_max_length_m
-            } else {
-                f64::INFINITY
-            };
             if let MotionMass::Moving(_) = mass
-                && self.params.moving_max_extent_m > 0.0
-                && extent_m > self.params.moving_max_extent_m
-                && !(self.params.moving_max_across_m > 0.0
-                    && extent_m <= max_length_m
-                    && moved_across_m(
-                        cells,
-                        moved,
-                        &labels,
-                        cell_size_m,
-                        track.velocity.map(|v| v.mean_mps),
-                    )
-                    .is_some_and(|across| across <= self.params.moving_max_across_m))
+                && too_large_to_move(
+                    cells,
+                    moved,
+                    &labels,
+                    cell_size_m,
+                    track.velocity.map(|v| v.mean_mps),
+                    &self.params,
+                )
             {
                 mass = MotionMass::Static(self.params.mu_static as f32);
                 state = CellMotion::TooLarge;
@@ -992,16 +977,44 @@ impl MotionStage {
     }
 }
 
-/// The diagonal, metres, of the box (along east and north) of the cells of a cluster that
-/// moved (`moved`, one flag per cell of `cells`) and take evidence (`labels`); 0 without any.
-fn moved_extent_m(
+/// Whether a track judged moving is too large to be a road user: the cells of its cluster
+/// that moved (`moved`, one flag per cell of `cells`) and take evidence (`labels`) span more than
+/// `moving_max_extent_m`, and they are not a narrow mover (at most `moving_max_across_m` across
+/// `velocity_mps` and at most `moving_max_length_m` in all: a bus or a truck along its length).
+fn too_large_to_move(
     cells: &[clusters::Cell],
     moved: &[bool],
     labels: &impl Fn(&clusters::Cell) -> bool,
     cell_size_m: f64,
-) -> f64 {
+    velocity_mps: [f64; 2],
+    params: &MotionParams,
+) -> bool {
+    if params.moving_max_extent_m <= 0.0 {
+        return false;
+    }
+    let moved_cells = || {
+        cells
+            .iter()
+            .zip(moved)
+            .filter(|(c, m)| **m && labels(c))
+            .map(|(c, _)| c)
+    };
+    let extent_m = moved_extent_m(moved_cells(), cell_size_m);
+    if extent_m <= params.moving_max_extent_m {
+        return false;
+    }
+    let within_length = params.moving_max_length_m <= 0.0 || extent_m <= params.moving_max_length_m;
+    let narrow = params.moving_max_across_m > 0.0
+        && within_length
+        && moved_across_m(moved_cells(), cell_size_m, velocity_mps)
+            .is_some_and(|across| across <= params.moving_max_across_m);
+    !narrow
+}
+
+/// The diagonal, metres, of the box (along east and north) of `cells`; 0 without any.
+fn moved_extent_m<'a>(cells: impl Iterator<Item = &'a clusters::Cell>, cell_size_m: f64) -> f64 {
     let mut bounds: Option<[i64; 4]> = None;
-    for (c, _) in cells.iter().zip(moved).filter(|(c, m)| **m && labels(c)) {
+    for c in cells {
         let (col, row) = (c.col, c.row);
         bounds = Some(match bounds {
             None => [col, col, row, row],
@@ -1013,14 +1026,11 @@ fn moved_extent_m(
     })
 }
 
-/// The span, metres, of the cells of a cluster that moved (`moved`) and take evidence
-/// (`labels`) across `velocity_mps` (east, north): the spread of their centres along the
-/// velocity's normal, plus one cell's width seen along it (`cell_size_m · (|n_x| + |n_y|)`).
-/// `None` without such cells or without a direction (speed under 1 mm/s).
-fn moved_across_m(
-    cells: &[clusters::Cell],
-    moved: &[bool],
-    labels: &impl Fn(&clusters::Cell) -> bool,
+/// The span, metres, of `cells` across `velocity_mps` (east, north): the spread of their centres
+/// along the velocity's normal, plus one cell's width seen along it (`cell_size_m · (|n_x| +
+/// |n_y|)`). `None` without cells or without a direction (speed under 1 mm/s).
+fn moved_across_m<'a>(
+    cells: impl Iterator<Item = &'a clusters::Cell>,
     cell_size_m: f64,
     velocity_mps: [f64; 2],
 ) -> Option<f64> {
@@ -1030,7 +1040,7 @@ fn moved_across_m(
     }
     let normal = [-velocity_mps[1] / speed, velocity_mps[0] / speed];
     let mut span: Option<(f64, f64)> = None;
-    for (c, _) in cells.iter().zip(moved).filter(|(c, m)| **m && labels(c)) {
+    for c in cells {
         let along_normal = (c.col as f64 * normal[0] + c.row as f64 * normal[1]) * cell_size_m;
         span = Some(match span {
             None => (along_normal, along_normal),
@@ -1372,9 +1382,7 @@ mod tests {
         let cells: Vec<clusters::Cell> = (20..=21)
             .flat_map(|row| (4..=27).map(move |col| clusters::Cell { idx: 0, col, row }))
             .collect();
-        let all = vec![true; cells.len()];
-        let any = |_: &clusters::Cell| true;
-        let across = |v: [f64; 2]| moved_across_m(&cells, &all, &any, 0.5, v);
+        let across = |v: [f64; 2]| moved_across_m(cells.iter(), 0.5, v);
         // Driving east: across is north, rows 20-21: 0.5 + 0.5 = 1 m.
         assert!((across([5.0, 0.0]).unwrap_or(0.0) - 1.0).abs() < 1e-9);
         // Sliding north (a façade the pose shifted): columns 4-27, 23 · 0.5 + 0.5 = 12 m.
@@ -1384,10 +1392,7 @@ mod tests {
         assert!((across([3.0, 3.0]).unwrap_or(0.0) - 9.192).abs() < 1e-3);
         // No direction, or no cell that moved: nothing to measure.
         assert_eq!(across([0.0, 0.0]), None);
-        assert_eq!(
-            moved_across_m(&cells, &vec![false; cells.len()], &any, 0.5, [5.0, 0.0]),
-            None
-        );
+        assert_eq!(moved_across_m(std::iter::empty(), 0.5, [5.0, 0.0]), None);
     }
 
     #[test]
