@@ -77,7 +77,8 @@ impl MapFeatures {
     /// [`load_map_from_bytes`](crate::load_map_from_bytes) reads back to the same map: buildings
     /// as polygons with `building=yes`, road areas with `area:highway=<class>`, parking with
     /// `amenity=parking`, centrelines as LineStrings with `highway` and the original `width` and
-    /// `lanes` tags. The collection's `bbox` is the map's extent.
+    /// `lanes` tags (and `covered=yes` for a road at street level under a roof). Nothing below
+    /// the street is written. The collection's `bbox` is the map's extent.
     pub fn to_geojson(&self) -> Value {
         let mut features = Vec::new();
         for polygon in &self.buildings {
@@ -105,6 +106,9 @@ impl MapFeatures {
             }
             if let Some(lanes) = &road.lanes_tag {
                 properties["lanes"] = json!(lanes);
+            }
+            if road.covered {
+                properties["covered"] = json!("yes");
             }
             let geometry = json!({"type": "LineString", "coordinates": positions(&road.line)});
             features.push(feature(properties, geometry));

@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 use geo::{LineString, Polygon, Rect};
 
 use crate::buffer::buffer_line;
+use crate::passage::cut_passages;
 use crate::tags::road_width_m;
 
 /// A vehicle-road centreline with the tags that decide its width.
@@ -18,6 +19,9 @@ pub struct RoadCentreline {
     pub width_tag: Option<String>,
     /// The raw `lanes` tag, if any.
     pub lanes_tag: Option<String>,
+    /// At street level under a roof ([`Level::Covered`](crate::tags::Level::Covered): a building
+    /// passage, a covered way): its surface is cut out of the buildings it crosses.
+    pub covered: bool,
 }
 
 impl RoadCentreline {
@@ -117,6 +121,14 @@ pub struct SourceCounts {
     pub building_relations_used: usize,
     /// Vehicle-road ways of which at least one piece of centreline was kept.
     pub vehicle_road_ways_used: usize,
+    /// Vehicle-road ways below the street (a tunnel, `layer` < 0): left out of the road surface.
+    pub underground_road_ways: usize,
+    /// Building ways and relations below the street (`layer` < 0, `location=underground`): left
+    /// out of the buildings.
+    pub underground_buildings: usize,
+    /// Vehicle-road ways at street level under a roof (a building passage, `covered=yes`), used,
+    /// their surface cut out of the buildings they cross.
+    pub covered_road_ways: usize,
 }
 
 /// Everything a reader extracted from a map, in the file's coordinates (x = longitude,
@@ -131,6 +143,9 @@ pub struct MapFeatures {
     pub parking: Vec<Polygon<f64>>,
     /// Vehicle-road centrelines, to be buffered.
     pub roads: Vec<RoadCentreline>,
+    /// The lines and rings of roads and buildings below the street: not in the map, but in its
+    /// [`extent`](Self::extent), so that leaving them out never moves the local frame.
+    pub underground: Vec<LineString<f64>>,
     /// The extent the file declares (OSM `<bounds>`, the PBF header box, a GeoJSON `bbox`).
     pub declared_bounds: Option<Rect<f64>>,
     /// The bounding box of every coordinate read (all nodes, not only used ones).
@@ -199,17 +214,20 @@ impl MapFeatures {
         polygons
             .flat_map(|p| p.exterior().coords_iter())
             .chain(self.roads.iter().flat_map(|r| r.line.coords_iter()))
+            .chain(self.underground.iter().flat_map(|l| l.coords_iter()))
     }
 
     /// Converts the features to road-surface and building polygons in local metres, with
     /// `to_local` mapping one source coordinate to local metres. Centrelines are converted then
-    /// buffered in metres. Returns `(buildings, road_surface, road_pieces_from_centrelines)`.
+    /// buffered in metres; the surface of a covered one is cut out of the buildings it crosses
+    /// (a street-level scanner sees into a building passage). Returns
+    /// `(buildings, road_surface, road_pieces_from_centrelines)`.
     pub(crate) fn to_local_polygons(
         &self,
         to_local: impl Fn(geo::Coord<f64>) -> geo::Coord<f64>,
     ) -> (Vec<Polygon<f64>>, Vec<Polygon<f64>>, usize) {
         use geo::MapCoords;
-        let buildings = self
+        let buildings: Vec<Polygon<f64>> = self
             .buildings
             .iter()
             .map(|p| p.map_coords(&to_local))
@@ -222,11 +240,16 @@ impl MapFeatures {
             .map(|p| p.map_coords(&to_local))
             .collect();
         let areas = roads.len();
+        let mut passages = Vec::new();
         for road in &self.roads {
-            buffer_line(&road.line.map_coords(&to_local), road.width_m(), &mut roads);
+            let line = road.line.map_coords(&to_local);
+            buffer_line(&line, road.width_m(), &mut roads);
+            if road.covered {
+                buffer_line(&line, road.width_m(), &mut passages);
+            }
         }
         let pieces = roads.len() - areas;
-        (buildings, roads, pieces)
+        (cut_passages(buildings, &passages), roads, pieces)
     }
 }
 

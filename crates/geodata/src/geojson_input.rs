@@ -11,7 +11,7 @@ use serde_json::Value;
 use crate::error::MapError;
 use crate::features::{MapFeatures, RoadArea, RoadCentreline, SkipReason};
 use crate::rings::clean_ring;
-use crate::tags::Roles;
+use crate::tags::{Level, Roles};
 
 /// What the coordinates of a GeoJSON file mean.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -143,6 +143,25 @@ enum Shape {
     Other,
 }
 
+/// Counts a feature below the street and keeps its lines for the extent only (as the OSM
+/// readers do): it is neither building nor road surface.
+fn set_aside_underground(roles: &Roles, shape: Shape, features: &mut MapFeatures) {
+    let counts = &mut features.source_counts;
+    counts.underground_road_ways += usize::from(roles.vehicle_road.is_some());
+    counts.underground_buildings += usize::from(roles.building);
+    if !(roles.building || roles.vehicle_road.is_some() || roles.is_road_surface_area()) {
+        return;
+    }
+    let lines = match shape {
+        Shape::Areas(polygons) => polygons.into_iter().flatten().collect(),
+        Shape::Lines(lines) => lines,
+        Shape::Other => Vec::new(),
+    };
+    features
+        .underground
+        .extend(lines.into_iter().map(LineString::new));
+}
+
 fn read_feature(
     index: usize,
     feature: &Value,
@@ -172,6 +191,10 @@ fn read_feature(
         features.source_counts.vehicle_road_ways += 1;
     }
     let wants_area = roles.building || roles.is_road_surface_area() || roles.vehicle_road.is_some();
+    if roles.is_underground() {
+        set_aside_underground(&roles, shape, features);
+        return Ok(());
+    }
     match shape {
         Shape::Areas(polygons) => {
             if !wants_area {
@@ -227,10 +250,13 @@ fn read_feature(
                         highway: class.clone(),
                         width_tag: roles.width.clone(),
                         lanes_tag: roles.lanes.clone(),
+                        covered: roles.level == Level::Covered,
                     });
                     used = true;
                 }
                 features.source_counts.vehicle_road_ways_used += usize::from(used);
+                features.source_counts.covered_road_ways +=
+                    usize::from(used && roles.level == Level::Covered);
             }
             None if wants_area => features.skip(SkipReason::UnsupportedGeometry),
             None => {}

@@ -43,6 +43,7 @@ mod local_map;
 mod osm;
 mod osm_pbf;
 mod osm_xml;
+mod passage;
 mod projection;
 mod raster;
 mod rings;

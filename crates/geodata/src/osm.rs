@@ -7,7 +7,7 @@ use geo::{Coord, LineString, Rect};
 use crate::error::MapError;
 use crate::features::{MapFeatures, RoadArea, RoadCentreline, SkipReason};
 use crate::rings::{assemble_rings, clean_ring, group_rings};
-use crate::tags::Roles;
+use crate::tags::{Level, Roles};
 
 /// A way: its node references and what its tags make it.
 #[derive(Clone, Debug, PartialEq)]
@@ -133,6 +133,10 @@ impl OsmData {
         counts.building_ways += usize::from(roles.building);
         counts.highway_ways += usize::from(roles.highway);
         counts.vehicle_road_ways += usize::from(roles.vehicle_road.is_some());
+        if roles.is_underground() {
+            self.set_aside_underground(way, features);
+            return;
+        }
         if roles.building || roles.is_road_surface_area() {
             match self.area_way_ring(way) {
                 Ok(ring) => {
@@ -156,6 +160,25 @@ impl OsmData {
         }
         if let (Some(class), false) = (&roles.vehicle_road, roles.area_yes) {
             self.add_centreline(way, class, features);
+        }
+    }
+
+    /// Counts a way below the street and keeps its line for the extent only: no street-level
+    /// scanner sees it, so it is neither building nor road surface.
+    fn set_aside_underground(&self, way: &OsmWay, features: &mut MapFeatures) {
+        let counts = &mut features.source_counts;
+        counts.underground_road_ways += usize::from(way.roles.vehicle_road.is_some());
+        counts.underground_buildings += usize::from(way.roles.building);
+        let line: Vec<Coord<f64>> = way
+            .refs
+            .iter()
+            .filter_map(|r| self.nodes.get(r).copied())
+            .collect();
+        if way.roles.building
+            || way.roles.vehicle_road.is_some()
+            || way.roles.is_road_surface_area()
+        {
+            features.underground.push(LineString::new(line));
         }
     }
 
@@ -190,6 +213,7 @@ impl OsmData {
             }
         }
         let mut kept = 0;
+        let covered = way.roles.level == Level::Covered;
         for run in runs.into_iter().filter(|run| run.len() >= 2) {
             kept += 1;
             features.roads.push(RoadCentreline {
@@ -197,10 +221,12 @@ impl OsmData {
                 highway: class.to_owned(),
                 width_tag: way.roles.width.clone(),
                 lanes_tag: way.roles.lanes.clone(),
+                covered,
             });
         }
         if kept > 0 {
             features.source_counts.vehicle_road_ways_used += 1;
+            features.source_counts.covered_road_ways += usize::from(covered);
         }
         if kept == 0 {
             features.skip(SkipReason::RoadWayTooShort);
@@ -214,6 +240,18 @@ impl OsmData {
     /// do not close, no outer ring.
     fn add_multipolygon(&self, relation: &OsmMultipolygon, features: &mut MapFeatures) {
         features.source_counts.building_relations += usize::from(relation.roles.building);
+        if relation.roles.is_underground() {
+            features.source_counts.underground_buildings += usize::from(relation.roles.building);
+            let members = relation
+                .members
+                .iter()
+                .filter_map(|(id, _)| self.ways.get(id));
+            for way in members {
+                let line = way.refs.iter().filter_map(|r| self.nodes.get(r).copied());
+                features.underground.push(line.collect());
+            }
+            return;
+        }
         let mut missing_members = false;
         let mut ways_by_role: [Vec<Vec<i64>>; 2] = [Vec::new(), Vec::new()];
         for (way_id, role) in &relation.members {

@@ -1,4 +1,5 @@
-//! Which OSM tags make a building, a road surface or a parking area (SPEC §4), and road widths.
+//! Which OSM tags make a building, a road surface or a parking area (SPEC §4), road widths, and
+//! whether an element lies at street level.
 //!
 //! The same rules read OSM elements and GeoJSON feature properties, so a map cropped to GeoJSON
 //! reads back with the same result.
@@ -99,6 +100,63 @@ pub fn parse_lanes(value: &str) -> Option<u32> {
     (1..=MAX_PLAUSIBLE_LANES).contains(&lanes).then_some(lanes)
 }
 
+/// Where an element lies against the street a scanner on it sees (OSM's `layer`, `location`,
+/// `tunnel`, `covered`). The map is what a street-level scanner meets: what lies below the street
+/// is not in it, and a road under a roof at street level is open road.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Level {
+    /// At street level in the open: no tag says otherwise (a bridge, `layer` > 0, is open road to
+    /// a scanner on it).
+    #[default]
+    Open,
+    /// At street level under a roof: `tunnel=building_passage` (an archway through a building) or
+    /// `avalanche_protector`, `covered=*` other than `no`, or a `tunnel` whose explicit `layer` is
+    /// 0 or above. Drivable, and the building over it has no wall there at a scanner's height.
+    Covered,
+    /// Below the street: `layer` < 0, `location=underground`, or `tunnel=*` other than `no`,
+    /// `building_passage` and `avalanche_protector` without an explicit `layer` ≥ 0 (OSM places
+    /// a tunnel below the ground unless its layer says otherwise).
+    Underground,
+}
+
+impl Level {
+    /// The level its tags give an element.
+    ///
+    /// ```
+    /// use geodata::tags::Level;
+    /// let level = |tags: &[(&str, &str)]| {
+    ///     Level::from_tags(|k| tags.iter().find(|(key, _)| *key == k).map(|(_, v)| *v))
+    /// };
+    /// assert_eq!(level(&[("tunnel", "yes")]), Level::Underground);
+    /// assert_eq!(level(&[("tunnel", "building_passage")]), Level::Covered);
+    /// assert_eq!(level(&[("tunnel", "yes"), ("layer", "0")]), Level::Covered);
+    /// assert_eq!(level(&[("layer", "-1")]), Level::Underground);
+    /// assert_eq!(level(&[("layer", "1"), ("bridge", "yes")]), Level::Open);
+    /// ```
+    pub fn from_tags<'a>(tag: impl Fn(&str) -> Option<&'a str>) -> Self {
+        let layer = tag("layer").and_then(parse_layer);
+        if layer.is_some_and(|l| l < 0) || tag("location") == Some("underground") {
+            return Self::Underground;
+        }
+        match tag("tunnel") {
+            None | Some("no") => {}
+            Some("building_passage" | "avalanche_protector") => return Self::Covered,
+            Some(_) if layer.is_some() => return Self::Covered,
+            Some(_) => return Self::Underground,
+        }
+        if tag("covered").is_some_and(|v| v != "no") {
+            return Self::Covered;
+        }
+        Self::Open
+    }
+}
+
+/// Parses an OSM `layer` value: a whole number, `"-1"`, `"+1"`, `" 0 "`; anything else (a list
+/// `"-1;0"`, `"ground"`) is `None`, as if untagged.
+pub fn parse_layer(value: &str) -> Option<i32> {
+    value.trim().parse().ok()
+}
+
 /// What an OSM element (or GeoJSON feature) contributes to the map, judged by its tags alone.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(crate) struct Roles {
@@ -118,6 +176,8 @@ pub(crate) struct Roles {
     pub width: Option<String>,
     /// The `lanes` tag, if any.
     pub lanes: Option<String>,
+    /// Where it lies against the street (below it, the element contributes nothing).
+    pub level: Level,
 }
 
 impl Roles {
@@ -138,7 +198,14 @@ impl Roles {
             parking: tag("amenity") == Some("parking") && tag("parking") != Some("underground"),
             width: tag("width").map(str::to_owned),
             lanes: tag("lanes").map(str::to_owned),
+            level: Level::from_tags(&tag),
         }
+    }
+
+    /// True when the element lies below the street, where no street-level scanner sees it: it is
+    /// neither building nor road surface in the map.
+    pub fn is_underground(&self) -> bool {
+        self.level == Level::Underground
     }
 
     /// True when the element is an area of road surface (area:highway, parking, or a vehicle

@@ -467,7 +467,7 @@ pub fn advance(
             } else {
                 d.s_m += v * dt_s;
             }
-            if d.s_m >= d.lane.length_m() - ROUTE_JOIN_M {
+            if d.s_m >= d.lane.length_m() - ROUTE_JOIN_M && d.past_last_arc() {
                 d.take_next_route(net, rng);
             }
             let (p, t) = d.lane.at(d.s_m);
@@ -607,6 +607,16 @@ impl Driving {
             min_turn_radius_m,
             next_route_drawn: false,
         }
+    }
+
+    /// Whether the car has left its lane's last arc behind: only the lane's final straight lies
+    /// ahead. The next lane starts with the straight from where the car is to the old lane's
+    /// end; taken on an arc, that chord would turn the car by half the arc left in one frame.
+    fn past_last_arc(&self) -> bool {
+        self.lane
+            .arcs()
+            .last()
+            .is_none_or(|(_, end_m, _)| self.s_m >= end_m)
     }
 
     /// Near the end of its lane, a car that stops at junctions (not the ego) draws a new route
@@ -1063,6 +1073,57 @@ mod tests {
             "{slowest}"
         );
         assert!((fastest_after - 10.0).abs() < 1e-9, "{fastest_after}");
+    }
+
+    #[test]
+    fn a_car_takes_its_next_route_without_a_jump_in_heading() {
+        use rand::SeedableRng;
+        // Streets 8 m wide east along y = 0 and north along x = 200. The car's route turns left
+        // at (200, 0) and ends 8 m on, so that 10 m before its end it is still in the corner's
+        // arc. Before the fix it drew its next route there and its new lane began with the
+        // chord to the old lane's end: its heading jumped by up to half the arc left (17.6° on
+        // `held-out/helsinki-random` seed 81). It now draws once past the arc.
+        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| {
+            vec![vec![
+                Vec2::new(x0, y0),
+                Vec2::new(x1, y0),
+                Vec2::new(x1, y1),
+                Vec2::new(x0, y1),
+            ]]
+        };
+        let world = crate::world::World::new(
+            vec![],
+            vec![rect(0.0, -4.0, 204.0, 4.0), rect(196.0, -4.0, 204.0, 300.0)],
+            (Vec2::new(-10.0, -10.0), Vec2::new(250.0, 310.0)),
+        );
+        let net = RoadNetwork::new(&world);
+        let route = Route {
+            path: Polyline::new(vec![
+                Vec2::new(150.0, 0.0),
+                Vec2::new(200.0, 0.0),
+                Vec2::new(200.0, 8.0),
+            ])
+            .unwrap(),
+            junctions_m: vec![],
+            half_width_m: 4.0,
+        };
+        let cfg = TrafficConfig::default();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let mut car = Actor::driving_car(0, &route, 0.0, 8.0, true);
+        for frame in 0..200 {
+            let before = car.pose;
+            advance(&mut car, &[], 0.1, &cfg, &net, &mut rng);
+            let step = car.speed_mps * 0.1;
+            let turn = wrap_angle(car.pose.heading_rad - before.heading_rad);
+            assert!(
+                turn.abs() <= step / MIN_TURN_RADIUS_M + 1e-9,
+                "frame {frame}: turned {:.1}° at {:.2} m/s",
+                turn.to_degrees(),
+                car.speed_mps
+            );
+        }
+        // It took a next route north and drove on it.
+        assert!(car.pose.position_m.y > 60.0, "{:?}", car.pose);
     }
 
     /// A car on a lane east along y = −1.75, turning left at x ≈ 100 onto one north along

@@ -777,6 +777,64 @@ mod tests {
         assert!(route.path.length_m() > 170.0, "{}", route.path.length_m());
     }
 
+    /// A map in local metres through geodata's tag rules: a street west to east along y = 50
+    /// whose east half (x 100..200) is a tunnel (`tunnel=yes`), and a street south to north along
+    /// x = 150 through a 40 m × 20 m building (y 90..110) by a building passage.
+    fn tunnel_and_passage_world() -> World {
+        let text = r#"{"type": "FeatureCollection", "bbox": [0, 0, 200, 200], "features": [
+          {"type": "Feature", "properties": {"highway": "residential", "width": "8"},
+           "geometry": {"type": "LineString", "coordinates": [[0, 50], [100, 50]]}},
+          {"type": "Feature", "properties": {"highway": "residential", "width": "8", "tunnel": "yes"},
+           "geometry": {"type": "LineString", "coordinates": [[100, 50], [200, 50]]}},
+          {"type": "Feature", "properties": {"highway": "residential", "width": "8"},
+           "geometry": {"type": "LineString", "coordinates": [[150, 0], [150, 90]]}},
+          {"type": "Feature", "properties": {"highway": "residential", "width": "8",
+             "tunnel": "building_passage"},
+           "geometry": {"type": "LineString", "coordinates": [[150, 90], [150, 110]]}},
+          {"type": "Feature", "properties": {"highway": "residential", "width": "8"},
+           "geometry": {"type": "LineString", "coordinates": [[150, 110], [150, 200]]}},
+          {"type": "Feature", "properties": {"building": "yes"},
+           "geometry": {"type": "Polygon",
+             "coordinates": [[[130, 90], [170, 90], [170, 110], [130, 110], [130, 90]]]}}]}"#;
+        let map = geodata::LocalMap::from_local_geojson(text).unwrap();
+        World::from_polygons(&map.buildings, &map.roads, &map.extent)
+    }
+
+    #[test]
+    fn a_tunnel_is_not_drivable() {
+        let net = RoadNetwork::new(&tunnel_and_passage_world());
+        assert!(net.is_road(Vec2::new(50.0, 50.0)));
+        // The tunnel, away from the street crossing above it at x = 150.
+        assert!(!net.is_road(Vec2::new(120.0, 50.0)));
+        assert!(!net.is_road(Vec2::new(180.0, 50.0)));
+        // A route from the open street's west end to where the tunnel ends stays off it.
+        if let Some(route) = net.route_between(Vec2::new(5.0, 50.0), Vec2::new(195.0, 50.0)) {
+            for p in route.path.points() {
+                assert!(p.x <= 105.0 || (p.x - 150.0).abs() <= 5.0, "{p:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_building_passage_is_drivable_and_open() {
+        let world = tunnel_and_passage_world();
+        let net = RoadNetwork::new(&world);
+        let middle = Vec2::new(150.0, 100.0);
+        assert!(net.is_road(middle) && !net.is_building(middle));
+        // The building stands on either side of the passage, cut in two.
+        assert!(net.is_building(Vec2::new(140.0, 100.0)));
+        assert!(net.is_building(Vec2::new(160.0, 100.0)));
+        assert_eq!(world.buildings().len(), 2);
+        // A route from south to north drives through it.
+        let route = net
+            .route_between(Vec2::new(150.0, 5.0), Vec2::new(150.0, 195.0))
+            .unwrap();
+        assert!(route.path.length_m() < 200.0, "{}", route.path.length_m());
+        // A ray along the passage from its south end is not stopped by a façade.
+        let hit = world.ray_cast_buildings(Vec2::new(150.0, 80.0), Vec2::new(0.0, 1.0), 50.0);
+        assert!(hit.is_none(), "{hit:?}");
+    }
+
     #[test]
     fn random_routes_are_deterministic_by_seed() {
         let net = RoadNetwork::new(&crossing_world());

@@ -175,6 +175,12 @@ fn info(args: &InfoArgs) -> Result<()> {
         s.vehicle_road_ways,
         s.highway_ways
     );
+    crate::outln!(
+        "below the street (left out): {} vehicle-road ways, {} buildings; under a roof at street level: {} vehicle-road ways (cut through the buildings they cross)",
+        s.underground_road_ways,
+        s.underground_buildings,
+        s.covered_road_ways
+    );
     crate::outln!("road areas: {}", stats.road_areas);
     crate::outln!("parking areas: {}", stats.parking_areas);
     if stats.skipped.is_empty() {
