@@ -1083,6 +1083,12 @@ pub struct MotionParams {
     /// move longer than `displaced_pose_sigmas` σ of the apparent shift the pose's error
     /// gives a static cluster at its range. By default true (false: the rule before).
     pub contradicted_unmeasured: bool,
+    /// Whether a stopped track's m({S}) is fused into the perception grid (`true`: it
+    /// persists into later frames, the rule before) or only decides its cells this frame
+    /// (`false`, the default: the grid keeps what the SPEC §5 step made of them, so a car
+    /// pulling away from a stop meets no stopped mass there once its move is measured;
+    /// `docs/motion.md`, "A stop's label as this frame's decision").
+    pub stopped_fused: bool,
 }
 
 impl Default for MotionParams {
@@ -1138,6 +1144,7 @@ impl Default for MotionParams {
             unsupported_pose_sigmas: 6.0,
             jerk_sigma_mps3: 1.0,
             contradicted_unmeasured: true,
+            stopped_fused: false,
         }
     }
 }

@@ -628,10 +628,13 @@ impl MotionStage {
                 }
                 let mut m = perception.cell_masses(idx);
                 combine(&mut m, mass, self.residual);
-                // The outside label, unfused, is this frame's decision only: the grid keeps
-                // the step's masses, and the car that covers the cell next frame meets no
-                // static mass there.
-                if cell_state != CellMotion::OutsideObject || self.params.object_outside_fused {
+                // The outside label and a stop's, unfused, are this frame's decision only: the
+                // grid keeps the step's masses, and the car that covers the cell next frame, or
+                // pulls away from the stop, meets no static mass there.
+                let this_frame_only = (cell_state == CellMotion::OutsideObject
+                    && !self.params.object_outside_fused)
+                    || (cell_state == CellMotion::Stopped && !self.params.stopped_fused);
+                if !this_frame_only {
                     write_cell(perception, idx, &m);
                 }
                 decisions[idx] = decide(&m, perception.seen()[idx] != 0, self.unknown_threshold);
@@ -1704,6 +1707,76 @@ mod tests {
         }
         assert_ne!(fused[2].1, Label::M, "{fused:?}");
         assert_eq!(unfused[2].1, Label::M, "{unfused:?}");
+    }
+
+    /// The car of [`driving_away`] driving 16 frames, standing 12 (its face at column 26),
+    /// then driving again (`stopped_fused` as given): per frame, the state and decision of the cell (28, 11), covered
+    /// by the standing car and by the one pulling away for two frames, and its grid m({S}).
+    fn stop_and_go(stopped_fused: bool) -> Vec<(Option<CellMotion>, Label, f32)> {
+        let window = Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"));
+        let (w, h) = (window.width(), window.height());
+        let x = window.storage_index(28, 11).unwrap_or(0);
+        let mut params = crate::Params::default();
+        params.motion.stopped_fused = stopped_fused;
+        let mut stage = MotionStage::new(&params, w, h);
+        let mut perception = PerceptionGrid::new(w, h);
+        perception.seen_mut().fill(1);
+        let mut decisions = vec![Label::Unknown; w * h];
+        let mut out = Vec::new();
+        for frame in 0..31i64 {
+            let t = frame.min(16) + (frame - 28).max(0);
+            let (returns, placed) = driving_away(t, &window);
+            stage.set_pose(0.0, 0.0, 0.0, 0.0);
+            stage.update_registering(
+                &window,
+                &placed,
+                &returns,
+                0.1 * frame as f64,
+                0.1,
+                &mut perception,
+                &mut decisions,
+            );
+            let state = stage
+                .cell_states()
+                .iter()
+                .find(|r| r.idx as usize == x)
+                .map(|r| r.state);
+            let s = perception.cell_masses(x)[crate::grids::class::S];
+            out.push((state, decisions[x], s));
+        }
+        out
+    }
+
+    #[test]
+    fn a_stop_s_label_unfused_leaves_no_stopped_mass_for_the_car_pulling_away() {
+        // Exact poses, no SPEC §5 step (the grid holds only what the stage writes). The car
+        // (its face and four cells behind) covers (28, 11) from frame 14 on, moving; it
+        // stands from frame 17 (face at column 26), is stopped from frame 21 (slow and sure,
+        // after more than 1 s and 2 m judged moving) and drives again from frame 29.
+        let (fused, unfused) = (stop_and_go(true), stop_and_go(false));
+        for run in [&fused, &unfused] {
+            assert!(
+                run[14..21].iter().all(|r| r.0 == Some(CellMotion::Moving)),
+                "{run:?}"
+            );
+            assert!(
+                run[21..29].iter().all(|r| r.0 == Some(CellMotion::Stopped)),
+                "{run:?}"
+            );
+            assert_eq!(run[29].0, Some(CellMotion::Moving), "{run:?}");
+        }
+        // Fused, m({S}) = 0.9 a frame piles up: 0.81 after the frame that met the moving
+        // phase's m({M}) (0.1 of it left, 0.9 on Ω), 0.99999934 by frame 28; the car
+        // pulling away meets it (0.6588 left) and is decided S.
+        assert!(fused[22..29].iter().all(|r| r.1 == Label::S), "{fused:?}");
+        assert!((fused[22].2 - 0.81).abs() < 1e-5, "{fused:?}");
+        assert!(fused[28].2 > 0.99999, "{fused:?}");
+        assert_eq!(fused[29].1, Label::S, "{fused:?}");
+        // Unfused, the stop decides each frame and the grid keeps no m({S}): the car pulling
+        // away is M at once. (Here the grid still holds the moving phase's m({M}), which meets
+        // the stop's m({S}) as conflict: Unknown; in the pipeline the step fades it.)
+        assert!(unfused.iter().all(|r| r.2 == 0.0), "{unfused:?}");
+        assert_eq!(unfused[29].1, Label::M, "{unfused:?}");
     }
 
     #[test]
