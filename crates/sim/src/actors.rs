@@ -10,7 +10,7 @@
 //! on the seed.
 
 use crate::geometry::{Footprint, Polyline, Pose2, RoundedPath, Vec2, wrap_angle};
-use crate::roadnet::{RoadNetwork, Route};
+use crate::roadnet::{FREE_OF_BUILDING_M, RoadNetwork, Route, lane_offset_m};
 use crate::scenario::TrafficConfig;
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -222,12 +222,6 @@ fn uniform(rng: &mut impl Rng, range: [f64; 2]) -> f64 {
     } else {
         range[0]
     }
-}
-
-/// Lateral offset of a lane from the road's middle, metres: a 3.5 m lane on roads 7 m or wider,
-/// half of the half-width on narrower ones.
-fn lane_offset_m(half_width_m: f64) -> f64 {
-    (half_width_m * 0.5).min(1.75)
 }
 
 impl Actor {
@@ -565,7 +559,10 @@ impl Driving {
         stops: bool,
         min_turn_radius_m: f64,
     ) -> Self {
-        let offset = route.path.offset(-lane_offset_m(route.half_width_m));
+        let offset = route
+            .lane
+            .clone()
+            .unwrap_or_else(|| route.path.offset(-lane_offset_m(route.half_width_m)));
         let mut points = lead_in.to_vec();
         // The new lane from its first point ahead of where the last one ended.
         let ahead_of_end = |q: &Vec2| match lead_in {
@@ -851,7 +848,12 @@ impl Placement<'_> {
                 && self.clear(&car)
                 && self.clear_of_lane(&pose)
             {
-                return Some(car);
+                // A car that would stand in a building (where the road surface overlaps one)
+                // is not placed, and no other is drawn for it: the draws of the actors after
+                // it stay those of a scene without the overlap.
+                let in_building = net.building_within(centre, FREE_OF_BUILDING_M)
+                    || corners.iter().any(|&c| net.is_building(c));
+                return (!in_building).then_some(car);
             }
         }
         None
@@ -865,7 +867,8 @@ impl Placement<'_> {
             let side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
             let path = route.path.offset(side * (route.half_width_m + 1.5));
             if pavement_fraction(self.net, &path) >= 0.9 {
-                return Some(Actor::pedestrian(actors.len() as u32, path, rng, self.cfg));
+                let pedestrian = Actor::pedestrian(actors.len() as u32, path, rng, self.cfg);
+                return Some(kept_out_of_buildings(self.net, pedestrian));
             }
         }
         None
@@ -900,6 +903,71 @@ impl Placement<'_> {
     }
 }
 
+/// `pedestrian` walking only the stretch of its pavement that holds it and is outside buildings
+/// (the pavement's points every metre off building pixels), from where it stands; unchanged
+/// when its whole pavement is outside them or where it stands is not. A pavement offset from
+/// the road's middle runs through the buildings of a street narrower than its surface; the
+/// pedestrian turns around at their walls instead, with the same draws and the same start.
+fn kept_out_of_buildings(net: &RoadNetwork, mut pedestrian: Actor) -> Actor {
+    let Motion::Walking(walking) = &mut pedestrian.motion else {
+        return pedestrian;
+    };
+    let path = &walking.path;
+    let n = path.length_m().ceil().max(1.0) as usize;
+    let step = path.length_m() / n as f64;
+    let clear: Vec<bool> = (0..=n)
+        .map(|k| !net.is_building(path.at(k as f64 * step).0))
+        .collect();
+    if clear.iter().all(|&c| c) {
+        return pedestrian;
+    }
+    // Where it stands, or the nearest clear point when that is in a building.
+    let drawn = ((walking.s_m / step).round() as usize).min(n);
+    let Some(here) = (0..=n)
+        .filter(|&k| clear[k])
+        .min_by_key(|&k| k.abs_diff(drawn))
+    else {
+        return pedestrian;
+    };
+    if here != drawn {
+        walking.s_m = here as f64 * step;
+        pedestrian.pose.position_m = path.at(walking.s_m).0;
+    }
+    let first = (0..=here)
+        .rev()
+        .take_while(|&k| clear[k])
+        .last()
+        .unwrap_or(here);
+    let last = (here..=n).take_while(|&k| clear[k]).last().unwrap_or(here);
+    let (sa, sb) = (first as f64 * step, last as f64 * step);
+    if sb - sa < 1.0 || walking.s_m < sa || walking.s_m > sb {
+        return pedestrian;
+    }
+    let mut points = vec![path.at(sa).0];
+    for (p, s) in path.points().iter().zip(path_cumulative(path)) {
+        if s > sa && s < sb {
+            points.push(*p);
+        }
+    }
+    points.push(path.at(sb).0);
+    if let Some(kept) = Polyline::new(points) {
+        walking.path = kept;
+        walking.s_m -= sa;
+    }
+    pedestrian
+}
+
+/// Arc length at each vertex of `path`, metres.
+fn path_cumulative(path: &Polyline) -> Vec<f64> {
+    let mut acc = 0.0;
+    let mut out = vec![0.0];
+    for w in path.points().windows(2) {
+        acc += w[1].minus(w[0]).norm();
+        out.push(acc);
+    }
+    out
+}
+
 /// Fraction of points every 2 m along `path` that are off the road and outside buildings.
 fn pavement_fraction(net: &RoadNetwork, path: &Polyline) -> f64 {
     let n = (path.length_m() / 2.0).ceil().max(1.0) as usize;
@@ -923,6 +991,7 @@ mod tests {
             path: Polyline::new(vec![Vec2::new(0.0, 0.0), Vec2::new(len, 0.0)]).unwrap(),
             junctions_m: junction_at.into_iter().collect(),
             half_width_m: 4.0,
+            lane: None,
         }
     }
 
@@ -1034,6 +1103,7 @@ mod tests {
             .unwrap(),
             junctions_m: vec![],
             half_width_m: 4.0,
+            lane: None,
         }
     }
 
@@ -1106,6 +1176,7 @@ mod tests {
             .unwrap(),
             junctions_m: vec![],
             half_width_m: 4.0,
+            lane: None,
         };
         let cfg = TrafficConfig::default();
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
@@ -1139,6 +1210,7 @@ mod tests {
             .unwrap(),
             junctions_m: vec![],
             half_width_m: 4.0,
+            lane: None,
         };
         let (cfg, net) = (TrafficConfig::default(), net());
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
@@ -1162,6 +1234,7 @@ mod tests {
             path: Polyline::new(vec![Vec2::new(0.0, 0.0), Vec2::new(100.0, 0.0)]).unwrap(),
             junctions_m: vec![],
             half_width_m: 4.0,
+            lane: None,
         };
         let car = Actor::driving_car(0, &route, 0.0, 8.0, true);
         assert!(
@@ -1463,5 +1536,61 @@ mod tests {
             let to_crossing = car.pose.position_m.minus(Vec2::new(100.0, 100.0)).norm();
             assert!(to_crossing > 10.0, "{:?}", car.pose);
         }
+    }
+
+    /// A pedestrian on a pavement along y = 110 (x 0..200) through a building (x 60..140).
+    fn pedestrian_through_a_building(s_m: f64) -> (RoadNetwork, Actor) {
+        use rand::SeedableRng;
+        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| {
+            vec![
+                Vec2::new(x0, y0),
+                Vec2::new(x1, y0),
+                Vec2::new(x1, y1),
+                Vec2::new(x0, y1),
+            ]
+        };
+        let building = crate::world::Building::new(vec![rect(60.0, 105.0, 140.0, 115.0)]).unwrap();
+        let net = RoadNetwork::new(&crate::world::World::new(
+            vec![building],
+            vec![vec![rect(0.0, 96.0, 200.0, 104.0)]],
+            (Vec2::new(0.0, 0.0), Vec2::new(200.0, 200.0)),
+        ));
+        let path = Polyline::new(vec![Vec2::new(0.0, 110.0), Vec2::new(200.0, 110.0)]).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let mut pedestrian = Actor::pedestrian(0, path, &mut rng, &TrafficConfig::default());
+        if let Motion::Walking(w) = &mut pedestrian.motion {
+            w.s_m = s_m;
+            pedestrian.pose.position_m = w.path.at(s_m).0;
+        }
+        (net, pedestrian)
+    }
+
+    fn walked(pedestrian: &Actor) -> (Vec<Vec2>, f64) {
+        let Motion::Walking(w) = &pedestrian.motion else {
+            panic!("not walking");
+        };
+        (w.path.points().to_vec(), w.s_m)
+    }
+
+    #[test]
+    fn a_pedestrian_turns_at_a_wall_across_its_pavement() {
+        // From x = 20 it walks x 0..59 (the pixel centred at 60.5 is the building's first).
+        let (net, pedestrian) = pedestrian_through_a_building(20.0);
+        let kept = kept_out_of_buildings(&net, pedestrian.clone());
+        let (points, s_m) = walked(&kept);
+        assert_eq!(points, vec![Vec2::new(0.0, 110.0), Vec2::new(59.0, 110.0)]);
+        assert_eq!(s_m, 20.0);
+        assert_eq!(kept.pose.position_m, pedestrian.pose.position_m);
+        // Drawn inside, at x = 100: it starts at the nearest clear point, x = 140 (41 m to
+        // x = 59), and walks x 140..200.
+        let (net, pedestrian) = pedestrian_through_a_building(100.0);
+        let kept = kept_out_of_buildings(&net, pedestrian);
+        let (points, s_m) = walked(&kept);
+        assert_eq!(
+            points,
+            vec![Vec2::new(140.0, 110.0), Vec2::new(200.0, 110.0)]
+        );
+        assert_eq!(s_m, 0.0);
+        assert_eq!(kept.pose.position_m, Vec2::new(140.0, 110.0));
     }
 }

@@ -349,10 +349,12 @@ fn ego_route(net: &RoadNetwork, scenario: &Scenario, rng: &mut StdRng) -> Result
     let path = Polyline::new(points).ok_or(SimError::NoEgoRoute {
         waypoint: wps.len() - 1,
     })?;
+    let lane = net.lane_clear_of_buildings(&path, half_width);
     Ok(Route {
         path,
         junctions_m: junctions,
         half_width_m: half_width,
+        lane,
     })
 }
 

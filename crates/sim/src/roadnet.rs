@@ -25,6 +25,33 @@ const JUNCTION: u8 = 8;
 /// real bend; the lane stays within 1 m of the road's middle plus its offset, and parked cars
 /// (placed from routes too) within 2 m of their kerb.
 const ROUTE_TOLERANCE_M: f64 = 1.0;
+/// A lane point is in a building when a building pixel's centre lies within this distance,
+/// metres (the point is in that pixel). On a narrow street the road surface (a centreline
+/// buffered at its class's width) overlaps the buildings, and the lane, offset from the
+/// surface's middle, ran through them; a lane with no point in a building is left as it was,
+/// so that scenes without the defect stay identical.
+pub const FACADE_CLEARANCE_M: f64 = 0.5;
+/// How steeply a lane moved off a façade returns to its place, metres sideways per metre along
+/// (a 1 m shift is taken over 5 m, a gentle lane change, not a step).
+const LANE_SHIFT_SLOPE: f64 = 0.2;
+/// The least offset of a lane moved into a street's free part from that part's middle,
+/// metres: cars whose centres are 1.7 m apart pass each other (a car keeps its gap from what is
+/// within 1.6 m of its lane), where the lane rule's half of the half-width would put two
+/// opposite cars in each other's way for good. Never beyond the free part.
+const PASSING_OFFSET_M: f64 = 0.85;
+/// How far from a building pixel's centre a point is free of the building, metres: half the
+/// diagonal of a 1 m pixel.
+pub const FREE_OF_BUILDING_M: f64 = 0.75;
+/// Steps of the sideways search across a road for the part free of buildings, metres.
+const LANE_SHIFT_STEP_M: f64 = 0.25;
+/// How far a moved lane may depart from its points (Douglas–Peucker tolerance), metres.
+const MOVED_LANE_TOLERANCE_M: f64 = 0.1;
+
+/// Lateral offset of a lane from the road's middle, metres: a 3.5 m lane on roads 7 m or wider,
+/// half of the half-width on narrower ones.
+pub(crate) fn lane_offset_m(half_width_m: f64) -> f64 {
+    (half_width_m * 0.5).min(1.75)
+}
 
 /// A route: a polyline plus the arc lengths of the junctions it passes.
 #[derive(Clone, Debug)]
@@ -35,6 +62,11 @@ pub struct Route {
     pub junctions_m: Vec<f64>,
     /// Median half-width of the road surface along the route, metres.
     pub half_width_m: f64,
+    /// The lane cars follow where `path` offset to the right ([`lane_offset_m`]), or the
+    /// opposite lane, runs into a building ([`FACADE_CLEARANCE_M`]): that offset moved sideways,
+    /// within the road, into the part free of buildings ([`RoadNetwork::lane_clear_of_buildings`]). `None`: the offset keeps its
+    /// clearance and is the lane.
+    pub lane: Option<Polyline>,
 }
 
 /// Rasterised road surface with its skeleton, for route planning.
@@ -627,12 +659,185 @@ impl RoadNetwork {
         let mut widths: Vec<f32> = pixels.iter().map(|&i| self.dist_m[i]).collect();
         widths.sort_by(f32::total_cmp);
         let half_width_m = f64::from(widths[widths.len() / 2]);
+        let lane = self.lane_clear_of_buildings(&path, half_width_m);
         Some(Route {
             path,
             junctions_m,
             half_width_m,
+            lane,
         })
     }
+
+    /// Distance from `p` to the nearest building pixel's centre, metres, capped at `reach_m`
+    /// (`reach_m` when none is nearer).
+    fn building_distance(&self, p: Vec2, reach_m: f64) -> f64 {
+        let Some(i) = self.index_of(p) else {
+            return reach_m;
+        };
+        let reach = (reach_m / Self::RESOLUTION_M).ceil() as i64 + 1;
+        let (c, r) = ((i % self.cols) as i64, (i / self.cols) as i64);
+        let mut best = reach_m;
+        for rr in (r - reach).max(0)..=(r + reach).min(self.rows as i64 - 1) {
+            for cc in (c - reach).max(0)..=(c + reach).min(self.cols as i64 - 1) {
+                let j = rr as usize * self.cols + cc as usize;
+                if self.flags[j] & BUILDING != 0 {
+                    best = best.min(self.centre(j).minus(p).norm());
+                }
+            }
+        }
+        best
+    }
+
+    /// Whether a building pixel's centre lies within `radius_m` of `p`.
+    pub fn building_within(&self, p: Vec2, radius_m: f64) -> bool {
+        self.building_distance(p, radius_m) < radius_m
+    }
+
+    /// The right-hand lane of `path` (a road of median half-width `half_width_m`) kept out of
+    /// buildings, or `None` when neither it nor the opposite lane runs into one
+    /// ([`FACADE_CLEARANCE_M`]; then nothing changes). Sampled every metre, each point where
+    /// either lane is in a building moves sideways
+    /// to where the lane rule puts it in the free part of the road's cross-section
+    /// ([`RoadNetwork::free_space_shift`]). Every shift fades out at [`LANE_SHIFT_SLOPE`]
+    /// either side, and the moved points are simplified again.
+    pub fn lane_clear_of_buildings(&self, path: &Polyline, half_width_m: f64) -> Option<Polyline> {
+        let offset_m = lane_offset_m(half_width_m);
+        let lane = path.offset(-offset_m);
+        let samples = lane_samples(&lane);
+        let clearance = FACADE_CLEARANCE_M;
+        let shifts: Vec<f64> = samples
+            .iter()
+            .map(|&(p, normal, _)| {
+                // This lane's point and the opposite lane's: both move, or neither, so that
+                // the two stay apart.
+                let opposite = p.plus(normal.scale(2.0 * offset_m));
+                if self.building_distance(p, clearance) >= clearance
+                    && self.building_distance(opposite, clearance) >= clearance
+                {
+                    return 0.0;
+                }
+                self.free_space_shift(p, normal, offset_m - half_width_m, offset_m + half_width_m)
+            })
+            .collect();
+        if shifts.iter().all(|&d| d == 0.0) {
+            return None;
+        }
+        let arc_m: Vec<f64> = samples.iter().map(|&(_, _, s)| s).collect();
+        let faded = fade_shifts(&shifts, &arc_m, LANE_SHIFT_SLOPE);
+        let moved: Vec<Vec2> = samples
+            .iter()
+            .zip(&faded)
+            .map(|(&(p, normal, _), &d)| p.plus(normal.scale(d)))
+            .collect();
+        Polyline::new(douglas_peucker(&moved, MOVED_LANE_TOLERANCE_M))
+    }
+
+    /// The sideways shift (along `normal`) that puts lane point `p` where the lane rule
+    /// ([`lane_offset_m`]) puts it in the free part of the road's cross-section: the stretch
+    /// of `[min_m, max_m]` whose points are [`FREE_OF_BUILDING_M`] from building pixels,
+    /// nearest the point, taken as the road; the lane runs right of its middle by half its
+    /// half-width, at most 1.75 m. So a street narrower between façades than its surface keeps
+    /// two lanes apart and each out of the walls. 0 when no point of the cross-section is free.
+    fn free_space_shift(&self, p: Vec2, normal: Vec2, min_m: f64, max_m: f64) -> f64 {
+        let steps = ((max_m - min_m) / LANE_SHIFT_STEP_M).floor().max(0.0) as usize;
+        let at = |k: usize| min_m + k as f64 * LANE_SHIFT_STEP_M;
+        let free: Vec<bool> = (0..=steps)
+            .map(|k| {
+                let q = p.plus(normal.scale(at(k)));
+                self.building_distance(q, FREE_OF_BUILDING_M) >= FREE_OF_BUILDING_M
+            })
+            .collect();
+        // The free runs (first, last step), and the one nearest the point (shift 0).
+        let mut best: Option<(f64, usize, usize)> = None;
+        let mut k = 0;
+        while k <= steps {
+            if !free[k] {
+                k += 1;
+                continue;
+            }
+            let first = k;
+            while k < steps && free[k + 1] {
+                k += 1;
+            }
+            let (a, b) = (at(first), at(k));
+            let distance = if a > 0.0 {
+                a
+            } else if b < 0.0 {
+                -b
+            } else {
+                0.0
+            };
+            if best.is_none_or(|(d, _, _)| distance < d) {
+                best = Some((distance, first, k));
+            }
+            k += 1;
+        }
+        let Some((_, first, last)) = best else {
+            return 0.0;
+        };
+        let (a, b) = (at(first), at(last));
+        let free_half_width_m = (b - a) / 2.0;
+        let offset_m = lane_offset_m(free_half_width_m)
+            .max(PASSING_OFFSET_M)
+            .min(free_half_width_m);
+        (a + b) / 2.0 - offset_m
+    }
+}
+
+/// Points of `lane` every metre or closer, its vertices among them, each with the unit normal
+/// to its left (at a vertex, that of the chord of its neighbours, as [`Polyline::offset`]) and
+/// its arc length.
+fn lane_samples(lane: &Polyline) -> Vec<(Vec2, Vec2, f64)> {
+    let points = lane.points();
+    let normal_of = |a: Vec2, b: Vec2| {
+        let t = b.minus(a);
+        let len = t.norm();
+        if len > 0.0 {
+            t.scale(1.0 / len).perp_left()
+        } else {
+            Vec2::default()
+        }
+    };
+    let mut out = Vec::new();
+    let mut arc = 0.0;
+    for (i, w) in points.windows(2).enumerate() {
+        let (a, b) = (w[0], w[1]);
+        let vertex_normal = normal_of(points[i.saturating_sub(1)], b);
+        out.push((a, vertex_normal, arc));
+        let len = b.minus(a).norm();
+        let n = (len / RoadNetwork::RESOLUTION_M).ceil().max(1.0) as usize;
+        for k in 1..n {
+            let u = k as f64 / n as f64;
+            out.push((a.plus(b.minus(a).scale(u)), normal_of(a, b), arc + u * len));
+        }
+        arc += len;
+    }
+    if let [.., a, b] = points {
+        out.push((*b, normal_of(*a, *b), arc));
+    }
+    out
+}
+
+/// The shifts fanned out: at each sample the largest of `shifts` less `slope` times its
+/// distance along the lane (by magnitude, with its sign), so that every shift is reached
+/// gradually and left gradually.
+fn fade_shifts(shifts: &[f64], arc_m: &[f64], slope: f64) -> Vec<f64> {
+    let n = shifts.len();
+    let mut forward = shifts.to_vec();
+    for i in 1..n {
+        let carried = forward[i - 1].abs() - slope * (arc_m[i] - arc_m[i - 1]);
+        if carried > forward[i].abs() {
+            forward[i] = forward[i - 1].signum() * carried;
+        }
+    }
+    let mut both = forward.clone();
+    for i in (0..n.saturating_sub(1)).rev() {
+        let carried = both[i + 1].abs() - slope * (arc_m[i + 1] - arc_m[i]);
+        if carried > both[i].abs() {
+            both[i] = both[i + 1].signum() * carried;
+        }
+    }
+    both
 }
 
 /// Douglas–Peucker simplification with tolerance `eps_m`.
@@ -843,5 +1048,93 @@ mod tests {
         let ra = net.random_route(50.0, 150.0, &mut a).unwrap();
         let rb = net.random_route(50.0, 150.0, &mut b).unwrap();
         assert_eq!(ra.path, rb.path);
+    }
+
+    /// An 8 m street along y = 100 (x 0..200) and, when `facade_y` is given, a building
+    /// (x 60..140) from y = 80 up to `facade_y`: above 96 it covers the street's south side.
+    fn street_with_facade(facade_y: Option<f64>) -> World {
+        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| {
+            vec![
+                Vec2::new(x0, y0),
+                Vec2::new(x1, y0),
+                Vec2::new(x1, y1),
+                Vec2::new(x0, y1),
+            ]
+        };
+        let buildings = facade_y
+            .and_then(|y| crate::world::Building::new(vec![rect(60.0, 80.0, 140.0, y)]))
+            .into_iter()
+            .collect();
+        World::new(
+            buildings,
+            vec![vec![rect(0.0, 96.0, 200.0, 104.0)]],
+            (Vec2::new(0.0, 0.0), Vec2::new(200.0, 200.0)),
+        )
+    }
+
+    /// The lane's y where it crosses x.
+    fn lane_y_at(lane: &Polyline, x: f64) -> f64 {
+        let n = (lane.length_m() * 10.0).ceil() as usize;
+        (0..=n)
+            .map(|k| lane.at(k as f64 * 0.1).0)
+            .min_by(|a, b| (a.x - x).abs().total_cmp(&(b.x - x).abs()))
+            .unwrap()
+            .y
+    }
+
+    #[test]
+    fn a_lane_keeps_out_of_a_facade_over_the_road_and_from_the_opposite_lane() {
+        // The façade at y = 99 covers the pixel rows centred at 96.5..98.5; the eastbound lane,
+        // 1.75 m right of the middle (y ≈ 98.25), ran through it.
+        let net = RoadNetwork::new(&street_with_facade(Some(99.0)));
+        let east = net
+            .route_between(Vec2::new(5.0, 100.0), Vec2::new(195.0, 100.0))
+            .unwrap();
+        let west = net
+            .route_between(Vec2::new(195.0, 100.0), Vec2::new(5.0, 100.0))
+            .unwrap();
+        let (east_lane, west_lane) = (east.lane.clone().unwrap(), west.lane.clone().unwrap());
+        let plain = east.path.offset(-lane_offset_m(east.half_width_m));
+        // Beside the building: out of it (free from 99.25, 0.75 m off the pixel centres at
+        // 98.5) and the two lanes 1.7 m apart (PASSING_OFFSET_M either side of the free middle).
+        let (e, w) = (lane_y_at(&east_lane, 100.0), lane_y_at(&west_lane, 100.0));
+        assert!((99.25..104.0).contains(&e), "eastbound lane at y {e}");
+        assert!(w - e >= 1.6, "lanes at {e} and {w}");
+        assert!(!net.is_building(Vec2::new(100.0, e)));
+        // Far from it, the lane as before (within the moved lane's simplification); the shift
+        // fades in at 0.2 m a metre (1.8 m over 9 m, from x ≈ 51.5 to the building at 60).
+        for x in [10.0, 45.0, 190.0] {
+            let (moved, before) = (lane_y_at(&east_lane, x), lane_y_at(&plain, x));
+            assert!(
+                (moved - before).abs() <= MOVED_LANE_TOLERANCE_M,
+                "x {x}: {moved} vs {before}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_lane_with_no_facade_in_the_road_is_exactly_as_before() {
+        // The building's edge at y = 95 leaves the street (y 96..104) free.
+        for world in [street_with_facade(None), street_with_facade(Some(95.0))] {
+            let net = RoadNetwork::new(&world);
+            let route = net
+                .route_between(Vec2::new(5.0, 100.0), Vec2::new(195.0, 100.0))
+                .unwrap();
+            assert!(route.lane.is_none());
+        }
+    }
+
+    #[test]
+    fn shifts_fade_out_at_their_slope_and_keep_their_sign() {
+        let arc: Vec<f64> = (0..7).map(f64::from).collect();
+        let faded = fade_shifts(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -0.1], &arc, 0.2);
+        let expected = [0.4, 0.6, 0.8, 1.0, 0.8, 0.6, 0.4];
+        for (f, e) in faded.iter().zip(expected) {
+            assert!((f - e).abs() < 1e-12, "{faded:?}");
+        }
+        let faded = fade_shifts(&[0.0, -0.5, 0.0], &[0.0, 1.0, 2.0], 0.2);
+        for (f, e) in faded.iter().zip([-0.3, -0.5, -0.3]) {
+            assert!((f - e).abs() < 1e-12, "{faded:?}");
+        }
     }
 }
