@@ -62,7 +62,7 @@ pub struct Route {
     pub junctions_m: Vec<f64>,
     /// Median half-width of the road surface along the route, metres.
     pub half_width_m: f64,
-    /// The lane cars follow where `path` offset to the right ([`lane_offset_m`]), or the
+    /// The lane cars follow where `path` offset to the right (`lane_offset_m`), or the
     /// opposite lane, runs into a building ([`FACADE_CLEARANCE_M`]): that offset moved sideways,
     /// within the road, into the part free of buildings ([`RoadNetwork::lane_clear_of_buildings`]). `None`: the offset keeps its
     /// clearance and is the lane.
@@ -698,7 +698,7 @@ impl RoadNetwork {
     /// ([`FACADE_CLEARANCE_M`]; then nothing changes). Sampled every metre, each point where
     /// either lane is in a building moves sideways
     /// to where the lane rule puts it in the free part of the road's cross-section
-    /// ([`RoadNetwork::free_space_shift`]). Every shift fades out at [`LANE_SHIFT_SLOPE`]
+    /// (`RoadNetwork::free_space_shift`). Every shift fades out at `LANE_SHIFT_SLOPE`
     /// either side, and the moved points are simplified again.
     pub fn lane_clear_of_buildings(&self, path: &Polyline, half_width_m: f64) -> Option<Polyline> {
         let offset_m = lane_offset_m(half_width_m);
