@@ -826,6 +826,12 @@ pub struct MotionParams {
     /// (a crawling car sliding along its own length beats zero only by the cells at its ends;
     /// 0.25 before, `docs/motion.md`, "A car's corner, and the margin of a crawl").
     pub shift_margin_fraction: f64,
+    /// The most cells that margin may ask for, ≥ 0 (0: no cap). A long object sliding along
+    /// itself (a bus side-on) beats zero only by the cells at its ends, whose count does not
+    /// grow with its length as the fraction's margin does. By default 2, chosen on the tuning
+    /// drives (0: no cap, the behaviour before; `docs/motion.md`, "A bus sliding along itself:
+    /// the margin's cap").
+    pub shift_margin_max_cells: f64,
     /// Below this speed, m/s, a track counts as not moving. By default 0.5.
     pub min_speed_mps: f64,
     /// Standard deviation of a track's acceleration, m/s² (the filter's process noise). By
@@ -1101,6 +1107,7 @@ impl Default for MotionParams {
             max_speed_mps: 25.0,
             match_fraction: 0.5,
             shift_margin_fraction: 0.15,
+            shift_margin_max_cells: 2.0,
             min_speed_mps: 0.5,
             accel_sigma_mps2: 3.0,
             shift_sigma_cells: 0.5,
@@ -1183,6 +1190,7 @@ impl MotionParams {
         positive("motion.max_speed_mps", self.max_speed_mps)?;
         unit("motion.match_fraction", self.match_fraction)?;
         unit("motion.shift_margin_fraction", self.shift_margin_fraction)?;
+        non_negative("motion.shift_margin_max_cells", self.shift_margin_max_cells)?;
         positive("motion.min_speed_mps", self.min_speed_mps)?;
         positive("motion.accel_sigma_mps2", self.accel_sigma_mps2)?;
         non_negative("motion.jerk_sigma_mps3", self.jerk_sigma_mps3)?;

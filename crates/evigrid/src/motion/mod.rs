@@ -1558,6 +1558,7 @@ mod tests {
         // The margin before "A car's corner, and the margin of a crawl" (0.25; 0.15 now).
         let mut params = crate::Params::default();
         params.motion.shift_margin_fraction = 0.25;
+        params.motion.shift_margin_max_cells = 0.0;
         let (w, h) = (window.width(), window.height());
         let at = |col: i64, row: i64| window.storage_index(col, row).unwrap_or(0);
         let run_with = |params: &crate::Params, on_returns: bool| {

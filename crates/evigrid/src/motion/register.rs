@@ -158,9 +158,7 @@ impl Registrar {
             std::f64::consts::SQRT_2 * now.pose_sigma_cells.hypot(range_cells * now.pose_sigma_rad);
         let pose_gate_sq = (params.pose_gate_sigmas * pose_shift_sigma).powi(2);
         let needed = (params.match_fraction * f64::from(counted)).max(1.0);
-        let margin = (params.shift_margin_fraction * f64::from(counted))
-            .ceil()
-            .max(1.0) as u32;
+        let margin = shift_margin(counted, params);
         let cell_size_m = window.cell_size_m();
         let (mut sum_dt_x, mut sum_dt_y, mut sum_tt, mut frames) = (0.0, 0.0, 0.0, 0);
         let mut sum_t = 0.0;
@@ -567,6 +565,17 @@ impl Registrar {
     }
 }
 
+/// How many cells more than zero a non-zero shift must explain, of a cluster of `counted`
+/// cells: `shift_margin_fraction` of them, at most `shift_margin_max_cells` (when set), at
+/// least one.
+fn shift_margin(counted: u32, params: &MotionParams) -> u32 {
+    let mut margin = (params.shift_margin_fraction * f64::from(counted)).ceil();
+    if params.shift_margin_max_cells > 0.0 {
+        margin = margin.min(params.shift_margin_max_cells.ceil());
+    }
+    margin.max(1.0) as u32
+}
+
 /// The velocity, cells/s, of a slow object read at zero against every frame in its fit
 /// (`motion.weak_shift_frames`), or `None`. `leaned` holds, per frame of the fit, its reading:
 /// the non-zero shift d_k that explained more of the cluster than zero, not clearly more
@@ -689,6 +698,24 @@ mod tests {
 
     fn window() -> Window {
         Window::new(40, 40, 0.5).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    #[test]
+    fn the_margin_is_a_fraction_of_the_cluster_capped_for_a_long_one() {
+        let with = |fraction: f64, cap: f64| MotionParams {
+            shift_margin_fraction: fraction,
+            shift_margin_max_cells: cap,
+            ..MotionParams::default()
+        };
+        // 0.15 × 40 = 6 cells; a bus side-on gains only its ends' cells, so a cap of 2 asks 2.
+        assert_eq!(shift_margin(40, &with(0.15, 0.0)), 6);
+        assert_eq!(shift_margin(40, &with(0.15, 2.0)), 2);
+        // A car of 10 cells: ⌈1.5⌉ = 2, under the cap; of 4 cells: ⌈0.6⌉ = 1.
+        assert_eq!(shift_margin(10, &with(0.15, 2.0)), 2);
+        assert_eq!(shift_margin(4, &with(0.15, 2.0)), 1);
+        // At least one cell, even with no fraction; a fractional cap rounds up.
+        assert_eq!(shift_margin(40, &with(0.0, 2.0)), 1);
+        assert_eq!(shift_margin(40, &with(0.15, 2.5)), 3);
     }
 
     #[test]
@@ -1088,7 +1115,9 @@ mod tests {
     /// `firsts` (the road ahead of it seen free), registered 0.8 s after the first frame at
     /// the last first column, as the one cluster of its frame (the cells behind it seen
     /// empty now), with the velocity a track predicts for it; the default parameters but
-    /// `weak_shift_frames` off (the rules before "Leaning frames: a slow slide").
+    /// `weak_shift_frames` off (the rules before "Leaning frames: a slow slide") and the
+    /// margin uncapped (`shift_margin_max_cells` 0: these sides are read at zero for want of
+    /// the fraction's margin, which the cap of 2 would grant a two-cell shift).
     fn register_crawl(
         firsts: [i64; 8],
         len: i64,
@@ -1096,6 +1125,7 @@ mod tests {
     ) -> Option<Registration> {
         let without_leans = MotionParams {
             weak_shift_frames: 0,
+            shift_margin_max_cells: 0.0,
             ..MotionParams::default()
         };
         register_crawl_with(firsts, len, predicted_cells_per_s, 0.0, &without_leans)
@@ -1133,7 +1163,12 @@ mod tests {
 
     #[test]
     fn a_slide_leaning_on_a_line_moves_and_one_that_stopped_does_not() {
-        let params = MotionParams::default();
+        // The margin uncapped: with `shift_margin_max_cells` 2 the two-cell shifts below
+        // would be clear, not leans.
+        let params = MotionParams {
+            shift_margin_max_cells: 0.0,
+            ..MotionParams::default()
+        };
         // The 20-cell side of `a_tracks_prediction_keeps_a_crawling_side_moving_until_zero_
         // refutes_it`, alone: read at zero against all eight frames (one cell explains 20
         // against 19 at 0.3-0.5 s, two cells 20 against 18 at 0.6-0.8 s; the margin is 3).
@@ -1159,7 +1194,7 @@ mod tests {
         // Three leaning frames are not four.
         let four = MotionParams {
             weak_shift_frames: 4,
-            ..MotionParams::default()
+            ..params.clone()
         };
         let too_few = register_crawl_with(crawl, 20, None, 0.0, &four);
         assert!(too_few.is_some_and(|r| r.velocity_cells_per_s == (0.0, 0.0)));
