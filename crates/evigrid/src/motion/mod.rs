@@ -483,6 +483,12 @@ impl MotionStage {
                     &labels,
                     cell_size_m,
                     track.velocity.map(|v| v.mean_mps),
+                    track
+                        .velocity
+                        .map(|v| v.variance)
+                        .iter()
+                        .sum::<f64>()
+                        .sqrt(),
                     &self.params,
                 )
             {
@@ -990,6 +996,7 @@ fn too_large_to_move(
     labels: &impl Fn(&clusters::Cell) -> bool,
     cell_size_m: f64,
     velocity_mps: [f64; 2],
+    velocity_sigma_mps: f64,
     params: &MotionParams,
 ) -> bool {
     if params.moving_max_extent_m <= 0.0 {
@@ -1007,11 +1014,46 @@ fn too_large_to_move(
         return false;
     }
     let within_length = params.moving_max_length_m <= 0.0 || extent_m <= params.moving_max_length_m;
+    let narrow_across = |direction: [f64; 2]| {
+        moved_across_m(moved_cells(), cell_size_m, direction)
+            .is_some_and(|across| across <= params.moving_max_across_m)
+    };
     let narrow = params.moving_max_across_m > 0.0
         && within_length
-        && moved_across_m(moved_cells(), cell_size_m, velocity_mps)
-            .is_some_and(|across| across <= params.moving_max_across_m);
+        && (narrow_across(velocity_mps)
+            || (heading_unsure(velocity_mps, velocity_sigma_mps, params)
+                && principal_axis(moved_cells()).is_some_and(narrow_across)));
     !narrow
+}
+
+/// Whether a track's heading is too unsure to measure its span across its velocity alone:
+/// its velocity σ is at least `moving_across_own_axis_unsure` of its speed (0: never).
+fn heading_unsure(velocity_mps: [f64; 2], velocity_sigma_mps: f64, params: &MotionParams) -> bool {
+    params.moving_across_own_axis_unsure > 0.0
+        && velocity_sigma_mps
+            >= params.moving_across_own_axis_unsure * velocity_mps[0].hypot(velocity_mps[1])
+}
+
+/// The unit direction (east, north) of the long axis of `cells`' centres: the principal
+/// axis of their spread, at ½·atan2(2·s_xy, s_xx − s_yy). `None` without cells.
+fn principal_axis<'a>(cells: impl Iterator<Item = &'a clusters::Cell>) -> Option<[f64; 2]> {
+    let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for c in cells {
+        let (x, y) = (c.col as f64, c.row as f64);
+        n += 1.0;
+        sx += x;
+        sy += y;
+        sxx += x * x;
+        syy += y * y;
+        sxy += x * y;
+    }
+    if n == 0.0 {
+        return None;
+    }
+    let (mx, my) = (sx / n, sy / n);
+    let (cxx, cyy, cxy) = (sxx / n - mx * mx, syy / n - my * my, sxy / n - mx * my);
+    let angle = 0.5 * (2.0 * cxy).atan2(cxx - cyy);
+    Some([angle.cos(), angle.sin()])
 }
 
 /// The diagonal, metres, of the box (along east and north) of `cells`; 0 without any.
@@ -1396,6 +1438,43 @@ mod tests {
         // No direction, or no cell that moved: nothing to measure.
         assert_eq!(across([0.0, 0.0]), None);
         assert_eq!(moved_across_m(std::iter::empty(), 0.5, [5.0, 0.0]), None);
+    }
+
+    #[test]
+    fn a_slow_bus_of_unsure_heading_is_measured_across_its_own_axis() {
+        // A bus of 24 × 2 cells of 0.5 m (columns 4-27, rows 20-21): its box's diagonal
+        // √(12² + 1²) = 12.04 m, over 8 m and within 13 m. Its velocity (0.3, 0.6) m/s, speed
+        // 0.671 m/s, points 63.4° off its length: across it, the columns spread 23 · 0.5 ·
+        // 0.894 = 10.29 m, far over 4 m. Its own axis is east (the centres' covariance has
+        // s_xy = 0, s_xx > s_yy): across it 1 m.
+        let cells: Vec<clusters::Cell> = (20..=21)
+            .flat_map(|row| (4..=27).map(move |col| clusters::Cell { idx: 0, col, row }))
+            .collect();
+        let moved = vec![true; cells.len()];
+        assert_eq!(principal_axis(cells.iter()), Some([1.0, 0.0]));
+        assert_eq!(principal_axis(std::iter::empty()), None);
+        let too_large = |sigma_mps: f64, unsure: f64| {
+            let mut params = MotionParams {
+                moving_max_extent_m: 8.0,
+                ..crate::Params::default().motion
+            };
+            params.moving_across_own_axis_unsure = unsure;
+            too_large_to_move(
+                &cells,
+                &moved,
+                &|_| true,
+                0.5,
+                [0.3, 0.6],
+                sigma_mps,
+                &params,
+            )
+        };
+        // σ 1 m/s ≥ 1 × 0.671 m/s: unsure, measured across its own axis, it moves.
+        assert!(!too_large(1.0, 1.0));
+        // σ 0.5 m/s < 0.671 m/s: its heading is trusted, 10.29 m across, too large.
+        assert!(too_large(0.5, 1.0));
+        // 0: across the velocity only, as before.
+        assert!(too_large(1.0, 0.0));
     }
 
     #[test]
