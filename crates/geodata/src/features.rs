@@ -6,7 +6,7 @@ use geo::{LineString, Polygon, Rect};
 
 use crate::buffer::buffer_line;
 use crate::passage::cut_passages;
-use crate::tags::road_width_m;
+use crate::tags::{Roles, road_width_m};
 
 /// A vehicle-road centreline with the tags that decide its width.
 #[derive(Clone, Debug, PartialEq)]
@@ -162,6 +162,21 @@ impl MapFeatures {
         *self.skipped.entry(reason).or_insert(0) += 1;
     }
 
+    /// Counts an element below the street and, when it would have been a building or road
+    /// surface, keeps its `lines` for the extent only: no street-level scanner sees it, so it is
+    /// neither, but leaving it out must not move the local frame. Every reader calls this.
+    pub(crate) fn set_aside_underground(
+        &mut self,
+        roles: &Roles,
+        lines: impl IntoIterator<Item = LineString<f64>>,
+    ) {
+        self.source_counts.underground_road_ways += usize::from(roles.vehicle_road.is_some());
+        self.source_counts.underground_buildings += usize::from(roles.building);
+        if roles.building || roles.vehicle_road.is_some() || roles.is_road_surface_area() {
+            self.underground.extend(lines);
+        }
+    }
+
     /// Extends the coordinate bounds to hold `(x, y)`.
     pub(crate) fn include_coordinate(&mut self, x: f64, y: f64) {
         let point = geo::coord! { x: x, y: y };
@@ -242,10 +257,10 @@ impl MapFeatures {
         let areas = roads.len();
         let mut passages = Vec::new();
         for road in &self.roads {
-            let line = road.line.map_coords(&to_local);
-            buffer_line(&line, road.width_m(), &mut roads);
+            let first_piece = roads.len();
+            buffer_line(&road.line.map_coords(&to_local), road.width_m(), &mut roads);
             if road.covered {
-                buffer_line(&line, road.width_m(), &mut passages);
+                passages.extend_from_slice(&roads[first_piece..]);
             }
         }
         let pieces = roads.len() - areas;

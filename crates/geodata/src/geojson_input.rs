@@ -143,25 +143,6 @@ enum Shape {
     Other,
 }
 
-/// Counts a feature below the street and keeps its lines for the extent only (as the OSM
-/// readers do): it is neither building nor road surface.
-fn set_aside_underground(roles: &Roles, shape: Shape, features: &mut MapFeatures) {
-    let counts = &mut features.source_counts;
-    counts.underground_road_ways += usize::from(roles.vehicle_road.is_some());
-    counts.underground_buildings += usize::from(roles.building);
-    if !(roles.building || roles.vehicle_road.is_some() || roles.is_road_surface_area()) {
-        return;
-    }
-    let lines = match shape {
-        Shape::Areas(polygons) => polygons.into_iter().flatten().collect(),
-        Shape::Lines(lines) => lines,
-        Shape::Other => Vec::new(),
-    };
-    features
-        .underground
-        .extend(lines.into_iter().map(LineString::new));
-}
-
 fn read_feature(
     index: usize,
     feature: &Value,
@@ -192,7 +173,12 @@ fn read_feature(
     }
     let wants_area = roles.building || roles.is_road_surface_area() || roles.vehicle_road.is_some();
     if roles.is_underground() {
-        set_aside_underground(&roles, shape, features);
+        let lines = match shape {
+            Shape::Areas(polygons) => polygons.into_iter().flatten().collect(),
+            Shape::Lines(lines) => lines,
+            Shape::Other => Vec::new(),
+        };
+        features.set_aside_underground(&roles, lines.into_iter().map(LineString::new));
         return Ok(());
     }
     match shape {

@@ -134,7 +134,8 @@ impl OsmData {
         counts.highway_ways += usize::from(roles.highway);
         counts.vehicle_road_ways += usize::from(roles.vehicle_road.is_some());
         if roles.is_underground() {
-            self.set_aside_underground(way, features);
+            let line = way.refs.iter().filter_map(|r| self.nodes.get(r).copied());
+            features.set_aside_underground(roles, [line.collect()]);
             return;
         }
         if roles.building || roles.is_road_surface_area() {
@@ -160,25 +161,6 @@ impl OsmData {
         }
         if let (Some(class), false) = (&roles.vehicle_road, roles.area_yes) {
             self.add_centreline(way, class, features);
-        }
-    }
-
-    /// Counts a way below the street and keeps its line for the extent only: no street-level
-    /// scanner sees it, so it is neither building nor road surface.
-    fn set_aside_underground(&self, way: &OsmWay, features: &mut MapFeatures) {
-        let counts = &mut features.source_counts;
-        counts.underground_road_ways += usize::from(way.roles.vehicle_road.is_some());
-        counts.underground_buildings += usize::from(way.roles.building);
-        let line: Vec<Coord<f64>> = way
-            .refs
-            .iter()
-            .filter_map(|r| self.nodes.get(r).copied())
-            .collect();
-        if way.roles.building
-            || way.roles.vehicle_road.is_some()
-            || way.roles.is_road_surface_area()
-        {
-            features.underground.push(LineString::new(line));
         }
     }
 

@@ -985,6 +985,7 @@ fn pavement_fraction(net: &RoadNetwork, path: &Polyline) -> f64 {
 mod tests {
     use super::*;
     use crate::roadnet::Route;
+    use crate::testing::rect_ring;
 
     fn straight_route(len: f64, junction_at: Option<f64>) -> Route {
         Route {
@@ -1153,14 +1154,7 @@ mod tests {
         // arc. Before the fix it drew its next route there and its new lane began with the
         // chord to the old lane's end: its heading jumped by up to half the arc left (17.6° on
         // `held-out/helsinki-random` seed 81). It now draws once past the arc.
-        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| {
-            vec![vec![
-                Vec2::new(x0, y0),
-                Vec2::new(x1, y0),
-                Vec2::new(x1, y1),
-                Vec2::new(x0, y1),
-            ]]
-        };
+        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| vec![rect_ring(x0, y0, x1, y1)];
         let world = crate::world::World::new(
             vec![],
             vec![rect(0.0, -4.0, 204.0, 4.0), rect(196.0, -4.0, 204.0, 300.0)],
@@ -1541,14 +1535,7 @@ mod tests {
     /// A pedestrian on a pavement along y = 110 (x 0..200) through a building (x 60..140).
     fn pedestrian_through_a_building(s_m: f64) -> (RoadNetwork, Actor) {
         use rand::SeedableRng;
-        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| {
-            vec![
-                Vec2::new(x0, y0),
-                Vec2::new(x1, y0),
-                Vec2::new(x1, y1),
-                Vec2::new(x0, y1),
-            ]
-        };
+        let rect = rect_ring;
         let building = crate::world::Building::new(vec![rect(60.0, 105.0, 140.0, 115.0)]).unwrap();
         let net = RoadNetwork::new(&crate::world::World::new(
             vec![building],

@@ -63,9 +63,10 @@ pub struct Route {
     /// Median half-width of the road surface along the route, metres.
     pub half_width_m: f64,
     /// The lane cars follow where `path` offset to the right (`lane_offset_m`), or the
-    /// opposite lane, runs into a building ([`FACADE_CLEARANCE_M`]): that offset moved sideways,
-    /// within the road, into the part free of buildings ([`RoadNetwork::lane_clear_of_buildings`]). `None`: the offset keeps its
-    /// clearance and is the lane.
+    /// opposite lane, runs into a building ([`FACADE_CLEARANCE_M`]): that offset moved
+    /// sideways, within the road, into the part free of buildings
+    /// ([`RoadNetwork::lane_clear_of_buildings`]). `None`: the offset keeps its clearance and
+    /// is the lane.
     pub lane: Option<Polyline>,
 }
 
@@ -696,23 +697,21 @@ impl RoadNetwork {
     /// The right-hand lane of `path` (a road of median half-width `half_width_m`) kept out of
     /// buildings, or `None` when neither it nor the opposite lane runs into one
     /// ([`FACADE_CLEARANCE_M`]; then nothing changes). Sampled every metre, each point where
-    /// either lane is in a building moves sideways
-    /// to where the lane rule puts it in the free part of the road's cross-section
-    /// (`RoadNetwork::free_space_shift`). Every shift fades out at `LANE_SHIFT_SLOPE`
-    /// either side, and the moved points are simplified again.
+    /// either lane is in a building moves sideways to where the lane rule puts it in the free
+    /// part of the road's cross-section (`RoadNetwork::free_space_shift`). Every shift fades out
+    /// at `LANE_SHIFT_SLOPE` either side, and the moved points are simplified again.
     pub fn lane_clear_of_buildings(&self, path: &Polyline, half_width_m: f64) -> Option<Polyline> {
         let offset_m = lane_offset_m(half_width_m);
         let lane = path.offset(-offset_m);
         let samples = lane_samples(&lane);
-        let clearance = FACADE_CLEARANCE_M;
         let shifts: Vec<f64> = samples
             .iter()
             .map(|&(p, normal, _)| {
                 // This lane's point and the opposite lane's: both move, or neither, so that
                 // the two stay apart.
                 let opposite = p.plus(normal.scale(2.0 * offset_m));
-                if self.building_distance(p, clearance) >= clearance
-                    && self.building_distance(opposite, clearance) >= clearance
+                if !self.building_within(p, FACADE_CLEARANCE_M)
+                    && !self.building_within(opposite, FACADE_CLEARANCE_M)
                 {
                     return 0.0;
                 }
@@ -885,18 +884,12 @@ fn douglas_peucker(points: &[Vec2], eps_m: f64) -> Vec<Vec2> {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+    use crate::testing::rect_ring;
     use rand::SeedableRng;
 
     /// A plus-shaped crossing of two 8 m wide streets, 200 m long each, centred at (100, 100).
     pub(crate) fn crossing_world() -> World {
-        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| {
-            vec![vec![
-                Vec2::new(x0, y0),
-                Vec2::new(x1, y0),
-                Vec2::new(x1, y1),
-                Vec2::new(x0, y1),
-            ]]
-        };
+        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| vec![rect_ring(x0, y0, x1, y1)];
         World::new(
             vec![],
             vec![rect(0.0, 96.0, 200.0, 104.0), rect(96.0, 0.0, 104.0, 200.0)],
@@ -939,14 +932,7 @@ mod tests {
         // steps between x = 100 and x = 101 every 10 m. A lane following each step would weave
         // (the ego swung ±10° about once a second on such a street); the route keeps straight
         // on: the turns between its consecutive segments add up to (almost) nothing.
-        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| {
-            vec![vec![
-                Vec2::new(x0, y0),
-                Vec2::new(x1, y0),
-                Vec2::new(x1, y1),
-                Vec2::new(x0, y1),
-            ]]
-        };
+        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| vec![rect_ring(x0, y0, x1, y1)];
         let mut roads = vec![rect(96.0, 0.0, 104.0, 200.0)];
         roads.extend((0..10).map(|k| {
             let y0 = 20.0 * f64::from(k) + 5.0;
@@ -1053,14 +1039,7 @@ mod tests {
     /// An 8 m street along y = 100 (x 0..200) and, when `facade_y` is given, a building
     /// (x 60..140) from y = 80 up to `facade_y`: above 96 it covers the street's south side.
     fn street_with_facade(facade_y: Option<f64>) -> World {
-        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| {
-            vec![
-                Vec2::new(x0, y0),
-                Vec2::new(x1, y0),
-                Vec2::new(x1, y1),
-                Vec2::new(x0, y1),
-            ]
-        };
+        let rect = rect_ring;
         let buildings = facade_y
             .and_then(|y| crate::world::Building::new(vec![rect(60.0, 80.0, 140.0, y)]))
             .into_iter()

@@ -45,3 +45,16 @@ pub fn small_scenario(seed: u64) -> Scenario {
     s.ego.waypoints = vec![[5.0, 100.0], [195.0, 100.0]];
     s
 }
+
+/// The corners of the axis-aligned rectangle from (`x0`, `y0`) to (`x1`, `y1`), anticlockwise:
+/// a ring for the roads and buildings of worlds that tests build by hand.
+#[cfg(test)]
+pub(crate) fn rect_ring(x0: f64, y0: f64, x1: f64, y1: f64) -> Vec<crate::geometry::Vec2> {
+    use crate::geometry::Vec2;
+    vec![
+        Vec2::new(x0, y0),
+        Vec2::new(x1, y0),
+        Vec2::new(x1, y1),
+        Vec2::new(x0, y1),
+    ]
+}

@@ -474,21 +474,18 @@ impl MotionStage {
             }
             // Cells that moved spanning more than a road user: a static thing the pose's
             // error shifted (`moving_max_extent_m`), "not moving" as a static track's, unless
-            // they are narrow across the track's velocity (`moving_max_across_m`) and no
-            // longer than a bus (`moving_max_length_m`).
+            // they are narrow across the track's velocity, or, its heading unsure, across their
+            // own long axis (`moving_max_across_m`), and no longer than a bus
+            // (`moving_max_length_m`).
+            let [vx, vy] = track.velocity;
             if let MotionMass::Moving(_) = mass
                 && too_large_to_move(
                     cells,
                     moved,
                     &labels,
                     cell_size_m,
-                    track.velocity.map(|v| v.mean_mps),
-                    track
-                        .velocity
-                        .map(|v| v.variance)
-                        .iter()
-                        .sum::<f64>()
-                        .sqrt(),
+                    [vx.mean_mps, vy.mean_mps],
+                    (vx.variance + vy.variance).sqrt(),
                     &self.params,
                 )
             {

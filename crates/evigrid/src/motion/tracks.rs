@@ -545,6 +545,7 @@ mod tests {
             .map_or(1.0, |t| t.velocity[0].mean_mps);
         assert_eq!(v, 0.0);
     }
+
     #[test]
     fn a_piece_with_a_velocity_keeps_the_moving_track_against_a_nearer_unmeasured_one() {
         let params = MotionParams::default();
